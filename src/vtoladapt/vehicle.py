@@ -1,0 +1,243 @@
+"""Vehicle configuration: what an aircraft is, as the controller and the plant start from it.
+
+A vehicle file (TOML) describes one aircraft: mass properties, geometry, the force-model
+coefficients in the paper's Table I units (throttle in percent, forces normalised by mass), their
+standard deviations, the initial adaptation gains (Table III), actuator and flight-envelope limits.
+Two ship with the package: ``caltech_vtol`` (the paper's aircraft) and ``px4_standard_vtol``
+(PX4's Gazebo standard VTOL, converted). Load either, or your own file, with
+:func:`load_vehicle`.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from .config import ConfigError, build, read_toml, setting
+
+VEHICLE_DIR = Path(__file__).with_name("vehicles")
+PARAMETER_NAMES = ("CTx", "CTz", "CS", "CD0", "CD1", "CD2", "CL0", "CL1")
+"""The adapted parameters theta, in the paper's order."""
+
+
+@dataclass(frozen=True)
+class MassProperties:
+    """Mass and inertia about the centre of mass, body FRD axes."""
+
+    mass_kg: float = setting("kg", "take-off mass", gt=0.0)
+    inertia_kgm2: tuple[float, ...] = setting(
+        "kg m^2", "principal moments of inertia Ixx, Iyy, Izz", gt=0.0, length=3)
+    product_of_inertia_xz_kgm2: float = setting("kg m^2", "product of inertia Ixz", default=0.0)
+
+    def _check(self, source: str) -> None:
+        ixx, iyy, izz = self.inertia_kgm2
+        # A physical body satisfies the triangle inequalities on its principal moments.
+        if ixx + iyy < izz or iyy + izz < ixx or ixx + izz < iyy:
+            raise ConfigError(
+                f"{source}: [mass] inertia_kgm2 = {list(self.inertia_kgm2)}: violates the triangle "
+                "inequality of principal moments (each must be <= the sum of the other two)")
+
+    @property
+    def inertia_matrix(self) -> np.ndarray:
+        ixx, iyy, izz = self.inertia_kgm2
+        ixz = self.product_of_inertia_xz_kgm2
+        return np.array([[ixx, 0.0, -ixz], [0.0, iyy, 0.0], [-ixz, 0.0, izz]])
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """Where things are on the airframe (body FRD, metres from the centre of mass)."""
+
+    wing_area_m2: float = setting("m^2", "reference wing area S_ref", gt=0.0)
+    wingspan_m: float = setting("m", "wingspan", gt=0.0)
+    lift_rotor_positions_m: tuple[tuple[float, ...], ...] = setting(
+        "m", "body x, y of the four lift rotors (front-right, rear-left, front-left, rear-right)",
+        length=4)
+    lift_rotor_spin: tuple[int, ...] = setting(
+        "-", "+1 if the rotor turns clockwise seen from above (yaw reaction torque -z), else -1",
+        length=4, choices=None)
+    lift_prop_diameter_m: float = setting("m", "lift propeller diameter", gt=0.0)
+    pusher_prop_diameter_m: float = setting("m", "pusher propeller diameter", gt=0.0)
+    pusher_prop_pitch_m: float = setting("m", "pusher propeller geometric pitch", gt=0.0)
+
+    def _check(self, source: str) -> None:
+        for i, pos in enumerate(self.lift_rotor_positions_m):
+            if len(pos) != 2:
+                raise ConfigError(
+                    f"{source}: [geometry] lift_rotor_positions_m[{i}] = {list(pos)}: must be [x, y]")
+        for i, s in enumerate(self.lift_rotor_spin):
+            if s not in (-1, 1):
+                raise ConfigError(
+                    f"{source}: [geometry] lift_rotor_spin[{i}] = {s}: must be +1 or -1")
+        if sum(self.lift_rotor_spin) != 0:
+            raise ConfigError(
+                f"{source}: [geometry] lift_rotor_spin = {list(self.lift_rotor_spin)}: two rotors must "
+                "turn each way, or hover needs a constant yaw torque")
+
+
+@dataclass(frozen=True)
+class ForceModelCoefficients:
+    """The paper's force model (Table I units): throttle in percent, forces per unit mass.
+
+    ``T_x = CTx u_x^2``, ``T_z = CTz u_z^2`` (m/s^2, u in %), ``F_S = CS G(alpha, V, u_z)``
+    with ``G = u_z^k1 V^(2-k1) ((pi/2)^2 - alpha^2)(alpha + k2)``, wing
+    ``CL = CL0 + CL1 alpha``, ``CD = CD0 + CD1 alpha + CD2 alpha^2`` (alpha in rad).
+    """
+
+    CTx: float = setting("m/s^2 per %^2", "pusher thrust coefficient", gt=0.0)
+    CTz: float = setting("m/s^2 per %^2", "total lift-rotor thrust coefficient", gt=0.0)
+    CS: float = setting("m/s^2 per (%^k1 (m/s)^(2-k1))", "rotor side-force coefficient", ge=0.0)
+    k1: float = setting("-", "side-force exponent on rotor speed (eq:model_Fs)", gt=0.0, lt=2.0)
+    k2: float = setting("rad", "side-force asymmetry offset (eq:model_Fs)", gt=math.pi / 2)
+    CD0: float = setting("-", "zero-alpha drag coefficient", ge=0.0)
+    CD1: float = setting("1/rad", "linear drag coefficient")
+    CD2: float = setting("1/rad^2", "quadratic drag coefficient", ge=0.0)
+    CL0: float = setting("-", "zero-alpha lift coefficient")
+    CL1: float = setting("1/rad", "lift-curve slope", gt=0.0)
+
+    def as_table_theta(self) -> np.ndarray:
+        """theta in the paper's order and Table I units (throttle in percent)."""
+        return np.array([getattr(self, n) for n in PARAMETER_NAMES])
+
+
+@dataclass(frozen=True)
+class ForceModelStd:
+    """Posterior standard deviations of the force model (Table I), same units as the means."""
+
+    CTx: float = setting("m/s^2 per %^2", "std of CTx", gt=0.0)
+    CTz: float = setting("m/s^2 per %^2", "std of CTz", gt=0.0)
+    CS: float = setting("m/s^2 per (%^k1 (m/s)^(2-k1))", "std of CS", gt=0.0)
+    k1: float = setting("-", "std of k1", ge=0.0)
+    k2: float = setting("rad", "std of k2", ge=0.0)
+    CD0: float = setting("-", "std of CD0", gt=0.0)
+    CD1: float = setting("1/rad", "std of CD1", gt=0.0)
+    CD2: float = setting("1/rad^2", "std of CD2", gt=0.0)
+    CL0: float = setting("-", "std of CL0", gt=0.0)
+    CL1: float = setting("1/rad", "std of CL1", gt=0.0)
+
+    def as_table_theta(self) -> np.ndarray:
+        return np.array([getattr(self, n) for n in PARAMETER_NAMES])
+
+
+@dataclass(frozen=True)
+class Adaptation:
+    """Initial adaptation gains (Table III): the diagonal of P0 in the adaptation scaling."""
+
+    P0_diag: tuple[float, ...] = setting(
+        "adaptation units (see vtoladapt.models.scaling)",
+        "diagonal of P0 for CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1", gt=0.0, length=8)
+    bound_fraction: tuple[float, ...] = setting(
+        "-", "theta-hat may move this fraction of |theta_0| either side (per parameter)",
+        gt=0.0, length=8)
+    bound_sigmas: float = setting(
+        "-", "...and at least this many Table I standard deviations either side", ge=0.0)
+
+
+@dataclass(frozen=True)
+class Actuators:
+    """Motor dynamics and limits."""
+
+    throttle_max_pct: float = setting("%", "maximum throttle of every motor", gt=0.0, le=100.0)
+    lift_motor_time_constant_s: float = setting("s", "first-order lag of a lift motor", gt=0.0, le=1.0)
+    pusher_motor_time_constant_s: float = setting("s", "first-order lag of the pusher", gt=0.0, le=1.0)
+    yaw_torque_per_thrust_m: float = setting(
+        "m", "lift-rotor reaction torque per unit thrust (Nm/N)", gt=0.0)
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """Flight-envelope limits the controller respects."""
+
+    alpha_max_deg: float = setting("deg", "largest desired angle of attack (eq:alphad)", gt=0.0, le=45.0)
+    hover_blend_airspeed_mps: tuple[float, ...] = setting(
+        "m/s", "below the first airspeed the desired attitude is the multirotor solution, above the "
+        "second the incident-wind solution; smooth blend between", ge=0.0, length=2)
+    air_density_kgpm3: float = setting("kg/m^3", "air density the coefficients refer to", gt=0.0)
+
+    def _check(self, source: str) -> None:
+        lo, hi = self.hover_blend_airspeed_mps
+        if not lo < hi:
+            raise ConfigError(
+                f"{source}: [envelope] hover_blend_airspeed_mps = {list(self.hover_blend_airspeed_mps)}: "
+                "the first must be below the second")
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    """A validated vehicle configuration (see the module docstring)."""
+
+    name: str = setting("-", "short identifier")
+    description: str = setting("-", "one line on where the numbers come from")
+    mass: MassProperties = setting("-", "mass properties")
+    geometry: Geometry = setting("-", "geometry")
+    force_model: ForceModelCoefficients = setting("-", "force-model means (Table I units)")
+    force_model_std: ForceModelStd = setting("-", "force-model standard deviations (Table I units)")
+    adaptation: Adaptation = setting("-", "adaptation prior (Table III)")
+    actuators: Actuators = setting("-", "actuators")
+    envelope: Envelope = setting("-", "flight envelope")
+    source_path: str = setting("-", "file the vehicle was read from", default="")
+
+    @cached_property
+    def aero_scale_per_m(self) -> float:
+        """``rho S_ref / (2 m)`` (1/m): dynamic pressure times area, per mass, per V^2."""
+        return 0.5 * self.envelope.air_density_kgpm3 * self.geometry.wing_area_m2 / self.mass.mass_kg
+
+    @cached_property
+    def model_kernel(self) -> np.ndarray:
+        """Kernel parameters of the force model (see :mod:`vtoladapt.models`)."""
+        from .models import model_kernel_params
+
+        return model_kernel_params(self.aero_scale_per_m, self.force_model.k1, self.force_model.k2)
+
+    @cached_property
+    def theta_scaled(self) -> np.ndarray:
+        """theta_0 in the adaptation scaling (see :func:`vtoladapt.models.theta_to_scaled`)."""
+        from .models import theta_to_scaled
+
+        return theta_to_scaled(self.force_model.as_table_theta(), self.force_model.k1)
+
+    @cached_property
+    def theta_std_scaled(self) -> np.ndarray:
+        from .models import theta_to_scaled
+
+        return theta_to_scaled(self.force_model_std.as_table_theta(), self.force_model.k1)
+
+    def replace(self, **changes) -> "Vehicle":
+        """A copy with some top-level sections replaced (validated sections, not dicts)."""
+        return dataclasses.replace(self, **changes)
+
+
+def available_vehicles() -> list[str]:
+    """Names of the vehicles shipped with the package."""
+    return sorted(p.stem for p in VEHICLE_DIR.glob("*.toml"))
+
+
+def vehicle_from_mapping(data: dict, source: str) -> Vehicle:
+    """Build a :class:`Vehicle` from a parsed TOML mapping, naming ``source`` in errors."""
+    data = dict(data)
+    data.setdefault("source_path", source)
+    return build(Vehicle, data, source=source)
+
+
+def load_vehicle(name_or_path: str | Path) -> Vehicle:
+    """Load and validate a vehicle by shipped name (``caltech_vtol``, ``px4_standard_vtol``) or path.
+
+    Raises
+    ------
+    ConfigError
+        If the name is unknown, the file is missing or invalid; the message names the file, the key,
+        the value and what is allowed.
+    """
+    text = str(name_or_path)
+    path = Path(text)
+    if not (path.suffix == ".toml" or path.exists()):
+        path = VEHICLE_DIR / f"{text}.toml"
+        if not path.exists():
+            raise ConfigError(
+                f"vehicle {text!r}: unknown name; shipped vehicles: {', '.join(available_vehicles())}, "
+                "or give a path to a .toml file")
+    return vehicle_from_mapping(read_toml(path), str(path))
