@@ -137,8 +137,11 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
         key = unknown[0]
         close = difflib.get_close_matches(key, list(fields), n=1)
         hint = f"; did you mean '{close[0]}'?" if close else ""
+        shown = repr(data[key])
+        shown = shown if len(shown) <= 60 else shown[:57] + "..."
         raise ConfigError(
-            f"{_where(source, section, key)}: unknown key{hint} Allowed keys: {', '.join(fields)}")
+            f"{_where(source, section, key)} = {shown}: unknown key{hint} "
+            f"Allowed keys: {', '.join(fields)}")
     kwargs = {}
     for name, f in fields.items():
         where = _where(source, section, name)

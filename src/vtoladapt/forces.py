@@ -239,10 +239,13 @@ def body_force_jacobian(v_i_B, u_x, u_z, theta, model, J_v, J_u) -> None:
         dP = -2.0 * ad * (ad + k2) + (HALF_PI_SQ - ad * ad)
         uk = u_z**k1
         G = uk * V ** (2.0 - k1) * P
-        dad = (-vz * vx / (h * V2), -vz * vy / (h * V2), h / V2)
-        dV = (vx / V, vy / V, vz / V)
-        dcb = (vy * vy / (h * h2), -vx * vy / (h * h2), 0.0)
-        dsb = (-vx * vy / (h * h2), vx * vx / (h * h2), 0.0)
+        # Written with the ratios cb, sb, vz/V (each <= 1) so no product like h * h2 can underflow
+        # to zero (Numba raises ZeroDivisionError) at tiny but nonzero airspeed.
+        sz = vz / V
+        dad = (-sz * cb / V, -sz * sb / V, (h / V) / V)
+        dV = (vx / V, vy / V, sz)
+        dcb = (sb * sb / h, -cb * sb / h, 0.0)
+        dsb = (-cb * sb / h, cb * cb / h, 0.0)
         CS = theta[I_CS]
         for j in range(3):
             dG = uk * ((2.0 - k1) * V ** (1.0 - k1) * dV[j] * P + V ** (2.0 - k1) * dP * dad[j])

@@ -234,7 +234,8 @@ def load_vehicle(name_or_path: str | Path) -> Vehicle:
     """
     text = str(name_or_path)
     path = Path(text)
-    if not (path.suffix == ".toml" or path.exists()):
+    # is_file, not exists: a folder named like a shipped vehicle (e.g. an output folder) is no config.
+    if not (path.suffix == ".toml" or path.is_file()):
         path = VEHICLE_DIR / f"{text}.toml"
         if not path.exists():
             raise ConfigError(

@@ -1,0 +1,106 @@
+"""Motor mixer: collective lift, pusher throttle and body moment command -> five motor commands.
+
+The mixer belongs to the flight computer, so it uses the vehicle's nominal geometry and Table I
+thrust coefficient, never the plant's truth. Each lift rotor ``i`` at body ``(x_i, y_i)`` gives
+thrust ``T_i`` along body -z, so
+
+    T_total = sum T_i,  tau_x = -sum y_i T_i,  tau_y = sum x_i T_i,  tau_z = -sum s_i k_m T_i
+
+(``s_i = +1`` for a rotor turning clockwise seen from above, ``k_m`` its torque per thrust). The
+mixer inverts this 4x4 map. When a motor would leave ``[0, T_max]`` it gives up yaw first, then
+shifts the collective, then clips (roll and pitch, which hold the attitude, are kept longest),
+as PX4's multicopter mixer does, and reports that it saturated.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .layout import CMD_TAU_B, CMD_U_X, CMD_U_Z, MOTOR_PUSHER, N_LIFT
+from .vehicle import Vehicle
+
+MX_INV = 0          # 4x4 inverse of the allocation matrix, row-major (16)
+MX_T_UNIT = 16      # thrust of one lift rotor at full throttle, N
+MX_TOTAL_UNIT = 17  # total lift at full collective, N (= 4 * MX_T_UNIT)
+MX_U_MAX = 18       # throttle limit, fraction
+MX_SIZE = 19
+
+
+def mixer_params(vehicle: Vehicle) -> np.ndarray:
+    """Kernel parameters of the mixer from the vehicle's nominal geometry and Table I."""
+    g = vehicle.geometry
+    km = vehicle.actuators.yaw_torque_per_thrust_m
+    A = np.zeros((4, N_LIFT))
+    for i, (x, y) in enumerate(g.lift_rotor_positions_m):
+        A[0, i] = 1.0
+        A[1, i] = -y
+        A[2, i] = x
+        A[3, i] = -g.lift_rotor_spin[i] * km
+    if abs(np.linalg.det(A)) < 1e-12:
+        raise ValueError("lift rotor layout cannot produce independent roll, pitch and yaw moments")
+    t_unit = vehicle.mass.mass_kg * vehicle.theta_scaled[1] / N_LIFT
+    p = np.zeros(MX_SIZE)
+    p[MX_INV:MX_INV + 16] = np.linalg.inv(A).ravel()
+    p[MX_T_UNIT] = t_unit
+    p[MX_TOTAL_UNIT] = N_LIFT * t_unit
+    p[MX_U_MAX] = vehicle.actuators.throttle_max_pct / 100.0
+    return p
+
+
+@njit(cache=True)
+def _solve(p, T_total, tx, ty, tz, T) -> None:
+    Ai = p[MX_INV:MX_INV + 16]
+    for i in range(N_LIFT):
+        T[i] = Ai[4 * i] * T_total + Ai[4 * i + 1] * tx + Ai[4 * i + 2] * ty + Ai[4 * i + 3] * tz
+
+
+@njit(cache=True)
+def mix(cmd, p, motor_cmd) -> bool:
+    """Motor commands (fractions, lift rotors 1-4 then pusher) from a controller command.
+
+    Returns True if any limit was hit (yaw reduced, collective shifted or a motor clipped).
+    Non-finite inputs are treated as zero so that the motors never receive NaN.
+    """
+    u_max = p[MX_U_MAX]
+    T_max = p[MX_T_UNIT] * u_max * u_max
+    uz = cmd[CMD_U_Z] if np.isfinite(cmd[CMD_U_Z]) else 0.0
+    uz = min(max(uz, 0.0), u_max)
+    T_total = p[MX_TOTAL_UNIT] * uz * uz
+    tx = cmd[CMD_TAU_B] if np.isfinite(cmd[CMD_TAU_B]) else 0.0
+    ty = cmd[CMD_TAU_B + 1] if np.isfinite(cmd[CMD_TAU_B + 1]) else 0.0
+    tz = cmd[CMD_TAU_B + 2] if np.isfinite(cmd[CMD_TAU_B + 2]) else 0.0
+    T = np.empty(N_LIFT)
+    _solve(p, T_total, tx, ty, tz, T)
+    saturated = False
+    lo = T.min()
+    hi = T.max()
+    if lo < 0.0 or hi > T_max:
+        saturated = True
+        # largest yaw fraction s in [0, 1] that keeps every rotor inside the limits
+        T0 = np.empty(N_LIFT)
+        _solve(p, T_total, tx, ty, 0.0, T0)
+        s = 1.0
+        for i in range(N_LIFT):
+            d = T[i] - T0[i]
+            if d > 0.0 and T[i] > T_max:
+                s = min(s, max(T_max - T0[i], 0.0) / d)
+            elif d < 0.0 and T[i] < 0.0:
+                s = min(s, max(-T0[i], 0.0) / -d)
+        for i in range(N_LIFT):
+            T[i] = T0[i] + s * (T[i] - T0[i])
+        lo = T.min()
+        hi = T.max()
+        # shift the collective to bring roll/pitch inside, if the spread fits at all
+        if hi - lo <= T_max:
+            if lo < 0.0:
+                for i in range(N_LIFT):
+                    T[i] -= lo
+            elif hi > T_max:
+                for i in range(N_LIFT):
+                    T[i] -= hi - T_max
+    for i in range(N_LIFT):
+        Ti = min(max(T[i], 0.0), T_max)
+        motor_cmd[i] = np.sqrt(Ti / p[MX_T_UNIT])
+    ux = cmd[CMD_U_X] if np.isfinite(cmd[CMD_U_X]) else 0.0
+    motor_cmd[MOTOR_PUSHER] = min(max(ux, 0.0), u_max)
+    return saturated

@@ -1,0 +1,380 @@
+"""The simulated aircraft ("plant"): its own truth, separate from the controller's model.
+
+The plant starts from the vehicle's published coefficients but has its own parameter set (the
+scenario's ``[plant]`` table overrides any of them) and the effects the paper's linear model
+lacks, each switchable:
+
+* **stall and post-stall**: lift and drag blend from the linear polars to a flat plate with the
+  sigmoid of Beard & McLain (*Small Unmanned Aircraft*, 2012, eq. 4.10),
+  ``sigma(a) = (1 + e^{-M(a-a0)} + e^{M(a+a0)}) / ((1 + e^{-M(a-a0)})(1 + e^{M(a+a0)}))``;
+  flat plate ``C_N = 2 sin(a)`` (lift ``C_N cos a``, drag ``C_D0 + C_N sin a``);
+* **side force** ``C_Y = C_Y_beta beta`` (the model assumes ``C_Y = 0``);
+* **pusher thrust loss with advance ratio**: ``T = T_static(u) * C_T(J)/C_T(0)``, with
+  ``C_T(J)/C_T(0) = 1 + a1 J + a2 J^2`` fitted to the UIUC propeller database's 7x4 propeller
+  (Master Airscrew GF 7x4, volume 1; Brandt, Deters, Ananda, Dantsker & Selig, UIUC Propeller
+  Database; the data set holds no APC 7x4). The rotor speed is linear in throttle, with the full
+  speed that makes the static thrust equal the vehicle's ``CTx`` at 100 %;
+* **motor lag and saturation**: first-order lag per motor, commands clipped to [0, 1];
+* **rotor reaction torques** about body z (and the pusher's about body x);
+* **aerodynamic rate damping** (roll, pitch, yaw) proportional to airspeed.
+
+Rotor/wing interaction (slipstream over the wing) is not modelled: the lift rotors sit outboard
+of the wing root on booms and the paper gives nothing to calibrate it against.
+
+Kernels take the plant parameter array built once by :meth:`PlantConfig.to_kernel`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+from numba import njit
+
+from . import forces
+from .config import ConfigError, build, setting
+from .frames import GRAVITY_MPS2, quat_to_rotmat
+from .layout import MOTOR_PUSHER, N_LIFT, N_MOTORS, X_MOTOR, X_OMEGA_B, X_Q_WB, X_SIZE, X_V_W
+from .models import theta_to_scaled
+from .vehicle import PARAMETER_NAMES, Vehicle
+
+#: UIUC magf 7x4 static thrust coefficient (mean of the 16 static points, 3069-7203 RPM).
+UIUC_7X4_STATIC_CT = 0.08188
+#: UIUC magf 7x4 C_T(J)/C_T(0) - 1 = a1 J + a2 J^2, least squares over J in [0, 0.78].
+UIUC_7X4_CT_RATIO_COEFFS = (-0.7477, -1.2540)
+
+
+@dataclass(frozen=True)
+class PlantCoefficients:
+    """Optional overrides of the plant's true force-model coefficients (Table I units)."""
+
+    CTx: Optional[float] = setting("m/s^2 per %^2", "true pusher thrust coefficient", default=None, gt=0.0)
+    CTz: Optional[float] = setting("m/s^2 per %^2", "true lift thrust coefficient", default=None, gt=0.0)
+    CS: Optional[float] = setting("m/s^2 per (%^k1 (m/s)^(2-k1))", "true rotor side-force coefficient",
+                                  default=None, ge=0.0)
+    k1: Optional[float] = setting("-", "true side-force exponent", default=None, gt=0.0, lt=2.0)
+    k2: Optional[float] = setting("rad", "true side-force offset", default=None, gt=math.pi / 2)
+    CD0: Optional[float] = setting("-", "true CD0", default=None, ge=0.0)
+    CD1: Optional[float] = setting("1/rad", "true CD1", default=None)
+    CD2: Optional[float] = setting("1/rad^2", "true CD2", default=None, ge=0.0)
+    CL0: Optional[float] = setting("-", "true CL0", default=None)
+    CL1: Optional[float] = setting("1/rad", "true CL1", default=None, gt=0.0)
+
+
+@dataclass(frozen=True)
+class PlantConfig:
+    """The simulated aircraft's own parameters and which unmodelled effects are on."""
+
+    coefficients: PlantCoefficients = setting("-", "true coefficients (default: vehicle's Table I)",
+                                              default=PlantCoefficients())
+    mass_kg: Optional[float] = setting("kg", "true mass (default: vehicle's)", default=None, gt=0.0)
+    inertia_kgm2: Optional[tuple[float, ...]] = setting(
+        "kg m^2", "true principal inertia (default: vehicle's)", default=None, gt=0.0, length=3)
+    air_density_kgpm3: Optional[float] = setting("kg/m^3", "true air density", default=None, gt=0.0)
+    stall: bool = setting("-", "blend to flat-plate aerodynamics past stall", default=True)
+    stall_angle_deg: float = setting("deg", "angle of attack where the blend is half way", default=16.0,
+                                     gt=0.0, lt=60.0)
+    stall_blend_rate_per_rad: float = setting("1/rad", "sharpness M of the stall blend (Beard & McLain: 50)", default=50.0, gt=0.0)
+    side_force: bool = setting("-", "aerodynamic side force C_Y(beta)", default=True)
+    CY_beta_per_rad: float = setting("1/rad", "side-force slope (fuselage and V-tail)", default=-0.3, le=0.0)
+    pusher_advance_ratio_loss: bool = setting("-", "pusher thrust falls with advance ratio (UIUC 7x4)",
+                                              default=True)
+    pusher_static_CT: float = setting("-", "pusher static C_T (UIUC 7x4)", default=UIUC_7X4_STATIC_CT, gt=0.0)
+    pusher_CT_ratio_coeffs: tuple[float, ...] = setting(
+        "-", "a1, a2 of C_T(J)/C_T(0) = 1 + a1 J + a2 J^2 (UIUC 7x4)",
+        default=UIUC_7X4_CT_RATIO_COEFFS, length=2)
+    motor_lag: bool = setting("-", "first-order motor lag (else motors follow commands instantly)",
+                              default=True)
+    lift_motor_time_constant_s: Optional[float] = setting("s", "true lift motor lag (default: vehicle's)",
+                                                          default=None, gt=0.0, le=1.0)
+    pusher_motor_time_constant_s: Optional[float] = setting("s", "true pusher lag (default: vehicle's)",
+                                                            default=None, gt=0.0, le=1.0)
+    rotor_reaction_torque: bool = setting("-", "rotor drag torques (yaw from lift rotors, roll from pusher)",
+                                          default=True)
+    aero_rate_damping: bool = setting("-", "aerodynamic roll/pitch/yaw rate damping", default=True)
+    Clp: float = setting("-", "roll damping derivative", default=-0.4, le=0.0)
+    Cmq: float = setting("-", "pitch damping derivative (V-tail)", default=-6.0, le=0.0)
+    Cnr: float = setting("-", "yaw damping derivative", default=-0.15, le=0.0)
+
+    def true_coefficients(self, vehicle: Vehicle) -> dict[str, float]:
+        """The plant's coefficients in Table I units: vehicle's means with this config's overrides."""
+        out = {n: getattr(vehicle.force_model, n) for n in (*PARAMETER_NAMES, "k1", "k2")}
+        for name in out:
+            value = getattr(self.coefficients, name)
+            if value is not None:
+                out[name] = value
+        return out
+
+    def theta_true_scaled(self, vehicle: Vehicle) -> np.ndarray:
+        """The linear-model part of the truth in the adaptation scaling (for analysis only)."""
+        c = self.true_coefficients(vehicle)
+        return theta_to_scaled(np.array([c[n] for n in PARAMETER_NAMES]), c["k1"])
+
+    def to_kernel(self, vehicle: Vehicle) -> np.ndarray:
+        """Kernel parameter array (layout: the ``P_*`` constants of this module)."""
+        c = self.true_coefficients(vehicle)
+        theta = self.theta_true_scaled(vehicle)
+        mass = self.mass_kg if self.mass_kg is not None else vehicle.mass.mass_kg
+        inertia = np.array(self.inertia_kgm2 if self.inertia_kgm2 is not None else vehicle.mass.inertia_kgm2)
+        J = np.diag(inertia)
+        J[0, 2] = J[2, 0] = -vehicle.mass.product_of_inertia_xz_kgm2
+        rho = self.air_density_kgpm3 if self.air_density_kgpm3 is not None else vehicle.envelope.air_density_kgpm3
+        S = vehicle.geometry.wing_area_m2
+        b = vehicle.geometry.wingspan_m
+        D = vehicle.geometry.pusher_prop_diameter_m
+        # full pusher rotor speed (rev/s) at which the static thrust is CTx_s * m
+        n_max = math.sqrt(theta[0] * vehicle.mass.mass_kg / (self.pusher_static_CT * rho * D**4))
+        tau_lift = self.lift_motor_time_constant_s or vehicle.actuators.lift_motor_time_constant_s
+        tau_push = self.pusher_motor_time_constant_s or vehicle.actuators.pusher_motor_time_constant_s
+        p = np.zeros(P_SIZE)
+        p[P_MASS] = mass
+        p[P_FORCE_MASS] = vehicle.mass.mass_kg
+        p[P_J:P_J + 9] = J.ravel()
+        p[P_JINV:P_JINV + 9] = np.linalg.inv(J).ravel()
+        p[P_THETA:P_THETA + 8] = theta
+        p[P_K1] = c["k1"]
+        p[P_K2] = c["k2"]
+        p[P_RHO] = rho
+        p[P_S] = S
+        p[P_SPAN] = b
+        p[P_CHORD] = S / b
+        p[P_STALL_ON] = float(self.stall)
+        p[P_ALPHA_STALL] = math.radians(self.stall_angle_deg)
+        p[P_STALL_M] = self.stall_blend_rate_per_rad
+        p[P_CY_BETA] = self.CY_beta_per_rad if self.side_force else 0.0
+        p[P_PUSH_J_ON] = float(self.pusher_advance_ratio_loss)
+        p[P_CT_A1], p[P_CT_A2] = self.pusher_CT_ratio_coeffs
+        p[P_PUSH_NMAX] = n_max
+        p[P_PUSH_D] = D
+        p[P_LAG_ON] = float(self.motor_lag)
+        p[P_TAU_LIFT] = tau_lift
+        p[P_TAU_PUSH] = tau_push
+        for i, (x, y) in enumerate(vehicle.geometry.lift_rotor_positions_m):
+            p[P_ROTOR_X + i] = x
+            p[P_ROTOR_Y + i] = y
+            p[P_ROTOR_SPIN + i] = vehicle.geometry.lift_rotor_spin[i]
+        p[P_KM] = vehicle.actuators.yaw_torque_per_thrust_m if self.rotor_reaction_torque else 0.0
+        p[P_DAMP_ON] = float(self.aero_rate_damping)
+        p[P_CLP], p[P_CMQ], p[P_CNR] = self.Clp, self.Cmq, self.Cnr
+        return p
+
+
+def plant_config_from_mapping(data: dict | None, source: str) -> PlantConfig:
+    """Build a :class:`PlantConfig` from a scenario's ``[plant]`` table."""
+    return build(PlantConfig, data or {}, source=source, section="plant")
+
+
+# --- kernel parameter layout (private to this module) -----------------------------------------
+P_MASS = 0
+P_J = 1
+P_JINV = 10
+P_THETA = 19
+P_K1 = 27
+P_K2 = 28
+P_RHO = 29
+P_S = 30
+P_SPAN = 31
+P_CHORD = 32
+P_STALL_ON = 33
+P_ALPHA_STALL = 34
+P_STALL_M = 35
+P_CY_BETA = 36
+P_PUSH_J_ON = 37
+P_CT_A1 = 38
+P_CT_A2 = 39
+P_PUSH_NMAX = 40
+P_PUSH_D = 41
+P_LAG_ON = 42
+P_TAU_LIFT = 43
+P_TAU_PUSH = 44
+P_ROTOR_X = 45
+P_ROTOR_Y = 49
+P_ROTOR_SPIN = 53
+P_KM = 57
+P_DAMP_ON = 58
+P_CLP = 59
+P_CMQ = 60
+P_CNR = 61
+P_FORCE_MASS = 62  # mass the coefficients were normalised by (vehicle's), kg
+P_SIZE = 63
+PUSHER_J_MAX = 0.8  # edge of the UIUC data; the quadratic is not extrapolated beyond
+
+
+@njit(cache=True)
+def stall_blend(alpha_rad: float, alpha_stall_rad: float, M: float) -> float:
+    """Beard & McLain's stall blending sigmoid: 0 in attached flow, 1 past stall."""
+    a = min(max(alpha_rad, -np.pi), np.pi)
+    e1 = np.exp(min(-M * (a - alpha_stall_rad), 700.0))
+    e2 = np.exp(min(M * (a + alpha_stall_rad), 700.0))
+    return (1.0 + e1 + e2) / ((1.0 + e1) * (1.0 + e2))
+
+
+@njit(cache=True)
+def true_aero_coefficients(alpha_rad: float, p: np.ndarray) -> tuple:
+    """True lift and drag coefficients: linear polars blended into a flat plate past stall."""
+    th = p[P_THETA:P_THETA + 8]
+    CL = forces.lift_coefficient(alpha_rad, th[forces.I_CL0], th[forces.I_CL1])
+    CD = forces.drag_coefficient(alpha_rad, th[forces.I_CD0], th[forces.I_CD1], th[forces.I_CD2])
+    if p[P_STALL_ON] > 0.0:
+        s = stall_blend(alpha_rad, p[P_ALPHA_STALL], p[P_STALL_M])
+        CN = 2.0 * np.sin(alpha_rad)
+        CL = (1.0 - s) * CL + s * CN * np.cos(alpha_rad)
+        CD = (1.0 - s) * CD + s * (th[forces.I_CD0] + CN * np.sin(alpha_rad))
+    return CL, CD
+
+
+@njit(cache=True)
+def pusher_thrust_ratio(v_axial_mps: float, n_revps: float, p: np.ndarray) -> float:
+    """C_T(J)/C_T(0) of the pusher at the current advance ratio (UIUC 7x4 fit)."""
+    if p[P_PUSH_J_ON] <= 0.0:
+        return 1.0
+    if n_revps <= 1e-9:
+        return 1.0  # no thrust anyway (T ~ n^2); avoids J = inf
+    J = max(v_axial_mps, 0.0) / (n_revps * p[P_PUSH_D])
+    J = min(J, PUSHER_J_MAX)
+    return 1.0 + p[P_CT_A1] * J + p[P_CT_A2] * J * J
+
+
+@njit(cache=True)
+def true_forces_moments(x, v_wind_W, p, f_B, tau_B) -> None:
+    """True specific force (m/s^2, body) and moment (N m, body) at state ``x``.
+
+    Uses the motor outputs in ``x`` (after lag), the wind, and the plant's own parameters.
+    """
+    R = quat_to_rotmat(x[X_Q_WB:X_Q_WB + 4])
+    v_i = forces.incident_velocity(x[X_V_W:X_V_W + 3], v_wind_W, R)
+    V, alpha, beta = forces.airflow_angles(v_i)
+    th = p[P_THETA:P_THETA + 8]
+    mass = p[P_MASS]
+    m_ref = p[P_FORCE_MASS]  # coefficients are per unit of the vehicle's mass: newtons = m_ref * coeff
+    # lift rotors: thrust per rotor (N) and total
+    T_unit = m_ref * th[forces.I_CTZ] / N_LIFT  # N at full throttle, per rotor
+    tx = 0.0
+    ty = 0.0
+    tz = 0.0
+    T_total = 0.0
+    side = 0.0
+    alpha_disk, cb, sb = forces.rotor_flow_angles(v_i)
+    for i in range(N_LIFT):
+        w = x[X_MOTOR + i]
+        T = T_unit * w * w
+        T_total += T
+        tx += -p[P_ROTOR_Y + i] * T
+        ty += p[P_ROTOR_X + i] * T
+        tz += -p[P_ROTOR_SPIN + i] * p[P_KM] * T
+        # per-rotor share of the side force; G ~ u^k1, summed over rotors
+        side += 0.25 * m_ref * th[forces.I_CS] * forces.side_force_basis(alpha_disk, V, w, p[P_K1], p[P_K2])
+    # pusher
+    wp = x[X_MOTOR + MOTOR_PUSHER]
+    Tp = m_ref * th[forces.I_CTX] * wp * wp * pusher_thrust_ratio(v_i[0], p[P_PUSH_NMAX] * wp, p)
+    tx += -p[P_KM] * Tp  # pusher drag torque rolls the airframe
+    # wing
+    CL, CD = true_aero_coefficients(alpha, p)
+    qS = 0.5 * p[P_RHO] * V * V * p[P_S]
+    r = np.sqrt(v_i[0] * v_i[0] + v_i[2] * v_i[2])
+    sa, ca = (v_i[2] / r, v_i[0] / r) if r > 0.0 else (0.0, 1.0)
+    CY = p[P_CY_BETA] * beta
+    f_B[0] = (Tp - side * cb + qS * (CL * sa - CD * ca)) / mass
+    f_B[1] = (-side * sb + qS * CY) / mass
+    f_B[2] = (-T_total + qS * (-CL * ca - CD * sa)) / mass
+    if p[P_DAMP_ON] > 0.0:
+        # L = q S b Clp (p b / 2V) = 1/4 rho V S b^2 Clp p: smooth at V = 0
+        k = 0.25 * p[P_RHO] * V * p[P_S]
+        tx += k * p[P_SPAN] ** 2 * p[P_CLP] * x[X_OMEGA_B]
+        ty += k * p[P_CHORD] ** 2 * p[P_CMQ] * x[X_OMEGA_B + 1]
+        tz += k * p[P_SPAN] ** 2 * p[P_CNR] * x[X_OMEGA_B + 2]
+    tau_B[0] = tx
+    tau_B[1] = ty
+    tau_B[2] = tz
+
+
+@njit(cache=True)
+def plant_derivative(x, motor_cmd, v_wind_W, p, xdot, f_B) -> None:
+    """Time derivative of the plant state (eq:pos_dyn, eq:att_dyn, motor lag) into ``xdot``.
+
+    ``f_B`` receives the true specific force (what an accelerometer measures).
+    """
+    tau = np.empty(3)
+    true_forces_moments(x, v_wind_W, p, f_B, tau)
+    q = x[X_Q_WB:X_Q_WB + 4]
+    R = quat_to_rotmat(q)
+    # eq:pos_dyn: p_dot = v, v_dot = g + R f_b
+    for i in range(3):
+        xdot[i] = x[X_V_W + i]
+        xdot[X_V_W + i] = R[i, 0] * f_B[0] + R[i, 1] * f_B[1] + R[i, 2] * f_B[2]
+    xdot[X_V_W + 2] += GRAVITY_MPS2
+    # eq:att_dyn: q_dot = 1/2 q * [0, omega]
+    wx, wy, wz = x[X_OMEGA_B], x[X_OMEGA_B + 1], x[X_OMEGA_B + 2]
+    xdot[X_Q_WB] = 0.5 * (-q[1] * wx - q[2] * wy - q[3] * wz)
+    xdot[X_Q_WB + 1] = 0.5 * (q[0] * wx + q[2] * wz - q[3] * wy)
+    xdot[X_Q_WB + 2] = 0.5 * (q[0] * wy - q[1] * wz + q[3] * wx)
+    xdot[X_Q_WB + 3] = 0.5 * (q[0] * wz + q[1] * wy - q[2] * wx)
+    # J omega_dot = (J omega) x omega + tau
+    J = p[P_J:P_J + 9]
+    Ji = p[P_JINV:P_JINV + 9]
+    hx = J[0] * wx + J[1] * wy + J[2] * wz
+    hy = J[3] * wx + J[4] * wy + J[5] * wz
+    hz = J[6] * wx + J[7] * wy + J[8] * wz
+    mx = hy * wz - hz * wy + tau[0]
+    my = hz * wx - hx * wz + tau[1]
+    mz = hx * wy - hy * wx + tau[2]
+    xdot[X_OMEGA_B] = Ji[0] * mx + Ji[1] * my + Ji[2] * mz
+    xdot[X_OMEGA_B + 1] = Ji[3] * mx + Ji[4] * my + Ji[5] * mz
+    xdot[X_OMEGA_B + 2] = Ji[6] * mx + Ji[7] * my + Ji[8] * mz
+    # motors: first-order lag toward the saturated command
+    for i in range(N_MOTORS):
+        cmd = min(max(motor_cmd[i], 0.0), 1.0)
+        if p[P_LAG_ON] > 0.0:
+            tau_m = p[P_TAU_PUSH] if i == MOTOR_PUSHER else p[P_TAU_LIFT]
+            xdot[X_MOTOR + i] = (cmd - x[X_MOTOR + i]) / tau_m
+        else:
+            xdot[X_MOTOR + i] = 0.0
+
+
+@njit(cache=True)
+def _set_instant_motors(x, motor_cmd, p) -> None:
+    if p[P_LAG_ON] <= 0.0:
+        for i in range(N_MOTORS):
+            x[X_MOTOR + i] = min(max(motor_cmd[i], 0.0), 1.0)
+
+
+@njit(cache=True)
+def rk4_step(x, motor_cmd, v_wind_W, p, h, f_B) -> None:
+    """Advance ``x`` in place by one fixed RK4 step of ``h`` seconds, then renormalise q.
+
+    Inputs (motor commands, wind) are held over the step, as the controller holds its command.
+    ``f_B`` receives the specific force at the start of the step.
+    """
+    _set_instant_motors(x, motor_cmd, p)
+    k1 = np.empty(X_SIZE)
+    k2 = np.empty(X_SIZE)
+    k3 = np.empty(X_SIZE)
+    k4 = np.empty(X_SIZE)
+    xt = np.empty(X_SIZE)
+    f_tmp = np.empty(3)
+    plant_derivative(x, motor_cmd, v_wind_W, p, k1, f_B)
+    for i in range(X_SIZE):
+        xt[i] = x[i] + 0.5 * h * k1[i]
+    plant_derivative(xt, motor_cmd, v_wind_W, p, k2, f_tmp)
+    for i in range(X_SIZE):
+        xt[i] = x[i] + 0.5 * h * k2[i]
+    plant_derivative(xt, motor_cmd, v_wind_W, p, k3, f_tmp)
+    for i in range(X_SIZE):
+        xt[i] = x[i] + h * k3[i]
+    plant_derivative(xt, motor_cmd, v_wind_W, p, k4, f_tmp)
+    for i in range(X_SIZE):
+        x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+    n = np.sqrt(x[X_Q_WB] ** 2 + x[X_Q_WB + 1] ** 2 + x[X_Q_WB + 2] ** 2 + x[X_Q_WB + 3] ** 2)
+    for i in range(4):
+        x[X_Q_WB + i] /= n
+
+
+def hover_trim_motor(vehicle: Vehicle, plant: PlantConfig) -> np.ndarray:
+    """Motor outputs (fractions) that hold a level hover in still air for the plant's truth."""
+    c = plant.true_coefficients(vehicle)
+    m_true = plant.mass_kg if plant.mass_kg is not None else vehicle.mass.mass_kg
+    u = math.sqrt(GRAVITY_MPS2 * m_true / (vehicle.mass.mass_kg * c["CTz"] * 100.0**2))
+    if u > 1.0:
+        raise ConfigError(f"plant cannot hover: needs lift throttle {100 * u:.0f} % > 100 %")
+    return np.array([u, u, u, u, 0.0])

@@ -1,0 +1,253 @@
+"""Forward model of the five-hole conic/hemispherical probe tip: incident velocity -> pressures.
+
+Port geometry (probe along body +x, FRD body axes)
+--------------------------------------------------
+Five ports on the tip plus a static reference:
+
+=========  ==============================================  ===========================
+port       surface normal (unit vector, body axes)          role
+=========  ==============================================  ===========================
+centre     ``[1, 0, 0]``                                     total-pressure port
+bottom     ``[cos d, 0, +sin d]`` (towards body +z, down)    alpha pair, high side
+top        ``[cos d, 0, -sin d]``                            alpha pair, low side
+right      ``[cos d, +sin d, 0]`` (towards body +y)          beta pair, high side
+left       ``[cos d, -sin d, 0]``                            beta pair, low side
+static     (not on the tip)                                  reference of the q_inf sensor
+=========  ==============================================  ===========================
+
+``d`` is :attr:`ProbeTip.port_angle_deg`. The three differential pressure sensors read
+
+* ``q_inf = p_centre - p_static``
+* ``q_alpha = p_bottom - p_top``
+* ``q_beta = p_right - p_left``
+
+With positive angle of attack the vehicle moves down relative to the air (``v_iz > 0``), so the
+air arrives from below and the bottom port faces it: ``q_alpha > 0``, as eq:aoa needs
+(``v_iz`` proportional to ``k q_alpha``). Likewise positive sideslip (``v_iy > 0``) brings the
+air from the right, so ``q_beta > 0``.
+
+Pressure model
+--------------
+Potential flow over a sphere gives the surface pressure coefficient
+``Cp = 1 - (9/4) sin^2(theta)`` where ``theta`` is the angle between the surface normal and the
+direction the air comes from (the stagnation direction ``v_i_B / V``). We use
+``Cp_j = 1 - K sin^2(theta_j)`` for every port ``j`` with ``K`` = :attr:`ProbeTip.pressure_factor`
+(``9/4`` for a hemispherical tip in potential flow; a conic tip is approximated by the same law
+applied to the cone's face normal, ``d = 90 deg - cone half-angle``, with ``K`` as an empirical
+factor). Port pressures (gauge, relative to free-stream static) are ``p_j = q Cp_j`` with
+``q = rho V^2 / 2``; the static reference reads ``q * C_ps`` (``C_ps`` =
+:attr:`ProbeTip.static_port_coefficient`, 0 for a perfect static source). The model is valid
+for the flow arriving over the front of the tip (cone angle well below ``90 deg - d``); it gives
+finite numbers for any direction.
+
+Closed forms that follow (used in the tests): with ``n = v_i_B / V``,
+``q_alpha = 2 K sin(2 d) q n_x n_z``, ``q_beta = 2 K sin(2 d) q n_x n_y`` and
+``q_inf = q (1 - K (1 - n_x^2) - C_ps)``; so eq:aoa is exact to first order in the flow angles
+with ``k = 1 / (2 K sin 2d)`` (:meth:`ProbeTip.ideal_k`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from vtoladapt.config import setting
+from vtoladapt.probe.errors import require_number
+
+# Layout of the tip kernel array (ProbeTip.to_kernel()).
+TIP_PORT_ANGLE_RAD = 0
+TIP_PRESSURE_FACTOR = 1
+TIP_STATIC_COEFFICIENT = 2
+TIP_KERNEL_SIZE = 3
+
+# Order of the ports in probe_port_pressures' output.
+PORT_NAMES = ("centre", "bottom", "top", "right", "left", "static")
+
+
+@dataclass(frozen=True)
+class ProbeTip:
+    """Geometry and pressure law of the probe tip (see the module docstring).
+
+    Parameters
+    ----------
+    port_angle_deg : float
+        Angle between the probe axis and each peripheral port's surface normal (deg), in (0, 90).
+    pressure_factor : float
+        ``K`` in ``Cp = 1 - K sin^2(theta)``; 9/4 is potential flow over a sphere.
+    static_port_coefficient : float
+        Pressure coefficient of the q_inf sensor's static reference (0 = free-stream static).
+    """
+
+    port_angle_deg: float = setting(
+        "deg", "angle between the probe axis and each peripheral port's surface normal",
+        default=45.0, gt=0.0, lt=90.0)
+    pressure_factor: float = setting(
+        "-", "K in Cp = 1 - K sin^2(theta); 9/4 = potential flow over a sphere",
+        default=2.25, gt=0.0, le=10.0)
+    static_port_coefficient: float = setting(
+        "-", "pressure coefficient of the static reference of the q_inf sensor",
+        default=0.0, gt=-1.0, lt=1.0)
+
+    def __post_init__(self) -> None:
+        where = "ProbeTip"
+        require_number(where, "port_angle_deg", self.port_angle_deg, gt=0.0, lt=90.0, unit="deg")
+        require_number(where, "pressure_factor", self.pressure_factor, gt=0.0, le=10.0)
+        require_number(where, "static_port_coefficient", self.static_port_coefficient,
+                       gt=-1.0, lt=1.0)
+
+    def to_kernel(self) -> np.ndarray:
+        """Tip parameters as the float64 array the kernels take.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``[port_angle_rad, pressure_factor, static_port_coefficient]``.
+        """
+        out = np.empty(TIP_KERNEL_SIZE)
+        out[TIP_PORT_ANGLE_RAD] = math.radians(self.port_angle_deg)
+        out[TIP_PRESSURE_FACTOR] = self.pressure_factor
+        out[TIP_STATIC_COEFFICIENT] = self.static_port_coefficient
+        return out
+
+    def ideal_k(self) -> float:
+        """eq:aoa's ``k`` that is exact to first order in the flow angles: ``1/(2 K sin 2d)``."""
+        return 1.0 / (2.0 * self.pressure_factor * math.sin(2.0 * math.radians(self.port_angle_deg)))
+
+    def port_pressures(self, v_i_B, rho) -> np.ndarray:
+        """Port pressures (Pa, gauge re free-stream static) for one or many incident velocities.
+
+        Parameters
+        ----------
+        v_i_B : array_like, shape (3,) or (N, 3)
+            Incident velocity in body axes (m/s).
+        rho : float or array_like, shape (N,)
+            Air density (kg/m^3).
+
+        Returns
+        -------
+        numpy.ndarray, shape (6,) or (N, 6)
+            In the order of :data:`PORT_NAMES`.
+        """
+        v, r, single = _as_batch(v_i_B, rho)
+        out = np.empty((v.shape[0], 6))
+        _port_pressures_batch(v, r, self.to_kernel(), out)
+        return out[0] if single else out
+
+    def differential_pressures(self, v_i_B, rho) -> np.ndarray:
+        """``[q_inf, q_alpha, q_beta]`` (Pa) for one or many incident velocities (no sensor).
+
+        Parameters
+        ----------
+        v_i_B : array_like, shape (3,) or (N, 3)
+            Incident velocity in body axes (m/s).
+        rho : float or array_like, shape (N,)
+            Air density (kg/m^3).
+
+        Returns
+        -------
+        numpy.ndarray, shape (3,) or (N, 3)
+        """
+        v, r, single = _as_batch(v_i_B, rho)
+        out = np.empty((v.shape[0], 3))
+        _differential_pressures_batch(v, r, self.to_kernel(), out)
+        return out[0] if single else out
+
+
+def _as_batch(v_i_B, rho) -> tuple[np.ndarray, np.ndarray, bool]:
+    v = np.asarray(v_i_B, dtype=float)
+    single = v.ndim == 1
+    v = np.ascontiguousarray(np.atleast_2d(v))
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise ValueError(f"v_i_B must have shape (3,) or (N, 3), got {np.shape(v_i_B)}")
+    r = np.ascontiguousarray(np.broadcast_to(np.asarray(rho, dtype=float), (v.shape[0],)))
+    return v, r, single
+
+
+@njit(cache=True)
+def probe_port_pressures(v_i_B, rho, tip, out_p):
+    """Port pressures of the tip for incident velocity ``v_i_B`` (potential-flow law).
+
+    Parameters
+    ----------
+    v_i_B : float64[3]
+        Incident velocity in body axes FRD (m/s).
+    rho : float
+        Air density (kg/m^3).
+    tip : float64[3]
+        :meth:`ProbeTip.to_kernel`.
+    out_p : float64[6]
+        Written: pressures (Pa, gauge re free-stream static) at the centre, bottom (+z), top
+        (-z), right (+y), left (-y) ports and the static reference. All zero when ``V == 0``;
+        NaN when an input is not finite.
+    """
+    vx = v_i_B[0]
+    vy = v_i_B[1]
+    vz = v_i_B[2]
+    V2 = vx * vx + vy * vy + vz * vz
+    q = 0.5 * rho * V2
+    K = tip[TIP_PRESSURE_FACTOR]
+    if not np.isfinite(q):
+        for j in range(6):
+            out_p[j] = np.nan
+        return
+    if V2 == 0.0:
+        for j in range(6):
+            out_p[j] = 0.0
+        return
+    V = np.sqrt(V2)
+    nx = vx / V
+    ny = vy / V
+    nz = vz / V
+    c = np.cos(tip[TIP_PORT_ANGLE_RAD])
+    s = np.sin(tip[TIP_PORT_ANGLE_RAD])
+    # cos(theta_j) = n_j . (v_i / V): the air arrives from the direction +v_i.
+    cos_c = nx
+    cos_b = c * nx + s * nz
+    cos_t = c * nx - s * nz
+    cos_r = c * nx + s * ny
+    cos_l = c * nx - s * ny
+    out_p[0] = q * (1.0 - K * (1.0 - cos_c * cos_c))
+    out_p[1] = q * (1.0 - K * (1.0 - cos_b * cos_b))
+    out_p[2] = q * (1.0 - K * (1.0 - cos_t * cos_t))
+    out_p[3] = q * (1.0 - K * (1.0 - cos_r * cos_r))
+    out_p[4] = q * (1.0 - K * (1.0 - cos_l * cos_l))
+    out_p[5] = q * tip[TIP_STATIC_COEFFICIENT]
+
+
+@njit(cache=True)
+def probe_differential_pressures(v_i_B, rho, tip, out_q):
+    """The three differential pressures the probe's sensors see (no sensor effects).
+
+    ``q_inf = p_centre - p_static``, ``q_alpha = p_bottom - p_top``, ``q_beta = p_right -
+    p_left`` (see the module docstring for the port geometry and the pressure law).
+
+    Parameters
+    ----------
+    v_i_B : float64[3]
+        Incident velocity in body axes FRD (m/s).
+    rho : float
+        Air density (kg/m^3).
+    tip : float64[3]
+        :meth:`ProbeTip.to_kernel`.
+    out_q : float64[3]
+        Written: ``[q_inf, q_alpha, q_beta]`` (Pa).
+    """
+    p = np.empty(6)
+    probe_port_pressures(v_i_B, rho, tip, p)
+    out_q[0] = p[0] - p[5]
+    out_q[1] = p[1] - p[2]
+    out_q[2] = p[3] - p[4]
+
+
+@njit(cache=True)
+def _port_pressures_batch(v, rho, tip, out):
+    for i in range(v.shape[0]):
+        probe_port_pressures(v[i], rho[i], tip, out[i])
+
+
+@njit(cache=True)
+def _differential_pressures_batch(v, rho, tip, out):
+    for i in range(v.shape[0]):
+        probe_differential_pressures(v[i], rho[i], tip, out[i])

@@ -1,0 +1,137 @@
+"""The compiled closed-loop simulation: plant, wind, sensors, controller and mixer at 250 Hz.
+
+Per controller tick ``k`` (time ``t = k dt``), in this order:
+
+1. the wind model advances and gives the wind at the vehicle, held over the tick;
+2. the sensors sample the true state, the true specific force and the true incident flow;
+3. the controller computes its command from the measurement and the reference (its output is
+   held until the next tick, as on a flight computer);
+4. the mixer turns the command into five motor commands;
+5. one log row is written;
+6. the plant advances by ``dt`` with ``n_sub`` fixed RK4 substeps (default 1 kHz).
+
+The loop sees only kernel arrays; :mod:`vtoladapt.simulate` builds them from a scenario.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .control.adaptation import lyapunov_function
+from .control.kernel import (
+    CONTROLLER_DIAG_COLUMNS,
+    DIAG_Q_TILDE,
+    DIAG_V_TILDE,
+    controller_step,
+    state_P_inv,
+    state_theta_hat,
+)
+from .forces import airflow_angles, incident_velocity
+from .frames import quat_to_rotmat
+from .layout import (
+    CMD_SIZE,
+    COMMAND_COLUMNS,
+    MEAS_SIZE,
+    MEASUREMENT_COLUMNS,
+    N_MOTORS,
+    REF_SIZE,
+    REFERENCE_COLUMNS,
+    STATE_COLUMNS,
+    WIND_COLUMNS,
+    X_P_W,
+    X_Q_WB,
+    X_SIZE,
+    X_V_W,
+)
+from .mixer import mix
+from .plant import plant_derivative, rk4_step
+from .sensors import sensors_step
+from .wind import wind_step
+
+N_DIAG = len(CONTROLLER_DIAG_COLUMNS)
+
+LOG_COLUMNS: tuple[str, ...] = (
+    ("t_s",) + STATE_COLUMNS + WIND_COLUMNS
+    + ("v_i_x_mps", "v_i_y_mps", "v_i_z_mps", "airspeed_mps", "alpha_rad", "beta_rad",
+       "f_B_x_mps2", "f_B_y_mps2", "f_B_z_mps2")
+    + MEASUREMENT_COLUMNS + REFERENCE_COLUMNS + COMMAND_COLUMNS
+    + ("motor1_cmd_frac", "motor2_cmd_frac", "motor3_cmd_frac", "motor4_cmd_frac", "pusher_cmd_frac",
+       "mixer_saturated")
+    + tuple(CONTROLLER_DIAG_COLUMNS)
+    + ("lyapunov_V",)
+)
+"""Names of the log columns, in order; units are in the names (see README, "Log columns")."""
+
+_C_STATE = 1
+_C_WIND = _C_STATE + X_SIZE
+_C_VI = _C_WIND + 3
+_C_FB = _C_VI + 6
+_C_MEAS = _C_FB + 3
+_C_REF = _C_MEAS + MEAS_SIZE
+_C_CMD = _C_REF + REF_SIZE
+_C_MOTOR = _C_CMD + CMD_SIZE
+_C_DIAG = _C_MOTOR + N_MOTORS + 1
+_C_LYAP = _C_DIAG + N_DIAG
+N_LOG = _C_LYAP + 1
+assert N_LOG == len(LOG_COLUMNS)
+
+
+@njit(cache=True)
+def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state,
+                    ref_table, dt, n_sub, rng, theta_true, gamma, log) -> None:
+    """Simulate ``ref_table.shape[0]`` controller ticks, writing one row of ``log`` per tick.
+
+    ``x``, ``ctrl_state``, ``wind_state`` and ``sens_state`` are advanced in place, so a run
+    can be continued. ``theta_true`` (the plant's linear-model coefficients) is used only for
+    the Lyapunov function in the log, never by the controller.
+    """
+    n_ticks = ref_table.shape[0]
+    v_wind = np.zeros(3)
+    xdot = np.empty(X_SIZE)
+    f_B = np.empty(3)
+    f_tmp = np.empty(3)
+    meas = np.empty(MEAS_SIZE)
+    cmd = np.zeros(CMD_SIZE)
+    diag = np.zeros(N_DIAG)
+    motor_cmd = np.zeros(N_MOTORS)
+    h = dt / n_sub
+    for k in range(n_ticks):
+        t = k * dt
+        wind_step(wind_p, wind_state, t, dt, x[X_P_W:X_P_W + 3], rng, v_wind)
+        plant_derivative(x, motor_cmd, v_wind, plant_p, xdot, f_B)
+        R = quat_to_rotmat(x[X_Q_WB:X_Q_WB + 4])
+        v_i = incident_velocity(x[X_V_W:X_V_W + 3], v_wind, R)
+        sensors_step(sens_p, sens_state, t, dt, x, f_B, v_i, rng, meas)
+        ref = ref_table[k]
+        controller_step(ctrl_p, ctrl_state, meas, ref, dt, cmd, diag)
+        saturated = mix(cmd, mixer_p, motor_cmd)
+
+        row = log[k]
+        row[0] = t
+        for i in range(X_SIZE):
+            row[_C_STATE + i] = x[i]
+        for i in range(3):
+            row[_C_WIND + i] = v_wind[i]
+            row[_C_VI + i] = v_i[i]
+            row[_C_FB + i] = f_B[i]
+        V, alpha, beta = airflow_angles(v_i)
+        row[_C_VI + 3] = V
+        row[_C_VI + 4] = alpha
+        row[_C_VI + 5] = beta
+        for i in range(MEAS_SIZE):
+            row[_C_MEAS + i] = meas[i]
+        for i in range(REF_SIZE):
+            row[_C_REF + i] = ref[i]
+        for i in range(CMD_SIZE):
+            row[_C_CMD + i] = cmd[i]
+        for i in range(N_MOTORS):
+            row[_C_MOTOR + i] = motor_cmd[i]
+        row[_C_MOTOR + N_MOTORS] = 1.0 if saturated else 0.0
+        for i in range(N_DIAG):
+            row[_C_DIAG + i] = diag[i]
+        row[_C_LYAP] = lyapunov_function(
+            diag[DIAG_V_TILDE:DIAG_V_TILDE + 3], diag[DIAG_Q_TILDE],
+            state_theta_hat(ctrl_state), state_P_inv(ctrl_state), theta_true, gamma)
+
+        for _ in range(n_sub):
+            rk4_step(x, motor_cmd, v_wind, plant_p, h, f_tmp)

@@ -1,0 +1,193 @@
+"""The plant against closed forms, conservation laws and scipy's integrator."""
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import vtoladapt
+from vtoladapt import layout, plant
+from vtoladapt.config import ConfigError
+from vtoladapt.frames import GRAVITY_MPS2, quat_from_euler, quat_to_rotmat
+from vtoladapt.mixer import mix, mixer_params
+
+
+@pytest.fixture(scope="module")
+def veh():
+    return vtoladapt.load_vehicle("caltech_vtol")
+
+
+def kernel(veh, **overrides):
+    return plant.plant_config_from_mapping(overrides, "test").to_kernel(veh)
+
+
+def vacuum(p):
+    """Plant parameters with no air and no rotor torques: a free rigid body."""
+    p = p.copy()
+    p[plant.P_RHO] = 0.0
+    p[plant.P_KM] = 0.0
+    return p
+
+
+def integrate(x, motor, wind, p, h, n):
+    f = np.empty(3)
+    for _ in range(n):
+        plant.rk4_step(x, motor, wind, p, h, f)
+    return x
+
+
+def test_free_fall_matches_closed_form(veh):
+    p = vacuum(kernel(veh))
+    v0 = np.array([3.0, -1.0, -2.0])
+    x = layout.pack_state([1.0, 2.0, -50.0], v0, quat_from_euler(0.3, 0.2, -0.1), [0, 0, 0], np.zeros(5))
+    T = 3.0
+    integrate(x, np.zeros(5), np.zeros(3), p, 1e-3, 3000)
+    g = np.array([0, 0, GRAVITY_MPS2])
+    np.testing.assert_allclose(x[0:3], [1.0, 2.0, -50.0] + v0 * T + 0.5 * g * T**2, atol=1e-9)
+    np.testing.assert_allclose(x[3:6], v0 + g * T, atol=1e-10)
+
+
+def test_torque_free_rotation_conserves_energy_and_momentum(veh):
+    """60 s of tumbling: kinetic energy and world-frame angular momentum conserved to 1e-8 relative."""
+    p = vacuum(kernel(veh, motor_lag=True))
+    J = p[plant.P_J:plant.P_J + 9].reshape(3, 3)
+    omega0 = np.array([1.5, -0.7, 2.0])  # rad/s about all three axes: a genuinely tumbling body
+    x = layout.pack_state([0, 0, 0], [0, 0, 0], quat_from_euler(0.1, 0.2, 0.3), omega0, np.zeros(5))
+
+    def invariants(x):
+        w = x[10:13]
+        R = quat_to_rotmat(x[6:10])
+        return 0.5 * w @ J @ w, R @ (J @ w)
+
+    E0, L0 = invariants(x)
+    integrate(x, np.zeros(5), np.zeros(3), p, 1e-3, 60_000)
+    E1, L1 = invariants(x)
+    assert abs(E1 - E0) / E0 < 1e-8
+    np.testing.assert_allclose(L1, L0, rtol=0, atol=1e-8 * np.linalg.norm(L0))
+    assert abs(np.linalg.norm(x[6:10]) - 1.0) < 1e-12
+
+
+def test_rk4_is_fourth_order_against_solve_ivp(veh):
+    """Error vs a tight DOP853 reference falls ~16x per halving of the step."""
+    p = kernel(veh)
+    motor = np.array([0.62, 0.55, 0.60, 0.57, 0.35])
+    wind = np.array([-6.0, 1.0, 0.0])
+    x0 = layout.pack_state([0, 0, -5], [1.0, 0.0, 0.0], quat_from_euler(0.1, 0.15, 0.05),
+                           [0.2, -0.3, 0.1], [0.5, 0.5, 0.5, 0.5, 0.2])
+    T = 0.5
+
+    def rhs(t, x):
+        xd = np.empty(layout.X_SIZE)
+        plant.plant_derivative(x, motor, wind, p, xd, np.empty(3))
+        return xd
+
+    ref = solve_ivp(rhs, (0, T), x0, method="DOP853", rtol=1e-12, atol=1e-12).y[:, -1]
+    errors = []
+    for h in (0.01, 0.005, 0.0025):
+        x = integrate(x0.copy(), motor, wind, p, h, int(round(T / h)))
+        errors.append(np.linalg.norm((x - ref)[:6]))
+    ratios = [errors[i] / errors[i + 1] for i in range(2)]
+    for r in ratios:
+        assert 12.0 < r < 20.0, (errors, ratios)
+
+
+def test_trimmed_hover_stays_put(veh):
+    pc = plant.plant_config_from_mapping({}, "test")
+    p = pc.to_kernel(veh)
+    motor = plant.hover_trim_motor(veh, pc)
+    x = layout.pack_state([0, 0, -2.0], [0, 0, 0], [1, 0, 0, 0], [0, 0, 0], motor)
+    integrate(x, motor, np.zeros(3), p, 1e-3, 10_000)
+    np.testing.assert_allclose(x[0:3], [0, 0, -2.0], atol=1e-9)
+    np.testing.assert_allclose(x[10:13], 0.0, atol=1e-12)
+
+
+def test_heavier_plant_needs_more_throttle(veh):
+    light = plant.plant_config_from_mapping({}, "t")
+    heavy = plant.plant_config_from_mapping({"mass_kg": 2.0}, "t")
+    u_l = plant.hover_trim_motor(veh, light)[0]
+    u_h = plant.hover_trim_motor(veh, heavy)[0]
+    assert u_h / u_l == pytest.approx(np.sqrt(2.0 / 1.7), rel=1e-12)
+
+
+def test_incident_flow_is_minus_wind_at_rest(veh):
+    from vtoladapt.forces import incident_velocity
+
+    wind = np.array([-9.0, 2.0, 0.5])
+    for q in (np.array([1.0, 0, 0, 0]), quat_from_euler(0.7, -0.2, 0.4)):
+        R = quat_to_rotmat(q)
+        v_i = incident_velocity(np.zeros(3), wind, R)
+        np.testing.assert_allclose(R @ v_i, -wind, atol=1e-12)
+
+
+def test_stall_blend_and_flat_plate(veh):
+    p = kernel(veh)
+    CL_lin = 0.3705 + 3.2502 * np.radians(5)
+    CL, _ = plant.true_aero_coefficients(np.radians(5), p)
+    assert CL == pytest.approx(CL_lin, rel=1e-3)  # attached flow: linear polar
+    CL90, CD90 = plant.true_aero_coefficients(np.radians(90), p)
+    assert abs(CL90) < 1e-6 and CD90 == pytest.approx(0.1551 + 2.0, rel=1e-6)  # flat plate broadside
+    p_off = kernel(veh, stall=False)
+    CL_off, _ = plant.true_aero_coefficients(np.radians(40), p_off)
+    assert CL_off == pytest.approx(0.3705 + 3.2502 * np.radians(40), rel=1e-12)
+
+
+def test_pusher_thrust_ratio_follows_uiuc_fit(veh):
+    p = kernel(veh)
+    D = veh.geometry.pusher_prop_diameter_m
+    n = 100.0
+    for J in (0.0, 0.3, 0.6):
+        expected = 1 + plant.UIUC_7X4_CT_RATIO_COEFFS[0] * J + plant.UIUC_7X4_CT_RATIO_COEFFS[1] * J**2
+        assert plant.pusher_thrust_ratio(J * n * D, n, p) == pytest.approx(expected, rel=1e-12)
+    assert plant.pusher_thrust_ratio(50.0, 0.0, p) == 1.0
+    assert plant.pusher_thrust_ratio(5.0, n, kernel(veh, pusher_advance_ratio_loss=False)) == 1.0
+
+
+def test_uiuc_coefficients_match_the_data():
+    """The plant's default C_T(J) coefficients are the least-squares fit of the UIUC 7x4 data."""
+    from pathlib import Path
+    import csv
+
+    path = Path(__file__).resolve().parents[2] / "shared" / "data" / "uiuc-propdb" / "volume1_exp.csv"
+    if not path.exists():
+        pytest.skip(f"UIUC data not found at {path}")
+    rows = [r for r in csv.DictReader(path.open()) if r["BladeName"] == "magf 7.0x4.0"]
+    J = np.array([float(r["J"]) for r in rows])
+    CT = np.array([float(r["CT"]) for r in rows])
+    ct0 = CT[J == 0].mean()
+    a = np.linalg.lstsq(np.vstack([J, J**2]).T, CT / ct0 - 1, rcond=None)[0]
+    assert ct0 == pytest.approx(plant.UIUC_7X4_STATIC_CT, rel=1e-3)
+    np.testing.assert_allclose(a, plant.UIUC_7X4_CT_RATIO_COEFFS, rtol=1e-3)
+
+
+def test_plant_config_rejects_bad_values():
+    with pytest.raises(ConfigError, match=r"stal_angle_deg.*did you mean 'stall_angle_deg'"):
+        plant.plant_config_from_mapping({"stal_angle_deg": 15}, "scen.toml")
+    with pytest.raises(ConfigError, match=r"scen.toml: \[plant\] mass_kg = -1.0"):
+        plant.plant_config_from_mapping({"mass_kg": -1.0}, "scen.toml")
+    with pytest.raises(ConfigError, match=r"coefficients\] CL1"):
+        plant.plant_config_from_mapping({"coefficients": {"CL1": -2.0}}, "scen.toml")
+
+
+def test_mixer_round_trip_and_saturation(veh):
+    mp = mixer_params(veh)
+    g = veh.geometry
+    km = veh.actuators.yaw_torque_per_thrust_m
+    t_unit = veh.mass.mass_kg * veh.theta_scaled[1] / 4
+    cmd = np.array([0.2, 0.6, 0.05, -0.08, 0.01])
+    motor = np.empty(5)
+    assert not mix(cmd, mp, motor)
+    T = t_unit * motor[:4] ** 2
+    x = np.array([pos[0] for pos in g.lift_rotor_positions_m])
+    y = np.array([pos[1] for pos in g.lift_rotor_positions_m])
+    s = np.array(g.lift_rotor_spin)
+    np.testing.assert_allclose(T.sum(), 4 * t_unit * 0.36, rtol=1e-12)
+    np.testing.assert_allclose([-(y * T).sum(), (x * T).sum(), -(s * km * T).sum()], cmd[2:], atol=1e-12)
+    assert motor[4] == 0.2
+    # a yaw demand far beyond authority: yaw is given up first, roll/pitch kept
+    cmd = np.array([0.0, 0.6, 0.05, -0.08, 5.0])
+    assert mix(cmd, mp, motor)
+    T = t_unit * motor[:4] ** 2
+    np.testing.assert_allclose([-(y * T).sum(), (x * T).sum()], [0.05, -0.08], atol=1e-9)
+    assert np.all((motor >= 0) & (motor <= 1))
+    # NaN never reaches the motors
+    assert np.all(np.isfinite(motor)) and not np.isnan(motor).any()
+    mix(np.full(5, np.nan), mp, motor)
+    assert np.all(np.isfinite(motor))
