@@ -78,8 +78,8 @@ assert N_LOG == len(LOG_COLUMNS)
 
 @njit(cache=True)
 def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state,
-                    ref_table, dt, n_sub, rng, theta_true, gamma, log) -> None:
-    """Simulate ``ref_table.shape[0]`` controller ticks, writing one row of ``log`` per tick.
+                    ref_table, t0, dt, n_sub, rng, theta_true, gamma, log) -> None:
+    """Simulate ``ref_table.shape[0]`` controller ticks from time ``t0``, one row of ``log`` per tick.
 
     ``x``, ``ctrl_state``, ``wind_state`` and ``sens_state`` are advanced in place, so a run
     can be continued. ``theta_true`` (the plant's linear-model coefficients) is used only for
@@ -96,7 +96,7 @@ def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state,
     motor_cmd = np.zeros(N_MOTORS)
     h = dt / n_sub
     for k in range(n_ticks):
-        t = k * dt
+        t = t0 + k * dt
         wind_step(wind_p, wind_state, t, dt, x[X_P_W:X_P_W + 3], rng, v_wind)
         plant_derivative(x, motor_cmd, v_wind, plant_p, xdot, f_B)
         R = quat_to_rotmat(x[X_Q_WB:X_Q_WB + 4])

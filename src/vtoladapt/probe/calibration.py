@@ -482,7 +482,12 @@ def calibrate(data: ProbeCalibrationData, *, smoothing: float | None = None,
 
 @dataclass(frozen=True, eq=False)
 class CalibrationMetrics:
-    """Errors of one calibration on a set of points (valid readings only).
+    """Errors of one calibration on a set of points.
+
+    The statistics are over every point the estimator returned an estimate for (``n_used``):
+    readings flagged only for being outside the calibrated range are included (their estimate
+    is finite and is what a user would see), readings with no estimate (``q_inf`` too low or not
+    finite: zero vector) are not.
 
     Attributes
     ----------
@@ -490,8 +495,8 @@ class CalibrationMetrics:
         The model's name (``single_k``, ``calibrated``).
     points : str
         Which points: ``test``, ``calibration`` or ``all``.
-    n_points, n_valid : int
-        Points evaluated and readings flagged valid (the statistics use the valid ones).
+    n_points, n_valid, n_used : int
+        Points evaluated, readings flagged valid, and points with an estimate (used).
     angle_rms_deg, angle_max_deg : float
         RMS and maximum angle between estimated and true flow direction (deg).
     speed_rms_rel, speed_max_rel : float
@@ -499,7 +504,7 @@ class CalibrationMetrics:
     alpha_rms_deg, beta_rms_deg : float
         RMS errors of the two flow angles (deg).
     alpha_true_deg, beta_true_deg, alpha_est_deg, beta_est_deg : numpy.ndarray
-        Per-point angles (for the linearity figure); NaN estimates where invalid.
+        Per-point angles (for the linearity figure); NaN estimates where there is none.
     valid : numpy.ndarray of bool
     """
 
@@ -507,6 +512,7 @@ class CalibrationMetrics:
     points: str
     n_points: int
     n_valid: int
+    n_used: int
     angle_rms_deg: float
     angle_max_deg: float
     speed_rms_rel: float
@@ -527,7 +533,7 @@ class CalibrationMetrics:
                 "speed_rms_rel": f(self.speed_rms_rel), "speed_max_rel": f(self.speed_max_rel),
                 "alpha_rms_deg": f(self.alpha_rms_deg), "beta_rms_deg": f(self.beta_rms_deg),
                 "n_points": int(self.n_points), "n_valid": int(self.n_valid),
-                "points": self.points}
+                "n_used": int(self.n_used), "points": self.points}
 
 
 def evaluate_calibration(calibration, data: ProbeCalibrationData, points: str = "auto",
@@ -557,21 +563,26 @@ def evaluate_calibration(calibration, data: ProbeCalibrationData, points: str = 
     da = np.degrees(a_est) - sel.alpha_deg
     db = np.degrees(b_est) - sel.beta_deg
 
+    # Statistics over every point the estimator gave an estimate for (valid or flagged out of
+    # range); a zero vector means no estimate (low or non-finite pressures).
+    used = V_est > 0.0
+
     def rms(x):
-        return float(np.sqrt(np.mean(x[valid] ** 2))) if np.any(valid) else float("nan")
+        return float(np.sqrt(np.mean(x[used] ** 2))) if np.any(used) else float("nan")
 
     def mx(x):
-        return float(np.max(np.abs(x[valid]))) if np.any(valid) else float("nan")
+        return float(np.max(np.abs(x[used]))) if np.any(used) else float("nan")
 
     if name is None:
         name = "single_k" if isinstance(calibration, SingleKCalibration) else "calibrated"
     return CalibrationMetrics(
         model=name, points=label, n_points=len(sel), n_valid=int(np.count_nonzero(valid)),
+        n_used=int(np.count_nonzero(used)),
         angle_rms_deg=rms(ang), angle_max_deg=mx(ang), speed_rms_rel=rms(srel),
         speed_max_rel=mx(srel), alpha_rms_deg=rms(da), beta_rms_deg=rms(db),
         alpha_true_deg=sel.alpha_deg.copy(), beta_true_deg=sel.beta_deg.copy(),
-        alpha_est_deg=np.where(valid, np.degrees(a_est), np.nan),
-        beta_est_deg=np.where(valid, np.degrees(b_est), np.nan), valid=np.asarray(valid))
+        alpha_est_deg=np.where(used, np.degrees(a_est), np.nan),
+        beta_est_deg=np.where(used, np.degrees(b_est), np.nan), valid=np.asarray(valid))
 
 
 # --------------------------------------------------------------------------------------------

@@ -104,7 +104,9 @@ def _write_outputs(results: dict, data, out: Path, title: str) -> tuple[Path, Pa
                    "points": any_metrics.points, "n_points": any_metrics.n_points,
                    "angle_error": "angle between estimated and true flow direction (deg)",
                    "speed_error": "|V_est - V_true| / V_true",
-                   "statistics_over": "valid readings only (n_valid)"}
+                   "statistics_over": "points with an estimate (n_used), including readings "
+                                      "flagged outside the calibrated range; n_valid counts "
+                                      "the readings flagged valid"}
     if data.info.get("citation"):
         doc["info"]["data_citation"] = data.info["citation"]
     metrics_path = out / "metrics.json"

@@ -42,7 +42,7 @@ def plot_linearity(results: Mapping, path: str | Path, title: str = "") -> Path:
             marker, color, text = _STYLE.get(name, ("s", None, name))
             rms = getattr(m, f"{key}_rms_deg")
             ax.plot(true, est, marker, color=color, ms=4, mfc="none" if marker == "o" else None,
-                    ls="none", label=f"{text}: RMS {rms:.3f} deg (n={m.n_valid})")
+                    ls="none", label=f"{text}: RMS {rms:.3f} deg (n={m.n_used})")
             finite = np.isfinite(est)
             if np.any(finite):
                 lo = min(lo, np.min(true[finite]), np.min(est[finite]))

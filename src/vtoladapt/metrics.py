@@ -1,0 +1,62 @@
+"""Metrics of one run, as the paper judges its controllers (velocity tracking, prediction error)."""
+from __future__ import annotations
+
+import numpy as np
+
+from .frames import GRAVITY_MPS2
+from .results import SimulationResult
+
+PRED_ERR_SKIP_S = 2.0
+"""Prediction-error statistics skip the first seconds, while the filters and theta-hat settle."""
+OVERSHOOT_WINDOW_S = 5.0
+HIGH_WIND_THROTTLE_PCT = 60.0
+
+
+def fan_events(t: np.ndarray, fan_pct: np.ndarray) -> tuple[np.ndarray, float | None]:
+    """Mask of high-wind samples (fan >= 60 %) and the time the fan last switched off (or None)."""
+    high = fan_pct >= HIGH_WIND_THROTTLE_PCT - 1e-9
+    off = None
+    on = fan_pct > 0.5
+    drops = np.nonzero(on[:-1] & ~on[1:])[0]
+    if drops.size:
+        off = float(t[drops[-1] + 1])
+    return high, off
+
+
+def run_metrics(result: SimulationResult, fan_pct: np.ndarray) -> dict[str, float]:
+    """Velocity-tracking, prediction-error, saturation and Lyapunov metrics of one run.
+
+    ``fan_pct`` is the fan-array throttle at each log row (from the scenario's wind schedule).
+    """
+    t = result.time_s
+    v_err = np.linalg.norm(result.velocity_error_W, axis=1)
+    p_err = np.linalg.norm(
+        result.position_W - result.columns_like(("ref_p_N_m", "ref_p_E_m", "ref_p_D_m")), axis=1)
+    high, t_off = fan_events(t, fan_pct)
+    out: dict[str, float] = {
+        "vel_err_rms_mps": _rms(v_err),
+        "vel_err_max_mps": float(v_err.max()),
+        "pos_err_rms_m": _rms(p_err),
+        "pos_err_max_m": float(p_err.max()),
+        "vel_err_rms_high_wind_mps": _rms(v_err[high]) if high.any() else float("nan"),
+        "mixer_saturated_fraction": float(result["mixer_saturated"].mean()),
+    }
+    if t_off is not None:
+        window = (t >= t_off) & (t <= t_off + OVERSHOOT_WINDOW_S)
+        out["overshoot_after_fan_off_mps"] = float(v_err[window].max())
+        out["fan_off_time_s"] = t_off
+    if "pred_err_x_mps2" in result:
+        e = np.linalg.norm(result.columns_like(("pred_err_x_mps2", "pred_err_y_mps2", "pred_err_z_mps2")),
+                           axis=1) / GRAVITY_MPS2
+        late = t >= PRED_ERR_SKIP_S
+        out["pred_err_rms_g"] = _rms(e[late])
+        out["pred_err_p95_g"] = float(np.percentile(e[late], 95))
+    V = result["lyapunov_V"]
+    dV = np.diff(V)
+    out["lyapunov_decreasing_fraction"] = float(np.mean(dV < 0)) if dV.size else float("nan")
+    out["airspeed_max_mps"] = float(result["airspeed_mps"].max())
+    return out
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(x)))) if x.size else float("nan")

@@ -1,0 +1,113 @@
+"""Typed simulation results: time-indexed named signals, Parquet round trip, metrics.
+
+A :class:`SimulationResult` holds one run: a 2-D array with time as the first axis and one named
+column per signal (units in the names, see README "Log columns"), plus the scenario that produced
+it and the run's metadata. ``result["v_N_mps"]`` is a 1-D array; grouped accessors return
+``(T, 3)`` arrays.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from .vehicle import PARAMETER_NAMES
+
+PARQUET_FORMAT_VERSION = 1
+
+
+@dataclass
+class SimulationResult:
+    """One simulation run. ``data[:, i]`` is the signal named ``columns[i]``."""
+
+    columns: tuple[str, ...]
+    data: np.ndarray
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.data = np.asarray(self.data, dtype=float)
+        if self.data.ndim != 2 or self.data.shape[1] != len(self.columns):
+            raise ValueError(f"data has shape {self.data.shape}, expected (T, {len(self.columns)})")
+        self._index = {name: i for i, name in enumerate(self.columns)}
+
+    # --- access ---------------------------------------------------------------------------
+    def __getitem__(self, name: str) -> np.ndarray:
+        try:
+            return self.data[:, self._index[name]]
+        except KeyError:
+            raise KeyError(f"no column {name!r}; see .columns") from None
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._index
+
+    def columns_like(self, names) -> np.ndarray:
+        """``(T, len(names))`` array of the named columns."""
+        return self.data[:, [self._index[n] for n in names]]
+
+    @property
+    def time_s(self) -> np.ndarray:
+        return self["t_s"]
+
+    @property
+    def position_W(self) -> np.ndarray:
+        return self.columns_like(("p_N_m", "p_E_m", "p_D_m"))
+
+    @property
+    def velocity_W(self) -> np.ndarray:
+        return self.columns_like(("v_N_mps", "v_E_mps", "v_D_mps"))
+
+    @property
+    def wind_W(self) -> np.ndarray:
+        return self.columns_like(("wind_N_mps", "wind_E_mps", "wind_D_mps"))
+
+    @property
+    def velocity_error_W(self) -> np.ndarray:
+        """Velocity minus the reference velocity (NED, m/s), from the true state."""
+        return self.velocity_W - self.columns_like(("ref_v_N_mps", "ref_v_E_mps", "ref_v_D_mps"))
+
+    @property
+    def theta_hat(self) -> np.ndarray:
+        """``(T, 8)`` theta-hat in the adaptation scaling, if the controller logs it."""
+        return self.columns_like([f"theta_hat_{n}" for n in PARAMETER_NAMES])
+
+    def __len__(self) -> int:
+        return self.data.shape[0]
+
+    # --- files ----------------------------------------------------------------------------
+    def to_parquet(self, path: str | Path) -> Path:
+        """Write the log (one float64 column per signal) with the metadata in the file's schema."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        table = pa.table({name: self.data[:, i] for i, name in enumerate(self.columns)})
+        meta = {b"vtoladapt_format": str(PARQUET_FORMAT_VERSION).encode(),
+                b"vtoladapt_metadata": json.dumps(self.metadata, default=_jsonable).encode()}
+        table = table.replace_schema_metadata({**(table.schema.metadata or {}), **meta})
+        tmp = path.with_suffix(path.suffix + ".tmp")
+        pq.write_table(table, tmp)
+        tmp.replace(path)  # never leave a half-written log behind
+        return path
+
+    @classmethod
+    def from_parquet(cls, path: str | Path) -> "SimulationResult":
+        """Read a log written by :meth:`to_parquet`."""
+        table = pq.read_table(path)
+        meta = table.schema.metadata or {}
+        if meta.get(b"vtoladapt_format") != str(PARQUET_FORMAT_VERSION).encode():
+            raise ValueError(f"{path}: not a vtoladapt log of format {PARQUET_FORMAT_VERSION}")
+        data = np.column_stack([table.column(i).to_numpy() for i in range(table.num_columns)])
+        return cls(tuple(table.column_names), data, json.loads(meta[b"vtoladapt_metadata"]))
+
+
+def _jsonable(obj):
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, (np.floating, np.integer)):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"cannot store {type(obj).__name__} in log metadata")

@@ -1,0 +1,175 @@
+"""Scenario files: everything one simulation run needs, validated before anything runs.
+
+A scenario (TOML) names the vehicle, the plant's own truth and effects, the wind (fan-array
+schedule, turbulence, gusts), the sensors, the controller and its settings, the reference, the
+duration and the seed. :func:`load_scenario` validates the whole file (unknown keys, ranges,
+unknown controller names, throttle schedules outside [0, 100] %) and raises
+:class:`~vtoladapt.config.ConfigError` naming the file, the key and the value before any output
+is written. See README "Writing a scenario".
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional
+
+from .config import ConfigError, build, read_toml, setting
+from .control.config import ControllerConfig
+from .plant import PlantConfig
+from .sensors import SensorsConfig
+from .vehicle import Vehicle, load_vehicle
+from .wind import WindConfig
+
+SCENARIO_DIR = Path(__file__).with_name("scenarios")
+
+
+@dataclass(frozen=True)
+class InitialCondition:
+    """Where the run starts; motors start at the plant's hover trim unless ``trimmed_motors`` is false."""
+
+    position_m: tuple[float, ...] = setting("m", "initial position, NED", default=(0.0, 0.0, -1.5), length=3)
+    velocity_mps: tuple[float, ...] = setting("m/s", "initial velocity, NED", default=(0.0, 0.0, 0.0),
+                                              length=3)
+    yaw_deg: float = setting("deg", "initial heading (0 = north)", default=0.0, ge=-360.0, le=360.0)
+    pitch_deg: float = setting("deg", "initial pitch", default=0.0, ge=-90.0, le=90.0)
+    roll_deg: float = setting("deg", "initial roll", default=0.0, ge=-180.0, le=180.0)
+    trimmed_motors: bool = setting("-", "start the motors at the plant's hover trim", default=True)
+
+
+@dataclass(frozen=True)
+class ReferenceConfig:
+    """The position reference the controller tracks."""
+
+    kind: str = setting("-", "hold a point, or fly through timed waypoints", default="hold",
+                        choices=("hold", "waypoints"))
+    position_m: tuple[float, ...] = setting("m", "held position, NED (kind = hold)",
+                                            default=(0.0, 0.0, -1.5), length=3)
+    yaw_deg: float = setting("deg", "held heading (0 = north, facing the fan array)", default=0.0,
+                             ge=-360.0, le=360.0)
+    waypoints: tuple[tuple[float, ...], ...] = setting(
+        "s, m", "rows [t_s, north_m, east_m, down_m] (kind = waypoints); min-jerk between rows",
+        default=())
+
+    def _check(self, source: str) -> None:
+        if self.kind != "waypoints":
+            return
+        if len(self.waypoints) < 2:
+            raise ConfigError(f"{source}: [reference] waypoints: kind = 'waypoints' needs at least two rows")
+        last = -math.inf
+        for i, row in enumerate(self.waypoints):
+            if len(row) != 4:
+                raise ConfigError(f"{source}: [reference] waypoints[{i}] = {list(row)}: must be "
+                                  "[t_s, north_m, east_m, down_m]")
+            if not row[0] > last:
+                raise ConfigError(f"{source}: [reference] waypoints[{i}] = {list(row)}: times must increase")
+            last = row[0]
+
+
+@dataclass(frozen=True)
+class ControllerPrior:
+    """Where the controller's model starts: theta_0, P0, and the initial theta-hat."""
+
+    posterior: Optional[str] = setting(
+        "-", "posterior.json from `vtoladapt fit` (path relative to the scenario); default: the "
+        "vehicle's Table I", default=None)
+    initial_theta: str = setting(
+        "-", "theta-hat(0): 'theta0' (= theta_0), or 'random' (uniform within +-random_fraction of "
+        "theta_0, clipped to the bounds, drawn from the scenario seed)", default="theta0",
+        choices=("theta0", "random"))
+    random_fraction: float = setting("-", "half-width of the random initial theta-hat, relative", default=0.3,
+                                     gt=0.0, lt=1.0)
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """What ``vtoladapt run`` does with the scenario: one run, or one of the paper's experiments."""
+
+    kind: str = setting("-", "'single' run; 'convergence': repeated runs from random theta-hat(0) "
+                        "(Fig. parameter_convergence); 'comparison': the same run per controller "
+                        "(Figs. tracking_comparison)", default="single",
+                        choices=("single", "convergence", "comparison"))
+    runs: int = setting("-", "number of random-start runs (kind = convergence)", default=7, ge=2, le=1000)
+    controllers: tuple[str, ...] = setting(
+        "-", "controllers compared (kind = comparison)",
+        default=("composite", "composite_pconst", "tracking_only", "pid", "pd"),
+        choices=("composite", "composite_pconst", "tracking_only", "pid", "pd"))
+
+    def _check(self, source: str) -> None:
+        if len(set(self.controllers)) != len(self.controllers) or not self.controllers:
+            raise ConfigError(f"{source}: [experiment] controllers = {list(self.controllers)}: "
+                              "must be a non-empty list without repeats")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario (see the module docstring)."""
+
+    name: str = setting("-", "short identifier, used in output file names")
+    vehicle: str = setting("-", "shipped vehicle name or path to a vehicle TOML")
+    duration_s: float = setting("s", "simulated time", gt=0.0, le=3600.0)
+    seed: int = setting("-", "seed of every random draw in the run", default=0, ge=0)
+    description: str = setting("-", "what the scenario is for", default="")
+    dt_control_s: float = setting("s", "controller period (250 Hz in the paper)", default=0.004, gt=0.0,
+                                  le=0.05)
+    plant_substeps: int = setting("-", "RK4 plant steps per controller period (4 -> 1 kHz)", default=4,
+                                  ge=1, le=100)
+    initial: InitialCondition = setting("-", "initial condition", default=InitialCondition())
+    reference: ReferenceConfig = setting("-", "position reference", default=ReferenceConfig())
+    plant: PlantConfig = setting("-", "the simulated aircraft's own truth", default=PlantConfig())
+    wind: WindConfig = setting("-", "wind: fan array, turbulence, gusts", default=WindConfig())
+    sensors: SensorsConfig = setting("-", "sensor models", default=SensorsConfig())
+    controller: ControllerConfig = setting("-", "controller and gains", default=ControllerConfig())
+    controller_prior: ControllerPrior = setting("-", "controller's initial model", default=ControllerPrior())
+    experiment: ExperimentConfig = setting("-", "single run or one of the paper's experiments",
+                                           default=ExperimentConfig())
+    source_path: str = setting("-", "file the scenario was read from", default="")
+
+    @property
+    def n_ticks(self) -> int:
+        return int(round(self.duration_s / self.dt_control_s))
+
+    def load_vehicle(self) -> Vehicle:
+        path = Path(self.vehicle)
+        if self.source_path and path.suffix == ".toml" and not path.is_absolute():
+            path = Path(self.source_path).parent / path
+            return load_vehicle(path)
+        return load_vehicle(self.vehicle)
+
+    def posterior_path(self) -> Optional[Path]:
+        if self.controller_prior.posterior is None:
+            return None
+        path = Path(self.controller_prior.posterior)
+        if not path.is_absolute() and self.source_path:
+            path = Path(self.source_path).parent / path
+        return path
+
+    def replace(self, **changes) -> "Scenario":
+        return dataclasses.replace(self, **changes)
+
+
+def scenario_from_mapping(data: dict, source: str) -> Scenario:
+    """Validate a parsed scenario mapping; errors name ``source``."""
+    data = dict(data)
+    data.setdefault("source_path", source)
+    scenario = build(Scenario, data, source=source)
+    scenario.load_vehicle()  # fail now, naming the file, if the vehicle is unknown
+    posterior = scenario.posterior_path()
+    if posterior is not None and not posterior.exists():
+        raise ConfigError(f"{source}: [controller_prior] posterior = {scenario.controller_prior.posterior!r}: "
+                          f"file not found ({posterior})")
+    return scenario
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load a scenario by path, or by the name of one shipped in ``vtoladapt/scenarios``."""
+    path = Path(name_or_path)
+    if not path.exists():
+        shipped = SCENARIO_DIR / f"{name_or_path}.toml"
+        if shipped.exists():
+            path = shipped
+        else:
+            names = ", ".join(sorted(p.stem for p in SCENARIO_DIR.glob("*.toml")))
+            raise ConfigError(f"scenario {str(name_or_path)!r}: file not found; shipped scenarios: {names}")
+    return scenario_from_mapping(read_toml(path), str(path))
