@@ -208,7 +208,8 @@ def test_bad_density_and_malformed_calibration_arrays(sim_models):
         assert np.array_equal(out, np.zeros(3))
     for cal in (np.zeros(0), np.array([9.0, 1.0, 1.0, 1.0]), np.array([1.0]),
                 np.array([1.0, np.nan, 0.0, 1.0]), models["calibrated"].to_kernel()[:100],
-                np.array([2.0] + [1.0] * 7)):
+                np.array([2.0] + [1.0] * 7), np.array([2.0, 0, 0, 1, 1, 1e300, 0, 1]),
+                np.array([2.0, 0, 0, 1, 1, np.nan, 0, 1])):
         assert not incident_velocity_from_pressures(q, 1.2, cal, out)
         assert np.array_equal(out, np.zeros(3))
 
@@ -243,3 +244,36 @@ def test_spline_fit_is_deterministic_and_smoothing_is_respected():
     b = fit_spline_calibration(data, smoothing=1e-4)
     assert a.smoothing == 1e-4
     assert np.array_equal(a.to_kernel(), b.to_kernel())
+
+
+def test_calibrate_tip_for_the_simulator_is_deterministic_and_accurate_to_25_deg():
+    """calibrate_tip: no randomness; within 0.05 deg and 0.05 % up to a 25 deg cone angle."""
+    from vtoladapt.probe import calibrate_tip
+
+    a = calibrate_tip(TIP)
+    b = calibrate_tip(TIP)
+    assert np.array_equal(a["calibrated"].to_kernel(), b["calibrated"].to_kernel())
+    assert a["single_k"] == b["single_k"]
+    data = simulate_calibration_sweep(TIP, np.random.default_rng(12), cone_max_deg=25.0,
+                                      n_rings=2, n_test=300)
+    m = evaluate_calibration(a["calibrated"], data, "test")
+    assert m.n_valid == 300 and m.angle_max_deg < 0.05 and m.speed_max_rel < 5e-4
+
+
+def test_loo_residuals_equal_explicit_refits():
+    """Rippa's rule used to pick the smoothing equals refitting without each point (1e-8)."""
+    from vtoladapt.probe.calibration import _tps_fit, tps_loo_residuals
+    from vtoladapt.probe.estimation import tps_evaluate
+
+    rng = np.random.default_rng(13)
+    x = rng.uniform(-1, 1, (40, 2))
+    y = np.column_stack([np.sin(2 * x[:, 0]) + x[:, 1] ** 2, x[:, 0] * x[:, 1],
+                         rng.normal(size=40)])
+    for s in (1e-6, 1e-2):
+        loo = tps_loo_residuals(x, y, s)
+        for i in (0, 17, 39):
+            keep = np.arange(40) != i
+            w, p = _tps_fit(x[keep], y[keep], s)
+            pred = np.empty((1, 3))
+            tps_evaluate(x[i:i + 1].copy(), x[keep].copy(), w, p, pred)
+            np.testing.assert_allclose(loo[i], y[i] - pred[0], rtol=1e-8, atol=1e-10)

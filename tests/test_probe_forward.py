@@ -50,7 +50,8 @@ def test_sphere_potential_flow_stagnation_and_equator():
 @pytest.mark.parametrize("port_angle_deg,K,cps", [(45.0, 2.25, 0.0), (30.0, 2.25, 0.05),
                                                    (60.0, 1.8, -0.02)])
 def test_differential_pressures_match_closed_forms(port_angle_deg, K, cps):
-    """q_alpha = 2K sin(2d) q n_x n_z, q_beta = 2K sin(2d) q n_x n_y, q_inf = q(1-K(1-n_x^2)-C_ps)."""
+    """q_alpha = 2K sin(2d) q n_x n_z, q_beta = 2K sin(2d) q n_x n_y,
+    q_inf = q (1 - K (1 - n_x^2) - C_ps) (the tip law's closed forms)."""
     rng = np.random.default_rng(3)
     tip = ProbeTip(port_angle_deg=port_angle_deg, pressure_factor=K,
                    static_port_coefficient=cps)

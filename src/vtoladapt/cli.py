@@ -2,6 +2,7 @@
 
     vtoladapt reproduce --out DIR           the paper's experiments, figures and report
     vtoladapt run SCENARIO.toml --out DIR   one scenario (a single run or an experiment)
+    vtoladapt campaign SCENARIO --runs N    Monte-Carlo campaign on a Dask cluster
     vtoladapt vehicle list | show NAME      shipped vehicles and their parameters
     vtoladapt tunnel / fit / fit-realdata   virtual wind tunnel and Bayesian model fitting
     vtoladapt probe calibrate / evaluate    airflow-probe calibration
@@ -86,6 +87,7 @@ def _cmd_vehicle_show(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .campaign import register_cli as register_campaign
     from .fitting.cli import register_cli as register_fitting
     from .probe.cli import register_cli as register_probe
 
@@ -94,6 +96,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_reproduce(sub)
     _add_run(sub)
     _add_vehicle(sub)
+    register_campaign(sub)
     register_fitting(sub)
     register_probe(sub)
     return parser

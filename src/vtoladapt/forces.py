@@ -140,12 +140,13 @@ def aero_force(v_i_B, theta, model, out) -> None:
 @njit(cache=True)
 def body_force(v_i_B, u_x, u_z, theta, model, out) -> None:
     """Estimated body force ``f_b-hat = f_T-hat + f_A-hat`` per unit mass into ``out`` (eq:fb)."""
-    fa = np.empty(3)
+    # write the wing part into out, keep it, then add the thrusters: no temporary array
+    aero_force(v_i_B, theta, model, out)
+    ax, ay, az = out[0], out[1], out[2]
     thruster_force(v_i_B, u_x, u_z, theta, model, out)
-    aero_force(v_i_B, theta, model, fa)
-    out[0] += fa[0]
-    out[1] += fa[1]
-    out[2] += fa[2]
+    out[0] += ax
+    out[1] += ay
+    out[2] += az
 
 
 @njit(cache=True)

@@ -195,8 +195,8 @@ def quat_error_constrained(R_d: np.ndarray, R: np.ndarray) -> np.ndarray:
 def orthonormalize(R: np.ndarray) -> np.ndarray:
     """Project a slightly drifted ``R`` back onto SO(3) through its quaternion.
 
-    Returns ``R`` itself (to round-off) for a rotation matrix, and always an exactly orthonormal
-    matrix with det +1. It is not the nearest rotation (the polar factor): for a drift of size
+    Returns ``R`` itself (to round-off) for a rotation matrix, and always a matrix orthonormal to
+    round-off with det +1. It is not the nearest rotation (the polar factor): for a drift of size
     ``eps`` the result differs from it by up to a few ``eps`` (first order), which is harmless for
     the round-off drift of integration.
     """

@@ -54,7 +54,7 @@ def model_kernel_params(aero_scale_per_m: float, k1: float, k2: float) -> np.nda
 
 def scaled_theta(vehicle: Vehicle) -> np.ndarray:
     """The vehicle's published theta (Table I means) in the adaptation scaling."""
-    return vehicle.theta_scaled.copy()
+    return vehicle.theta_scaled.copy()  # a writable copy: the vehicle's own array is read-only
 
 
 def _v3(v_i_B) -> np.ndarray:
@@ -97,13 +97,17 @@ def regressor(v_i_B, throttle_x_pct: float, throttle_z_pct: float, vehicle: Vehi
     return Phi
 
 
-def body_force_jacobian(v_i_B, throttle_x_pct: float, throttle_z_pct: float,
-                        vehicle: Vehicle) -> tuple[np.ndarray, np.ndarray]:
-    """``(d f_b / d v_i_B [3x3, 1/s], d f_b / d(throttle_x_pct, throttle_z_pct) [3x2, m/s^2 per %])``."""
+def body_force_jacobian(v_i_B, throttle_x_pct: float, throttle_z_pct: float, vehicle: Vehicle,
+                        theta_scaled: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(d f_b / d v_i_B [3x3, 1/s], d f_b / d(throttle_x_pct, throttle_z_pct) [3x2, m/s^2 per %])``.
+
+    At the vehicle's published coefficients, or at ``theta_scaled`` (e.g. an adapted theta-hat).
+    """
+    theta = vehicle.theta_scaled if theta_scaled is None else np.asarray(theta_scaled, float)
     J_v = np.empty((3, 3))
     J_u = np.empty((3, 2))
     forces.body_force_jacobian(_v3(v_i_B), throttle_x_pct / THROTTLE_FULL_PCT,
-                               throttle_z_pct / THROTTLE_FULL_PCT, vehicle.theta_scaled,
+                               throttle_z_pct / THROTTLE_FULL_PCT, theta,
                                vehicle.model_kernel, J_v, J_u)
     return J_v, J_u / THROTTLE_FULL_PCT
 

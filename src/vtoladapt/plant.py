@@ -378,3 +378,32 @@ def hover_trim_motor(vehicle: Vehicle, plant: PlantConfig) -> np.ndarray:
     if u > 1.0:
         raise ConfigError(f"plant cannot hover: needs lift throttle {100 * u:.0f} % > 100 %")
     return np.array([u, u, u, u, 0.0])
+
+
+def integrate_reference(x0: np.ndarray, motor_cmd: np.ndarray, v_wind_W: np.ndarray, params: np.ndarray,
+                        t_end_s: float, rtol: float = 1e-12, atol: float = 1e-12) -> np.ndarray:
+    """Plant state at ``t_end_s`` by ``scipy.integrate.solve_ivp`` (DOP853), inputs held constant.
+
+    The independent reference the fixed-step RK4 path is tested against; far too slow for
+    closed-loop use. The quaternion is renormalised at the end only.
+    """
+    from scipy.integrate import solve_ivp
+
+    motor_cmd = np.asarray(motor_cmd, dtype=float)
+    v_wind_W = np.asarray(v_wind_W, dtype=float)
+    x_start = np.asarray(x0, dtype=float).copy()
+    if params[P_LAG_ON] <= 0.0:
+        x_start[X_MOTOR:X_MOTOR + N_MOTORS] = np.clip(motor_cmd, 0.0, 1.0)
+    f_B = np.empty(3)
+
+    def rhs(_t, x):
+        xd = np.empty(X_SIZE)
+        plant_derivative(x, motor_cmd, v_wind_W, params, xd, f_B)
+        return xd
+
+    sol = solve_ivp(rhs, (0.0, t_end_s), x_start, method="DOP853", rtol=rtol, atol=atol)
+    if not sol.success:
+        raise RuntimeError(f"solve_ivp failed: {sol.message}")
+    x = sol.y[:, -1].copy()
+    x[X_Q_WB:X_Q_WB + 4] /= np.linalg.norm(x[X_Q_WB:X_Q_WB + 4])
+    return x

@@ -191,24 +191,30 @@ class Vehicle:
         """Kernel parameters of the force model (see :mod:`vtoladapt.models`)."""
         from .models import model_kernel_params
 
-        return model_kernel_params(self.aero_scale_per_m, self.force_model.k1, self.force_model.k2)
+        return _read_only(model_kernel_params(self.aero_scale_per_m, self.force_model.k1, self.force_model.k2))
 
     @cached_property
     def theta_scaled(self) -> np.ndarray:
         """theta_0 in the adaptation scaling (see :func:`vtoladapt.models.theta_to_scaled`)."""
         from .models import theta_to_scaled
 
-        return theta_to_scaled(self.force_model.as_table_theta(), self.force_model.k1)
+        return _read_only(theta_to_scaled(self.force_model.as_table_theta(), self.force_model.k1))
 
     @cached_property
     def theta_std_scaled(self) -> np.ndarray:
         from .models import theta_to_scaled
 
-        return theta_to_scaled(self.force_model_std.as_table_theta(), self.force_model.k1)
+        return _read_only(theta_to_scaled(self.force_model_std.as_table_theta(), self.force_model.k1))
 
     def replace(self, **changes) -> "Vehicle":
         """A copy with some top-level sections replaced (validated sections, not dicts)."""
         return dataclasses.replace(self, **changes)
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    """A frozen vehicle hands out arrays that cannot be changed in place by mistake."""
+    a.setflags(write=False)
+    return a
 
 
 def available_vehicles() -> list[str]:

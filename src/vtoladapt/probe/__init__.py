@@ -10,6 +10,7 @@ four peripheral ports and three Sensirion SDP33 differential pressure sensors gi
 * Estimation: :func:`incident_velocity_from_pressures` (compiled, NaN-safe, validity flag) for
   both models, :class:`SingleKCalibration` (eq:aoa) and :class:`SplineCalibration` (ours).
 * Calibration: :func:`fit_single_k`, :func:`fit_spline_calibration`, :func:`calibrate`,
+  :func:`calibrate_tip` (both models for a simulated tip, for the simulator),
   :func:`evaluate_calibration`, :func:`save_calibration`, :func:`load_calibration`.
 * Data: :func:`read_nasa_pcf` (NASA five-hole probe calibrations, github.com/nasa/
   multihole-probe-calibration, NOSA 1.3, Mirhashemi et al. 2024), :func:`read_probe_csv`
@@ -20,6 +21,7 @@ from vtoladapt.probe.calibration import (
     SingleKCalibration,
     SplineCalibration,
     calibrate,
+    calibrate_tip,
     evaluate_calibration,
     fit_single_k,
     fit_spline_calibration,
@@ -50,13 +52,11 @@ from vtoladapt.probe.nasa import read_nasa_pcf
 from vtoladapt.probe.sensor import SDP33Sensor, sdp33_sensor_step
 from vtoladapt.probe.tip import ProbeTip, probe_differential_pressures, probe_port_pressures
 
-PolynomialCalibration = SplineCalibration
-"""Alias kept for the issue's name; our calibration is a spline, not a global polynomial."""
-
 __all__ = [
-    "CalibrationMetrics", "PolynomialCalibration", "ProbeCalibrationData", "ProbeError",
+    "CalibrationMetrics", "ProbeCalibrationData", "ProbeError",
     "ProbeTip", "SDP33Sensor", "SingleKCalibration", "SplineCalibration",
-    "airspeed_angles_from_v_i", "aoa_incident_velocity", "calibrate", "cone_roll_to_alpha_beta",
+    "airspeed_angles_from_v_i", "aoa_incident_velocity", "calibrate", "calibrate_tip",
+    "cone_roll_to_alpha_beta",
     "estimate_incident_velocity", "evaluate_calibration", "fit_single_k",
     "fit_spline_calibration", "flow_angle_error_rad", "incident_velocity_from_pressures",
     "load_calibration", "plot_linearity", "probe_differential_pressures", "probe_port_pressures",

@@ -41,7 +41,8 @@ METRICS_VERSION = 1
 def register_cli(subparsers) -> argparse.ArgumentParser:
     """Add the ``probe`` sub-command (``calibrate``, ``evaluate``) to ``subparsers``.
 
-    Each leaf parser sets ``func`` to its handler ``handler(args) -> int`` (exit code).
+    Each leaf parser sets ``handler`` to its handler ``handler(args) -> int`` (exit code),
+    which ``vtoladapt.cli.main`` calls.
 
     Parameters
     ----------
@@ -71,12 +72,12 @@ def register_cli(subparsers) -> argparse.ArgumentParser:
     cal.add_argument("--format", dest="fmt", choices=("auto", "nasa", "csv"), default="auto",
                      help="data format (default: recognise a PCF file by its first line)")
     cal.add_argument("--smoothing", type=float, default=None,
-                     help="spline smoothing (default: chosen by 5-fold cross-validation)")
+                     help="spline smoothing (default: chosen by leave-one-out cross-validation)")
     cal.add_argument("--q-inf-min-Pa", dest="q_inf_min_Pa", type=float,
                      default=DEFAULT_Q_INF_MIN_PA,
                      help="readings with q_inf below this are flagged invalid (Pa, default "
                           f"{DEFAULT_Q_INF_MIN_PA:g})")
-    cal.set_defaults(func=cmd_calibrate)
+    cal.set_defaults(handler=cmd_calibrate)
 
     ev = sub.add_parser(
         "evaluate", help="evaluate a calibration file on probe data",
@@ -93,7 +94,7 @@ def register_cli(subparsers) -> argparse.ArgumentParser:
                          f"names: {', '.join(MODEL_NAMES)})")
     ev.add_argument("--points", choices=("auto", "test", "calibration", "all"), default="auto",
                     help="which points to evaluate (default: test points if any, else all)")
-    ev.set_defaults(func=cmd_evaluate)
+    ev.set_defaults(handler=cmd_evaluate)
     return probe
 
 
@@ -142,10 +143,12 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         metrics_path, fig_path = _write_outputs(results, data, args.out, title)
     except (ProbeError, OSError) as exc:
         print(f"vtoladapt probe calibrate: error: {exc}", file=sys.stderr)
-        return 1
+        return 2
     print(f"k = {models['single_k'].k:.6g}; spline smoothing = "
           f"{models['calibrated'].smoothing:g}")
     print(_summary(results))
+    if points != "test":
+        print("note: the data has no test points (split = test); these errors are in-sample")
     print(f"wrote {cal_path}\nwrote {metrics_path}\nwrote {fig_path}")
     return 0
 
@@ -173,7 +176,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         metrics_path, fig_path = _write_outputs(results, data, args.out, title)
     except (ProbeError, OSError) as exc:
         print(f"vtoladapt probe evaluate: error: {exc}", file=sys.stderr)
-        return 1
+        return 2
     print(_summary(results))
     print(f"wrote {metrics_path}\nwrote {fig_path}")
     return 0

@@ -116,7 +116,19 @@ class ProbeCalibrationData:
         return bool(np.any(self.is_test))
 
     def subset(self, mask, label: str = "") -> "ProbeCalibrationData":
-        """The points where ``mask`` is true (a boolean or index array)."""
+        """The points selected by ``mask``.
+
+        Parameters
+        ----------
+        mask : array_like
+            Boolean mask or index array.
+        label : str
+            Recorded as ``info["subset"]`` (e.g. ``test``).
+
+        Returns
+        -------
+        ProbeCalibrationData
+        """
         idx = np.asarray(mask)
         info = dict(self.info)
         if label:
@@ -135,7 +147,16 @@ class ProbeCalibrationData:
         return self.subset(self.is_test, "test")
 
     def select(self, points: str) -> "ProbeCalibrationData":
-        """Points by name: ``auto`` (test points if any, else all), ``test``, ``calibration``, ``all``.
+        """Points by name.
+
+        Parameters
+        ----------
+        points : {'auto', 'test', 'calibration', 'all'}
+            ``auto``: the test points if any, else all points.
+
+        Returns
+        -------
+        ProbeCalibrationData
 
         Raises
         ------

@@ -82,11 +82,12 @@ def aoa_incident_velocity(q_inf, q_alpha, q_beta, rho, k, out_v_i_B):
 
 
 @njit(cache=True)
-def _keys_weights(t, w):
-    w[0] = ((-0.5 * t + 1.0) * t - 0.5) * t
-    w[1] = (1.5 * t - 2.5) * t * t + 1.0
-    w[2] = ((-1.5 * t + 2.0) * t + 0.5) * t
-    w[3] = (0.5 * t - 0.5) * t * t
+def _keys_weights(t):
+    """Keys' cubic-convolution weights (a = -1/2) of nodes i-1, i, i+1, i+2 at t in [0, 1)."""
+    return (((-0.5 * t + 1.0) * t - 0.5) * t,
+            (1.5 * t - 2.5) * t * t + 1.0,
+            ((-1.5 * t + 2.0) * t + 0.5) * t,
+            (0.5 * t - 0.5) * t * t)
 
 
 @njit(cache=True)
@@ -113,8 +114,10 @@ def _single_k(q_inf, q_alpha, q_beta, rho, cal, out):
 def _table(q_inf, q_alpha, q_beta, rho, cal, out):
     if cal.shape[0] < TB_HEADER:
         return False
-    n = int(cal[TB_N]) if np.isfinite(cal[TB_N]) else 0
-    if n < 4 or cal.shape[0] != TB_HEADER + 3 * n * n:
+    if not (cal[TB_N] >= 4.0 and cal[TB_N] <= 4096.0):
+        return False
+    n = int(cal[TB_N])
+    if cal.shape[0] != TB_HEADER + 3 * n * n:
         return False
     q_min = cal[TB_Q_MIN]
     scale = cal[TB_SCALE]
@@ -152,10 +155,8 @@ def _table(q_inf, q_alpha, q_beta, rho, cal, out):
         j = 1
     elif j > n - 3:
         j = n - 3
-    wx = np.empty(4)
-    wy = np.empty(4)
-    _keys_weights(fx - i, wx)
-    _keys_weights(fy - j, wy)
+    wx = _keys_weights(fx - i)
+    wy = _keys_weights(fy - j)
     alpha = 0.0
     beta = 0.0
     cq = 0.0
@@ -243,12 +244,26 @@ def incident_velocity_from_pressures(q, rho, calibration, out_v_i_B):
 
 @njit(cache=True)
 def incident_velocity_batch(q, rho, calibration, out_v_i_B, out_valid):
-    """:func:`incident_velocity_from_pressures` over rows of ``q`` (N, 3) and ``rho`` (N,)."""
+    """:func:`incident_velocity_from_pressures` over many readings.
+
+    Parameters
+    ----------
+    q : float64[N, 3]
+        Pressures (Pa).
+    rho : float64[N]
+        Densities (kg/m^3).
+    calibration : float64[:]
+        A calibration's ``to_kernel()``.
+    out_v_i_B : float64[N, 3]
+        Written: estimates (m/s).
+    out_valid : bool[N]
+        Written: validity flags.
+    """
     for i in range(q.shape[0]):
         out_valid[i] = incident_velocity_from_pressures(q[i], rho[i], calibration, out_v_i_B[i])
 
 
-def estimate_incident_velocity(calibration_kernel: np.ndarray, q_Pa, rho) -> tuple[np.ndarray, np.ndarray]:
+def estimate_incident_velocity(calibration_kernel: np.ndarray, q_Pa, rho):
     """Vectorised call of the compiled estimator (the same code the simulator runs).
 
     Parameters

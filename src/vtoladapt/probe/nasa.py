@@ -26,12 +26,16 @@ Mapping to the probe's three differential pressures and to alpha/beta (verified 
 * ``alpha``, ``beta`` from ``tan(alpha) = tan(Theta) cos(Phi)``, ``sin(beta) = sin(Theta)
   sin(Phi)`` (:func:`vtoladapt.probe.flow.cone_roll_to_alpha_beta`).
 
-Why: a least-squares fit over the points with ``Theta < 6 deg`` of probe 16328-1 at Mach 0.05
-gives ``(P2 - P3)/Pt = 3.31 sin(Theta) cos(Phi) + 0.03 sin(Theta) sin(Phi)`` and
-``(P4 - P5)/Pt = -0.02 sin(Theta) cos(Phi) + 3.31 sin(Theta) sin(Phi)`` (about the same for the
-other two files): hole P2 faces the flow at ``Phi = 0`` and P3 at ``Phi = 180 deg``, P4 at
-``Phi = +90 deg`` and P5 at ``Phi = -90 deg``, with about 1 % cross-talk (a roll misalignment of
-the port pairs of about 0.5 deg, which a calibration absorbs). So the P2-P3 pair responds to the
+Why: with ``n = v_i / V`` from that mapping and ``q_dyn = rho V^2 / 2``, a least-squares fit
+over the points with ``Theta < 6 deg`` gives, for probe 16328-1 at Mach 0.05,
+``q_alpha / q_dyn = 0.018 + 3.311 n_z + 0.028 n_y`` and
+``q_beta / q_dyn = -0.022 - 0.018 n_z + 3.317 n_y`` (16328-1 at Mach 0.10: 3.391, 0.051 and
+-0.031, 3.410; 16328-2 at Mach 0.05: 3.392, 0.057 and -0.021, 3.366). Hole P2 faces the flow at
+``Phi = 0`` and P3 at ``Phi = 180 deg``, P4 at ``Phi = +90 deg`` and P5 at ``Phi = -90 deg``;
+the cross-talk is 0.5-1.7 % (a roll misalignment of the port pairs of 0.3-1 deg) and the
+zero-angle offsets up to about 0.5 deg, both of which a calibration absorbs (eq:aoa's single ``k``
+cannot). Also, ``sign(q_alpha) = sign(alpha)`` and ``sign(q_beta) = sign(beta)`` at every point
+more than 1 deg from zero, in all three files. So the P2-P3 pair responds to the
 ``cos(Phi)`` component with positive sign and the P4-P5 pair to the ``sin(Phi)`` component with
 positive sign. Mounting the probe with P2 at the bottom (body +z) and P4 on the right (body +y)
 makes ``Phi = 0`` a positive angle of attack (air from below) and ``Phi = +90 deg`` a positive

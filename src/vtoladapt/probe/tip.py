@@ -113,7 +113,8 @@ class ProbeTip:
 
     def ideal_k(self) -> float:
         """eq:aoa's ``k`` that is exact to first order in the flow angles: ``1/(2 K sin 2d)``."""
-        return 1.0 / (2.0 * self.pressure_factor * math.sin(2.0 * math.radians(self.port_angle_deg)))
+        d = math.radians(self.port_angle_deg)
+        return 1.0 / (2.0 * self.pressure_factor * math.sin(2.0 * d))
 
     def port_pressures(self, v_i_B, rho) -> np.ndarray:
         """Port pressures (Pa, gauge re free-stream static) for one or many incident velocities.
@@ -166,6 +167,38 @@ def _as_batch(v_i_B, rho) -> tuple[np.ndarray, np.ndarray, bool]:
 
 
 @njit(cache=True)
+def _ports(v_i_B, rho, tip):
+    """(centre, bottom, top, right, left, static) pressures; see probe_port_pressures."""
+    vx = v_i_B[0]
+    vy = v_i_B[1]
+    vz = v_i_B[2]
+    V2 = vx * vx + vy * vy + vz * vz
+    q = 0.5 * rho * V2
+    if not np.isfinite(q):
+        return (np.nan, np.nan, np.nan, np.nan, np.nan, np.nan)
+    if V2 == 0.0:
+        return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    K = tip[TIP_PRESSURE_FACTOR]
+    V = np.sqrt(V2)
+    nx = vx / V
+    ny = vy / V
+    nz = vz / V
+    c = np.cos(tip[TIP_PORT_ANGLE_RAD])
+    s = np.sin(tip[TIP_PORT_ANGLE_RAD])
+    # cos(theta_j) = n_j . (v_i / V): the air arrives from the direction +v_i.
+    cos_b = c * nx + s * nz
+    cos_t = c * nx - s * nz
+    cos_r = c * nx + s * ny
+    cos_l = c * nx - s * ny
+    return (q * (1.0 - K * (1.0 - nx * nx)),
+            q * (1.0 - K * (1.0 - cos_b * cos_b)),
+            q * (1.0 - K * (1.0 - cos_t * cos_t)),
+            q * (1.0 - K * (1.0 - cos_r * cos_r)),
+            q * (1.0 - K * (1.0 - cos_l * cos_l)),
+            q * tip[TIP_STATIC_COEFFICIENT])
+
+
+@njit(cache=True)
 def probe_port_pressures(v_i_B, rho, tip, out_p):
     """Port pressures of the tip for incident velocity ``v_i_B`` (potential-flow law).
 
@@ -182,38 +215,9 @@ def probe_port_pressures(v_i_B, rho, tip, out_p):
         (-z), right (+y), left (-y) ports and the static reference. All zero when ``V == 0``;
         NaN when an input is not finite.
     """
-    vx = v_i_B[0]
-    vy = v_i_B[1]
-    vz = v_i_B[2]
-    V2 = vx * vx + vy * vy + vz * vz
-    q = 0.5 * rho * V2
-    K = tip[TIP_PRESSURE_FACTOR]
-    if not np.isfinite(q):
-        for j in range(6):
-            out_p[j] = np.nan
-        return
-    if V2 == 0.0:
-        for j in range(6):
-            out_p[j] = 0.0
-        return
-    V = np.sqrt(V2)
-    nx = vx / V
-    ny = vy / V
-    nz = vz / V
-    c = np.cos(tip[TIP_PORT_ANGLE_RAD])
-    s = np.sin(tip[TIP_PORT_ANGLE_RAD])
-    # cos(theta_j) = n_j . (v_i / V): the air arrives from the direction +v_i.
-    cos_c = nx
-    cos_b = c * nx + s * nz
-    cos_t = c * nx - s * nz
-    cos_r = c * nx + s * ny
-    cos_l = c * nx - s * ny
-    out_p[0] = q * (1.0 - K * (1.0 - cos_c * cos_c))
-    out_p[1] = q * (1.0 - K * (1.0 - cos_b * cos_b))
-    out_p[2] = q * (1.0 - K * (1.0 - cos_t * cos_t))
-    out_p[3] = q * (1.0 - K * (1.0 - cos_r * cos_r))
-    out_p[4] = q * (1.0 - K * (1.0 - cos_l * cos_l))
-    out_p[5] = q * tip[TIP_STATIC_COEFFICIENT]
+    p = _ports(v_i_B, rho, tip)
+    for j in range(6):
+        out_p[j] = p[j]
 
 
 @njit(cache=True)
@@ -234,8 +238,7 @@ def probe_differential_pressures(v_i_B, rho, tip, out_q):
     out_q : float64[3]
         Written: ``[q_inf, q_alpha, q_beta]`` (Pa).
     """
-    p = np.empty(6)
-    probe_port_pressures(v_i_B, rho, tip, p)
+    p = _ports(v_i_B, rho, tip)
     out_q[0] = p[0] - p[5]
     out_q[1] = p[1] - p[2]
     out_q[2] = p[3] - p[4]
