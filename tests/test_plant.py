@@ -113,12 +113,15 @@ def test_incident_flow_is_minus_wind_at_rest(veh):
 def test_stall_blend_and_flat_plate(veh):
     p = kernel(veh)
     CL_lin = 0.3705 + 3.2502 * np.radians(5)
-    CL, _ = plant.true_aero_coefficients(np.radians(5), p)
+    a = np.radians(5)
+    CL, _ = plant.true_aero_coefficients(a, np.sin(a), np.cos(a), p)
     assert CL == pytest.approx(CL_lin, rel=1e-3)  # attached flow: linear polar
-    CL90, CD90 = plant.true_aero_coefficients(np.radians(90), p)
+    a = np.radians(90)
+    CL90, CD90 = plant.true_aero_coefficients(a, np.sin(a), np.cos(a), p)
     assert abs(CL90) < 1e-6 and CD90 == pytest.approx(0.1551 + 2.0, rel=1e-6)  # flat plate broadside
     p_off = kernel(veh, stall=False)
-    CL_off, _ = plant.true_aero_coefficients(np.radians(40), p_off)
+    a = np.radians(40)
+    CL_off, _ = plant.true_aero_coefficients(a, np.sin(a), np.cos(a), p_off)
     assert CL_off == pytest.approx(0.3705 + 3.2502 * np.radians(40), rel=1e-12)
 
 

@@ -119,6 +119,20 @@ def _convert(value: Any, tp: Any, meta: Mapping[str, Any], where: str, source: s
     raise TypeError(f"unsupported configuration field type {tp!r} at {where}")
 
 
+def _is_table_list(tp: Any) -> bool:
+    """``tuple[SomeDataclass, ...]``: a TOML array of tables (``[[section.key]]``)."""
+    args = typing.get_args(tp)
+    return typing.get_origin(tp) is tuple and bool(args) and dataclasses.is_dataclass(args[0])
+
+
+def _build_table_list(tp: Any, value: Any, where: str, source: str, section: str) -> tuple:
+    if not isinstance(value, (list, tuple)):
+        raise ConfigError(f"{where} = {value!r}: must be a list of tables ([[{section}]])")
+    cls = typing.get_args(tp)[0]
+    return tuple(build(cls, item, source=source, section=f"{section}[{i}]")
+                 for i, item in enumerate(value))
+
+
 def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", section: str = "") -> Any:
     """Build and validate dataclass ``cls`` from a mapping (e.g. a parsed TOML table).
 
@@ -154,6 +168,8 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
         sub_section = f"{section}.{name}" if section else name
         if dataclasses.is_dataclass(hints[name]):
             kwargs[name] = build(hints[name], data[name], source=source, section=sub_section)
+        elif _is_table_list(hints[name]):
+            kwargs[name] = _build_table_list(hints[name], data[name], where, source, sub_section)
         else:
             kwargs[name] = _convert(data[name], hints[name], f.metadata, where, source)
     obj = cls(**kwargs)

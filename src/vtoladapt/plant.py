@@ -34,7 +34,7 @@ from numba import njit
 
 from . import forces
 from .config import ConfigError, build, setting
-from .frames import GRAVITY_MPS2, quat_to_rotmat
+from .frames import GRAVITY_MPS2
 from .layout import MOTOR_PUSHER, N_LIFT, N_MOTORS, X_MOTOR, X_OMEGA_B, X_Q_WB, X_SIZE, X_V_W
 from .models import theta_to_scaled
 from .vehicle import PARAMETER_NAMES, Vehicle
@@ -211,16 +211,20 @@ def stall_blend(alpha_rad: float, alpha_stall_rad: float, M: float) -> float:
 
 
 @njit(cache=True)
-def true_aero_coefficients(alpha_rad: float, p: np.ndarray) -> tuple:
-    """True lift and drag coefficients: linear polars blended into a flat plate past stall."""
-    th = p[P_THETA:P_THETA + 8]
-    CL = forces.lift_coefficient(alpha_rad, th[forces.I_CL0], th[forces.I_CL1])
-    CD = forces.drag_coefficient(alpha_rad, th[forces.I_CD0], th[forces.I_CD1], th[forces.I_CD2])
+def true_aero_coefficients(alpha_rad: float, sin_alpha: float, cos_alpha: float, p: np.ndarray) -> tuple:
+    """True lift and drag coefficients: linear polars blended into a flat plate past stall.
+
+    ``sin_alpha``, ``cos_alpha`` are passed in because the caller has them from v_i already.
+    """
+    CL = forces.lift_coefficient(alpha_rad, p[P_THETA + forces.I_CL0], p[P_THETA + forces.I_CL1])
+    CD = forces.drag_coefficient(alpha_rad, p[P_THETA + forces.I_CD0], p[P_THETA + forces.I_CD1],
+                                 p[P_THETA + forces.I_CD2])
     if p[P_STALL_ON] > 0.0:
         s = stall_blend(alpha_rad, p[P_ALPHA_STALL], p[P_STALL_M])
-        CN = 2.0 * np.sin(alpha_rad)
-        CL = (1.0 - s) * CL + s * CN * np.cos(alpha_rad)
-        CD = (1.0 - s) * CD + s * (th[forces.I_CD0] + CN * np.sin(alpha_rad))
+        if s > 1e-12:
+            CN = 2.0 * sin_alpha
+            CL = (1.0 - s) * CL + s * CN * cos_alpha
+            CD = (1.0 - s) * CD + s * (p[P_THETA + forces.I_CD0] + CN * sin_alpha)
     return CL, CD
 
 
@@ -237,25 +241,25 @@ def pusher_thrust_ratio(v_axial_mps: float, n_revps: float, p: np.ndarray) -> fl
 
 
 @njit(cache=True)
-def true_forces_moments(x, v_wind_W, p, f_B, tau_B) -> None:
+def true_forces_moments(x, v_i_B, p, f_B, tau_B) -> None:
     """True specific force (m/s^2, body) and moment (N m, body) at state ``x``.
 
-    Uses the motor outputs in ``x`` (after lag), the wind, and the plant's own parameters.
+    Uses the motor outputs in ``x`` (after lag), the incident velocity ``v_i_B`` (eq:vi) and the
+    plant's own parameters. Allocation-free: it runs 16 times per controller tick.
     """
-    R = quat_to_rotmat(x[X_Q_WB:X_Q_WB + 4])
-    v_i = forces.incident_velocity(x[X_V_W:X_V_W + 3], v_wind_W, R)
-    V, alpha, beta = forces.airflow_angles(v_i)
-    th = p[P_THETA:P_THETA + 8]
+    vx, vy, vz = v_i_B[0], v_i_B[1], v_i_B[2]
+    V2 = vx * vx + vy * vy + vz * vz
+    V = np.sqrt(V2)
     mass = p[P_MASS]
     m_ref = p[P_FORCE_MASS]  # coefficients are per unit of the vehicle's mass: newtons = m_ref * coeff
     # lift rotors: thrust per rotor (N) and total
-    T_unit = m_ref * th[forces.I_CTZ] / N_LIFT  # N at full throttle, per rotor
+    T_unit = m_ref * p[P_THETA + forces.I_CTZ] / N_LIFT  # N at full throttle, per rotor
     tx = 0.0
     ty = 0.0
     tz = 0.0
     T_total = 0.0
-    side = 0.0
-    alpha_disk, cb, sb = forces.rotor_flow_angles(v_i)
+    u_k1_sum = 0.0
+    k1 = p[P_K1]
     for i in range(N_LIFT):
         w = x[X_MOTOR + i]
         T = T_unit * w * w
@@ -263,17 +267,30 @@ def true_forces_moments(x, v_wind_W, p, f_B, tau_B) -> None:
         tx += -p[P_ROTOR_Y + i] * T
         ty += p[P_ROTOR_X + i] * T
         tz += -p[P_ROTOR_SPIN + i] * p[P_KM] * T
-        # per-rotor share of the side force; G ~ u^k1, summed over rotors
-        side += 0.25 * m_ref * th[forces.I_CS] * forces.side_force_basis(alpha_disk, V, w, p[P_K1], p[P_K2])
+        if w > 0.0:
+            u_k1_sum += w**k1
+    # rotor side force: each rotor's share of G is (u_i^k1 / 4) times G at full throttle
+    h = np.sqrt(vx * vx + vy * vy)
+    side = 0.0
+    cb = 1.0
+    sb = 0.0
+    if h > 0.0 and u_k1_sum > 0.0:
+        alpha_disk = np.arctan2(vz, h)
+        G_full = forces.side_force_basis(alpha_disk, V, 1.0, k1, p[P_K2])
+        side = 0.25 * m_ref * p[P_THETA + forces.I_CS] * G_full * u_k1_sum
+        cb = vx / h
+        sb = vy / h
     # pusher
     wp = x[X_MOTOR + MOTOR_PUSHER]
-    Tp = m_ref * th[forces.I_CTX] * wp * wp * pusher_thrust_ratio(v_i[0], p[P_PUSH_NMAX] * wp, p)
+    Tp = m_ref * p[P_THETA + forces.I_CTX] * wp * wp * pusher_thrust_ratio(vx, p[P_PUSH_NMAX] * wp, p)
     tx += -p[P_KM] * Tp  # pusher drag torque rolls the airframe
     # wing
-    CL, CD = true_aero_coefficients(alpha, p)
-    qS = 0.5 * p[P_RHO] * V * V * p[P_S]
-    r = np.sqrt(v_i[0] * v_i[0] + v_i[2] * v_i[2])
-    sa, ca = (v_i[2] / r, v_i[0] / r) if r > 0.0 else (0.0, 1.0)
+    r = np.sqrt(vx * vx + vz * vz)
+    alpha = np.arctan2(vz, vx)
+    sa, ca = (vz / r, vx / r) if r > 0.0 else (0.0, 1.0)
+    CL, CD = true_aero_coefficients(alpha, sa, ca, p)
+    qS = 0.5 * p[P_RHO] * V2 * p[P_S]
+    beta = np.arcsin(min(1.0, max(-1.0, vy / V))) if V > 0.0 else 0.0
     CY = p[P_CY_BETA] * beta
     f_B[0] = (Tp - side * cb + qS * (CL * sa - CD * ca)) / mass
     f_B[1] = (-side * sb + qS * CY) / mass
@@ -290,32 +307,48 @@ def true_forces_moments(x, v_wind_W, p, f_B, tau_B) -> None:
 
 
 @njit(cache=True)
-def plant_derivative(x, motor_cmd, v_wind_W, p, xdot, f_B) -> None:
-    """Time derivative of the plant state (eq:pos_dyn, eq:att_dyn, motor lag) into ``xdot``.
-
-    ``f_B`` receives the true specific force (what an accelerometer measures).
-    """
-    tau = np.empty(3)
-    true_forces_moments(x, v_wind_W, p, f_B, tau)
-    q = x[X_Q_WB:X_Q_WB + 4]
-    R = quat_to_rotmat(q)
+def plant_derivative_ws(x, motor_cmd, v_wind_W, p, xdot, f_B, work) -> None:
+    """:func:`plant_derivative` with a caller-owned workspace ``work`` (float64, >= 6)."""
+    q0, q1, q2, q3 = x[X_Q_WB], x[X_Q_WB + 1], x[X_Q_WB + 2], x[X_Q_WB + 3]
+    # R_WB of q (as frames.quat_to_rotmat), as scalars: this runs 16 times per tick
+    r00 = 1.0 - 2.0 * (q2 * q2 + q3 * q3)
+    r01 = 2.0 * (q1 * q2 - q0 * q3)
+    r02 = 2.0 * (q1 * q3 + q0 * q2)
+    r10 = 2.0 * (q1 * q2 + q0 * q3)
+    r11 = 1.0 - 2.0 * (q1 * q1 + q3 * q3)
+    r12 = 2.0 * (q2 * q3 - q0 * q1)
+    r20 = 2.0 * (q1 * q3 - q0 * q2)
+    r21 = 2.0 * (q2 * q3 + q0 * q1)
+    r22 = 1.0 - 2.0 * (q1 * q1 + q2 * q2)
+    # eq:vi: v_i = R^T (v - v_w)
+    d0 = x[X_V_W] - v_wind_W[0]
+    d1 = x[X_V_W + 1] - v_wind_W[1]
+    d2 = x[X_V_W + 2] - v_wind_W[2]
+    v_i = work[0:3]
+    tau = work[3:6]
+    v_i[0] = r00 * d0 + r10 * d1 + r20 * d2
+    v_i[1] = r01 * d0 + r11 * d1 + r21 * d2
+    v_i[2] = r02 * d0 + r12 * d1 + r22 * d2
+    true_forces_moments(x, v_i, p, f_B, tau)
     # eq:pos_dyn: p_dot = v, v_dot = g + R f_b
-    for i in range(3):
-        xdot[i] = x[X_V_W + i]
-        xdot[X_V_W + i] = R[i, 0] * f_B[0] + R[i, 1] * f_B[1] + R[i, 2] * f_B[2]
-    xdot[X_V_W + 2] += GRAVITY_MPS2
+    xdot[0] = x[X_V_W]
+    xdot[1] = x[X_V_W + 1]
+    xdot[2] = x[X_V_W + 2]
+    xdot[X_V_W] = r00 * f_B[0] + r01 * f_B[1] + r02 * f_B[2]
+    xdot[X_V_W + 1] = r10 * f_B[0] + r11 * f_B[1] + r12 * f_B[2]
+    xdot[X_V_W + 2] = r20 * f_B[0] + r21 * f_B[1] + r22 * f_B[2] + GRAVITY_MPS2
     # eq:att_dyn: q_dot = 1/2 q * [0, omega]
     wx, wy, wz = x[X_OMEGA_B], x[X_OMEGA_B + 1], x[X_OMEGA_B + 2]
-    xdot[X_Q_WB] = 0.5 * (-q[1] * wx - q[2] * wy - q[3] * wz)
-    xdot[X_Q_WB + 1] = 0.5 * (q[0] * wx + q[2] * wz - q[3] * wy)
-    xdot[X_Q_WB + 2] = 0.5 * (q[0] * wy - q[1] * wz + q[3] * wx)
-    xdot[X_Q_WB + 3] = 0.5 * (q[0] * wz + q[1] * wy - q[2] * wx)
+    xdot[X_Q_WB] = 0.5 * (-q1 * wx - q2 * wy - q3 * wz)
+    xdot[X_Q_WB + 1] = 0.5 * (q0 * wx + q2 * wz - q3 * wy)
+    xdot[X_Q_WB + 2] = 0.5 * (q0 * wy - q1 * wz + q3 * wx)
+    xdot[X_Q_WB + 3] = 0.5 * (q0 * wz + q1 * wy - q2 * wx)
     # J omega_dot = (J omega) x omega + tau
-    J = p[P_J:P_J + 9]
+    Jf = p[P_J:P_J + 9]
     Ji = p[P_JINV:P_JINV + 9]
-    hx = J[0] * wx + J[1] * wy + J[2] * wz
-    hy = J[3] * wx + J[4] * wy + J[5] * wz
-    hz = J[6] * wx + J[7] * wy + J[8] * wz
+    hx = Jf[0] * wx + Jf[1] * wy + Jf[2] * wz
+    hy = Jf[3] * wx + Jf[4] * wy + Jf[5] * wz
+    hz = Jf[6] * wx + Jf[7] * wy + Jf[8] * wz
     mx = hy * wz - hz * wy + tau[0]
     my = hz * wx - hx * wz + tau[1]
     mz = hx * wy - hy * wx + tau[2]
@@ -323,13 +356,26 @@ def plant_derivative(x, motor_cmd, v_wind_W, p, xdot, f_B) -> None:
     xdot[X_OMEGA_B + 1] = Ji[3] * mx + Ji[4] * my + Ji[5] * mz
     xdot[X_OMEGA_B + 2] = Ji[6] * mx + Ji[7] * my + Ji[8] * mz
     # motors: first-order lag toward the saturated command
+    lag = p[P_LAG_ON] > 0.0
     for i in range(N_MOTORS):
-        cmd = min(max(motor_cmd[i], 0.0), 1.0)
-        if p[P_LAG_ON] > 0.0:
+        if lag:
+            cmd = min(max(motor_cmd[i], 0.0), 1.0)
             tau_m = p[P_TAU_PUSH] if i == MOTOR_PUSHER else p[P_TAU_LIFT]
             xdot[X_MOTOR + i] = (cmd - x[X_MOTOR + i]) / tau_m
         else:
             xdot[X_MOTOR + i] = 0.0
+
+
+@njit(cache=True)
+def plant_derivative(x, motor_cmd, v_wind_W, p, xdot, f_B) -> None:
+    """Time derivative of the plant state (eq:pos_dyn, eq:att_dyn, motor lag) into ``xdot``.
+
+    ``f_B`` receives the true specific force (what an accelerometer measures).
+    """
+    plant_derivative_ws(x, motor_cmd, v_wind_W, p, xdot, f_B, np.empty(6))
+
+
+RK4_WORK_SIZE = 5 * X_SIZE + 9
 
 
 @njit(cache=True)
@@ -340,34 +386,41 @@ def _set_instant_motors(x, motor_cmd, p) -> None:
 
 
 @njit(cache=True)
+def rk4_step_ws(x, motor_cmd, v_wind_W, p, h, f_B, work) -> None:
+    """:func:`rk4_step` with a caller-owned workspace ``work`` (float64, >= ``RK4_WORK_SIZE``)."""
+    _set_instant_motors(x, motor_cmd, p)
+    k1 = work[0:X_SIZE]
+    k2 = work[X_SIZE:2 * X_SIZE]
+    k3 = work[2 * X_SIZE:3 * X_SIZE]
+    k4 = work[3 * X_SIZE:4 * X_SIZE]
+    xt = work[4 * X_SIZE:5 * X_SIZE]
+    f_tmp = work[5 * X_SIZE:5 * X_SIZE + 3]
+    dw = work[5 * X_SIZE + 3:5 * X_SIZE + 9]
+    plant_derivative_ws(x, motor_cmd, v_wind_W, p, k1, f_B, dw)
+    for i in range(X_SIZE):
+        xt[i] = x[i] + 0.5 * h * k1[i]
+    plant_derivative_ws(xt, motor_cmd, v_wind_W, p, k2, f_tmp, dw)
+    for i in range(X_SIZE):
+        xt[i] = x[i] + 0.5 * h * k2[i]
+    plant_derivative_ws(xt, motor_cmd, v_wind_W, p, k3, f_tmp, dw)
+    for i in range(X_SIZE):
+        xt[i] = x[i] + h * k3[i]
+    plant_derivative_ws(xt, motor_cmd, v_wind_W, p, k4, f_tmp, dw)
+    for i in range(X_SIZE):
+        x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+    n = np.sqrt(x[X_Q_WB] ** 2 + x[X_Q_WB + 1] ** 2 + x[X_Q_WB + 2] ** 2 + x[X_Q_WB + 3] ** 2)
+    for i in range(4):
+        x[X_Q_WB + i] /= n
+
+
+@njit(cache=True)
 def rk4_step(x, motor_cmd, v_wind_W, p, h, f_B) -> None:
     """Advance ``x`` in place by one fixed RK4 step of ``h`` seconds, then renormalise q.
 
     Inputs (motor commands, wind) are held over the step, as the controller holds its command.
     ``f_B`` receives the specific force at the start of the step.
     """
-    _set_instant_motors(x, motor_cmd, p)
-    k1 = np.empty(X_SIZE)
-    k2 = np.empty(X_SIZE)
-    k3 = np.empty(X_SIZE)
-    k4 = np.empty(X_SIZE)
-    xt = np.empty(X_SIZE)
-    f_tmp = np.empty(3)
-    plant_derivative(x, motor_cmd, v_wind_W, p, k1, f_B)
-    for i in range(X_SIZE):
-        xt[i] = x[i] + 0.5 * h * k1[i]
-    plant_derivative(xt, motor_cmd, v_wind_W, p, k2, f_tmp)
-    for i in range(X_SIZE):
-        xt[i] = x[i] + 0.5 * h * k2[i]
-    plant_derivative(xt, motor_cmd, v_wind_W, p, k3, f_tmp)
-    for i in range(X_SIZE):
-        xt[i] = x[i] + h * k3[i]
-    plant_derivative(xt, motor_cmd, v_wind_W, p, k4, f_tmp)
-    for i in range(X_SIZE):
-        x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-    n = np.sqrt(x[X_Q_WB] ** 2 + x[X_Q_WB + 1] ** 2 + x[X_Q_WB + 2] ** 2 + x[X_Q_WB + 3] ** 2)
-    for i in range(4):
-        x[X_Q_WB + i] /= n
+    rk4_step_ws(x, motor_cmd, v_wind_W, p, h, f_B, np.empty(RK4_WORK_SIZE))
 
 
 def hover_trim_motor(vehicle: Vehicle, plant: PlantConfig) -> np.ndarray:

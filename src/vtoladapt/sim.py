@@ -44,7 +44,7 @@ from .layout import (
     X_V_W,
 )
 from .mixer import mix
-from .plant import plant_derivative, rk4_step
+from .plant import RK4_WORK_SIZE, plant_derivative_ws, rk4_step_ws
 from .sensors import sensors_step
 from .wind import wind_step
 
@@ -94,11 +94,12 @@ def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state,
     cmd = np.zeros(CMD_SIZE)
     diag = np.zeros(N_DIAG)
     motor_cmd = np.zeros(N_MOTORS)
+    work = np.empty(RK4_WORK_SIZE)
     h = dt / n_sub
     for k in range(n_ticks):
         t = t0 + k * dt
         wind_step(wind_p, wind_state, t, dt, x[X_P_W:X_P_W + 3], rng, v_wind)
-        plant_derivative(x, motor_cmd, v_wind, plant_p, xdot, f_B)
+        plant_derivative_ws(x, motor_cmd, v_wind, plant_p, xdot, f_B, work)
         R = quat_to_rotmat(x[X_Q_WB:X_Q_WB + 4])
         v_i = incident_velocity(x[X_V_W:X_V_W + 3], v_wind, R)
         sensors_step(sens_p, sens_state, t, dt, x, f_B, v_i, rng, meas)
@@ -134,4 +135,4 @@ def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state,
             state_theta_hat(ctrl_state), state_P_inv(ctrl_state), theta_true, gamma)
 
         for _ in range(n_sub):
-            rk4_step(x, motor_cmd, v_wind, plant_p, h, f_tmp)
+            rk4_step_ws(x, motor_cmd, v_wind, plant_p, h, f_tmp, work)

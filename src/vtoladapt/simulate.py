@@ -12,7 +12,7 @@ from .frames import quat_from_euler
 from .mixer import mixer_params
 from .plant import hover_trim_motor
 from .results import SimulationResult
-from .scenario import Scenario
+from .scenario import ReferenceConfig, Scenario
 from .vehicle import Vehicle
 
 ProgressCallback = Callable[[float, float], None]
@@ -46,22 +46,19 @@ class PreparedRun:
 def prepare(scenario: Scenario) -> PreparedRun:
     """Convert a validated scenario into kernel arrays. All random draws come from the scenario seed."""
     from .control.api import controller_arrays
-    from .control.trajectory import trajectory_from_reference
     from .sensors import sensors_initial_state
     from .wind import wind_initial_state
 
     vehicle = scenario.load_vehicle()
     rng = np.random.default_rng(scenario.seed)
     theta0, P0_diag, lower, upper, prior_description = controller_prior(scenario, vehicle)
+    theta_init = None
+    if scenario.controller_prior.initial_theta == "random":
+        frac = scenario.controller_prior.random_fraction
+        theta_init = np.clip(theta0 * (1.0 + frac * rng.uniform(-1.0, 1.0, size=theta0.shape)), lower, upper)
     ctrl_params, ctrl_state = controller_arrays(
         vehicle, scenario.controller, theta_0=theta0, P0_diag=P0_diag, theta_lower=lower,
-        theta_upper=upper)
-    if scenario.controller_prior.initial_theta == "random":
-        from .control.kernel import set_state_theta_hat
-
-        frac = scenario.controller_prior.random_fraction
-        draw = theta0 * (1.0 + frac * rng.uniform(-1.0, 1.0, size=theta0.shape))
-        set_state_theta_hat(ctrl_state, np.clip(draw, lower, upper))
+        theta_upper=upper, theta_init=theta_init)
     ic = scenario.initial
     motors = hover_trim_motor(vehicle, scenario.plant) if ic.trimmed_motors else np.zeros(layout.N_MOTORS)
     q0 = quat_from_euler(np.radians(ic.yaw_deg), np.radians(ic.pitch_deg), np.radians(ic.roll_deg))
@@ -69,7 +66,7 @@ def prepare(scenario: Scenario) -> PreparedRun:
     wind_params = scenario.wind.to_kernel()
     sensor_params = scenario.sensors.to_kernel()
     times = np.arange(scenario.n_ticks) * scenario.dt_control_s
-    reference = trajectory_from_reference(scenario.reference).reference_table(times)
+    reference = reference_trajectory(scenario.reference).reference_table(times)
     return PreparedRun(
         scenario=scenario, vehicle=vehicle, x0=x0,
         plant_params=scenario.plant.to_kernel(vehicle), mixer_params=mixer_params(vehicle),
@@ -80,9 +77,20 @@ def prepare(scenario: Scenario) -> PreparedRun:
         gamma=scenario.controller.gamma, rng=rng, prior_description=prior_description)
 
 
+def reference_trajectory(ref: ReferenceConfig):
+    """The position reference a scenario's ``[reference]`` table describes."""
+    from .control.trajectory import Hold, MinJerkWaypoints
+
+    yaw = np.radians(ref.yaw_deg)
+    if ref.kind == "hold":
+        return Hold(ref.position_m, yaw)
+    rows = np.array(ref.waypoints, dtype=float)
+    return MinJerkWaypoints(rows[:, 0], rows[:, 1:4], yaw)
+
+
 def controller_prior(scenario: Scenario, vehicle: Vehicle):
     """theta_0, P0 diagonal and theta-hat bounds (adaptation scaling) and a one-line description."""
-    from .control.api import default_theta_bounds
+    from .control.kernel import default_theta_bounds
 
     path = scenario.posterior_path()
     if path is None:

@@ -59,7 +59,8 @@ With ``x = V dt / L``:
 The sampled sequence therefore has exactly the Dryden autocorrelation at multiples of ``dt``; its
 spectrum is the continuous Dryden spectrum folded at the Nyquist frequency. The first call of
 :func:`wind_step` draws the filter states from their stationary distribution, so the turbulence
-is statistically stationary from t = 0.
+is statistically stationary from t = 0. The step coefficients are kept in the state and
+recomputed only when ``V dt`` changes (while the fan spins up, or when ``dt`` changes).
 
 Kernels and randomness
 ----------------------
@@ -99,6 +100,7 @@ WIND_DRAWS_PER_STEP = 5
 WIND_DRAWS_FIRST_STEP = 10
 
 GUST_SHAPES = ("one_minus_cosine", "step")
+PAPER_PROFILES = ("convergence", "comparison")
 
 # --- kernel parameter layout (private to this module) -------------------------------------------
 _FAN_N = 0            # number of breakpoints (piecewise-linear form)
@@ -126,7 +128,11 @@ _S_INIT = 0   # 0.0 until the first step has drawn the stationary initial state
 _S_U = 1      # normalised u filter state
 _S_V = 2      # normalised v filter states s1, s2 (2)
 _S_W = 4      # normalised w filter states s1, s2 (2)
-WIND_STATE_SIZE = 6
+_S_KEY = 6    # V dt the cached coefficients below were computed for (-1: none yet)
+_S_COEF_U = 7   # u filter: exp(-x), sqrt(1 - exp(-2x)) (2)
+_S_COEF_V = 9   # v filter: x, exp(-x), Cholesky l11, l21, l22 of the step noise covariance (5)
+_S_COEF_W = 14  # w filter: same (5)
+WIND_STATE_SIZE = 19
 
 _C1 = 0.5 * (1.0 - math.sqrt(3.0))
 _C2 = 0.5 * math.sqrt(3.0)
@@ -146,11 +152,17 @@ class FanArrayConfig:
     same time make a step (the throttle just before, then from that time on). With ``"hold"`` each
     throttle holds until the next breakpoint (steps only). Before the first breakpoint the first
     throttle holds, after the last the last. An empty schedule is a fan array that is off.
+    Instead of a schedule, ``profile`` names one of the paper's two experiments
+    (:func:`convergence_schedule`, :func:`comparison_schedule` with their default lengths).
     """
 
     schedule: tuple[tuple[float, ...], ...] = setting(
         "[s, %]", "breakpoints [t_s, throttle_pct]; times non-decreasing, throttle 0-100",
         default=())
+    profile: str | None = setting(
+        "-", "the paper's profile instead of a schedule: 'convergence' (still air 10 s, then 30, "
+        "50, 70 % for 20 s each) or 'comparison' (off 5 s; 30 % 10 s; 40, 50, 60 % 5 s each; "
+        "70 % 10 s; off from 40 s)", default=None, choices=PAPER_PROFILES)
     interpolation: str = setting(
         "-", "'linear': ramps between breakpoints (repeat a time for a step); 'hold': steps",
         default="linear", choices=("linear", "hold"))
@@ -165,6 +177,14 @@ class FanArrayConfig:
 
     def _check(self, source: str) -> None:
         where = f"{source}: [wind.fan_array] schedule"
+        if self.profile is not None:
+            if self.schedule:
+                raise ConfigError(f"{source}: [wind.fan_array] profile = {self.profile!r} and a "
+                                  "schedule: give one or the other")
+            if self.interpolation != "linear":
+                raise ConfigError(f"{source}: [wind.fan_array] profile = {self.profile!r} with "
+                                  f"interpolation = {self.interpolation!r}: a profile brings its "
+                                  "own steps; leave interpolation at 'linear'")
         previous_t = -math.inf
         repeats = 0
         for i, entry in enumerate(self.schedule):
@@ -201,6 +221,8 @@ class FanArrayConfig:
 
     def linear_breakpoints(self) -> tuple[tuple[float, float], ...]:
         """The schedule as piecewise-linear breakpoints (``"hold"`` steps become repeated times)."""
+        if self.profile is not None:
+            return paper_schedule(self.profile)
         pts = [(float(t), float(u)) for t, u in self.schedule]
         if self.interpolation == "linear" or not pts:
             return tuple(pts)
@@ -327,15 +349,42 @@ class WindConfig:
         fixed over the run so the axes never jump.
         """
         fan = self.fan_array
-        d = -_bearing_unit(fan.array_bearing_deg) * (fan.max_speed_mps if fan.schedule else 0.0)
+        on = bool(fan.schedule) or fan.profile is not None
+        d = -_bearing_unit(fan.array_bearing_deg) * (fan.max_speed_mps if on else 0.0)
         h = d + np.array(self.constant_mps[:2], dtype=float)
         n = float(np.hypot(h[0], h[1]))
         if n < 1e-9:
             return -_bearing_unit(fan.array_bearing_deg)
         return h / n
 
+    def time_scaled(self, scale: float) -> "WindConfig":
+        """The same wind with every time stretched by ``scale`` (> 0), for quick looks and tests.
+
+        Schedule times, the fan spin-up time constant and the gusts' start and duration are
+        multiplied by ``scale``; speeds and the turbulence are unchanged.
+        """
+        if not (scale > 0.0 and math.isfinite(scale)):
+            raise ValueError(f"scale = {scale!r}: must be a finite number > 0")
+        fan = self.fan_array
+        fan = dataclasses.replace(
+            fan, schedule=tuple((t * scale, u) for t, u in fan.linear_breakpoints()),
+            profile=None, interpolation="linear",
+            spin_up_time_constant_s=fan.spin_up_time_constant_s * scale)
+        gusts = tuple(dataclasses.replace(g, start_s=g.start_s * scale,
+                                          duration_s=g.duration_s * scale) for g in self.gusts)
+        return dataclasses.replace(self, fan_array=fan, gusts=gusts)
+
     def to_kernel(self) -> np.ndarray:
-        """The configuration as the float64 array the wind kernels take."""
+        """The configuration as the float64 array the wind kernels take.
+
+        Raises
+        ------
+        ConfigError
+            If the configuration was built without validation and does not fit the kernel (an
+            invalid schedule, too many breakpoints or gusts).
+        """
+        self.fan_array._check("WindConfig.to_kernel")
+        self._check("WindConfig.to_kernel")
         p = np.zeros(WIND_KERNEL_SIZE)
         fan = self.fan_array
         pts = fan.linear_breakpoints()
@@ -384,7 +433,7 @@ def _lagged_breakpoints(t: np.ndarray, u: np.ndarray, tau_s: float) -> np.ndarra
     return y
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _lag_on_segment(y0: float, u0: float, u1: float, seg_s: float, elapsed_s: float,
                     tau_s: float) -> float:
     """Closed-form ``y' = (u - y) / tau`` for ``u`` linear from ``u0`` to ``u1`` over ``seg_s``."""
@@ -524,15 +573,24 @@ def comparison_schedule(hover_s: float = 5.0, first_level_s: float = 10.0, step_
     return _levels_schedule(levels, ramp_s)
 
 
-def paper_fan_array(profile: str, spin_up_time_constant_s: float = 0.0, **kwargs) -> FanArrayConfig:
-    """A :class:`FanArrayConfig` for ``profile`` = ``"convergence"`` or ``"comparison"``.
+def paper_schedule(profile: str, **kwargs) -> tuple[tuple[float, float], ...]:
+    """Breakpoints of the paper's ``"convergence"`` or ``"comparison"`` profile.
 
     ``kwargs`` go to :func:`convergence_schedule` or :func:`comparison_schedule`.
     """
     makers = {"convergence": convergence_schedule, "comparison": comparison_schedule}
     if profile not in makers:
         raise ValueError(f"profile = {profile!r}: allowed {', '.join(map(repr, makers))}")
-    cfg = FanArrayConfig(schedule=makers[profile](**kwargs), interpolation="linear",
+    return makers[profile](**kwargs)
+
+
+def paper_fan_array(profile: str, spin_up_time_constant_s: float = 0.0, **kwargs) -> FanArrayConfig:
+    """A :class:`FanArrayConfig` for ``profile`` = ``"convergence"`` or ``"comparison"``.
+
+    ``kwargs`` (segment lengths, ``ramp_s``) go to :func:`convergence_schedule` or
+    :func:`comparison_schedule`; the result carries the explicit schedule.
+    """
+    cfg = FanArrayConfig(schedule=paper_schedule(profile, **kwargs), interpolation="linear",
                          spin_up_time_constant_s=spin_up_time_constant_s)
     cfg._check(f"paper_fan_array({profile!r})")
     return cfg
@@ -542,7 +600,7 @@ def paper_fan_array(profile: str, spin_up_time_constant_s: float = 0.0, **kwargs
 # Kernels
 # ==================================================================================================
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _segment(params: np.ndarray, t: float) -> int:
     """Index k of the last breakpoint with ``t_k <= t`` (-1 before the first)."""
     n = int(params[_FAN_N])
@@ -574,7 +632,7 @@ def fan_throttle_pct(params: np.ndarray, t: float) -> float:
     return u0 + (params[_FAN_U + k + 1] - u0) * (t - t0) / (t1 - t0)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _fan_speed_fraction(params: np.ndarray, t: float) -> float:
     """Fan wind speed as a fraction of ``max_speed``, after the spin-up lag."""
     n = int(params[_FAN_N])
@@ -618,6 +676,11 @@ def gust_wind_W(params: np.ndarray, t: float, out_v_W: np.ndarray) -> None:
     out_v_W[0] = 0.0
     out_v_W[1] = 0.0
     out_v_W[2] = 0.0
+    _add_gusts(params, t, out_v_W)
+
+
+@njit(cache=True, inline="always")
+def _add_gusts(params: np.ndarray, t: float, out_v_W: np.ndarray) -> None:
     for i in range(int(params[_N_GUSTS])):
         k = _GUST + _GUST_STRIDE * i
         t0 = params[k + 1]
@@ -634,7 +697,7 @@ def gust_wind_W(params: np.ndarray, t: float, out_v_W: np.ndarray) -> None:
             out_v_W[j] += s * params[k + 3 + j]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _two_pole_noise_cov(x: float) -> tuple:
     """Noise covariance ``(q11, q12, q22)`` of the normalised two-pole Dryden filter over ``x = a dt``."""
     if x < _SERIES_X:
@@ -658,25 +721,37 @@ def _two_pole_noise_cov(x: float) -> tuple:
     return q11, q12, q22
 
 
-@njit(cache=True)
-def _two_pole_advance(state: np.ndarray, i: int, x: float, n1: float, n2: float) -> None:
-    """Advance the normalised two-pole filter states ``state[i], state[i+1]`` by ``x = a dt``."""
+@njit(cache=True, inline="always")
+def _two_pole_coefficients(state: np.ndarray, c: int, x: float) -> None:
+    """Store ``x, exp(-x)`` and the Cholesky factor of the step noise covariance at ``state[c:c+5]``."""
     q11, q12, q22 = _two_pole_noise_cov(x)
     l11 = np.sqrt(q11)
     l21 = q12 / l11 if l11 > 0.0 else 0.0
-    l22 = np.sqrt(max(q22 - l21 * l21, 0.0))
-    e = np.exp(-x)
+    state[c] = x
+    state[c + 1] = np.exp(-x)
+    state[c + 2] = l11
+    state[c + 3] = l21
+    state[c + 4] = np.sqrt(max(q22 - l21 * l21, 0.0))
+
+
+@njit(cache=True, inline="always")
+def _two_pole_advance(state: np.ndarray, i: int, c: int, n1: float, n2: float) -> None:
+    """Advance the normalised two-pole filter states ``state[i], state[i+1]`` one step."""
+    x = state[c]
+    e = state[c + 1]
     s1 = state[i]
     s2 = state[i + 1]
     # state transition exp(A dt) = e^{-x} [[1, x], [0, 1]] for s1' = -a s1 + a s2, s2' = -a s2
-    state[i] = e * (s1 + x * s2) + l11 * n1
-    state[i + 1] = e * s2 + l21 * n1 + l22 * n2
+    state[i] = e * (s1 + x * s2) + state[c + 2] * n1
+    state[i + 1] = e * s2 + state[c + 3] * n1 + state[c + 4] * n2
 
 
 @njit(cache=True)
 def wind_initial_state(params: np.ndarray) -> np.ndarray:
     """A fresh wind state (turbulence filters; drawn from their stationary law on the first step)."""
-    return np.zeros(WIND_STATE_SIZE)
+    state = np.zeros(WIND_STATE_SIZE)
+    state[_S_KEY] = -1.0
+    return state
 
 
 @njit(cache=True)
@@ -701,24 +776,14 @@ def wind_step(params: np.ndarray, state: np.ndarray, t: float, dt: float, p_W: n
     out_v_wind_W : numpy.ndarray, shape (3,)
         Receives the wind velocity, NED (m/s): mean (fan + constant) + gusts + turbulence.
     """
-    mean_wind_W(params, t, out_v_wind_W)
-    m0 = out_v_wind_W[0]
-    m1 = out_v_wind_W[1]
-    m2 = out_v_wind_W[2]
-    speed = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-    gN = 0.0
-    gE = 0.0
-    gD = 0.0
-    n_gusts = int(params[_N_GUSTS])
-    if n_gusts > 0:
-        g = np.empty(3)
-        gust_wind_W(params, t, g)
-        gN = g[0]
-        gE = g[1]
-        gD = g[2]
-    out_v_wind_W[0] = m0 + gN
-    out_v_wind_W[1] = m1 + gE
-    out_v_wind_W[2] = m2 + gD
+    v_fan = params[_FAN_MAX_SPEED] * _fan_speed_fraction(params, t)
+    m0 = v_fan * params[_FAN_DIR] + params[_CONST]
+    m1 = v_fan * params[_FAN_DIR + 1] + params[_CONST + 1]
+    m2 = params[_CONST + 2]
+    out_v_wind_W[0] = m0
+    out_v_wind_W[1] = m1
+    out_v_wind_W[2] = m2
+    _add_gusts(params, t, out_v_wind_W)
 
     if state[_S_INIT] == 0.0:
         # stationary start: s_u ~ N(0, 1); (s1, s2) ~ N(0, [[1, 1], [1, 2]])
@@ -741,6 +806,7 @@ def wind_step(params: np.ndarray, state: np.ndarray, t: float, dt: float, p_W: n
     if params[_TURB_ON] == 0.0:
         return
 
+    speed = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
     scale = speed if params[_TURB_FRACTION] != 0.0 else 1.0
     su = params[_TURB_SIGMA] * scale
     sv = params[_TURB_SIGMA + 1] * scale
@@ -758,12 +824,19 @@ def wind_step(params: np.ndarray, state: np.ndarray, t: float, dt: float, p_W: n
     V = params[_TURB_V_FIXED]
     if V < 0.0:
         V = max(speed, params[_TURB_V_MIN])
-    xu = V * dt / params[_TURB_L]
-    xv = V * dt / params[_TURB_L + 1]
-    xw = V * dt / params[_TURB_L + 2]
-    state[_S_U] = np.exp(-xu) * state[_S_U] + np.sqrt(-np.expm1(-2.0 * xu)) * n_u
-    _two_pole_advance(state, _S_V, xv, n_v1, n_v2)
-    _two_pole_advance(state, _S_W, xw, n_w1, n_w2)
+    key = V * dt
+    if key != state[_S_KEY]:
+        # the coefficients depend on V dt / L only: recompute when the mean wind or dt changes
+        xu = key / params[_TURB_L]
+        em1 = np.expm1(-xu)
+        state[_S_COEF_U] = 1.0 + em1
+        state[_S_COEF_U + 1] = np.sqrt(-em1 * (2.0 + em1))   # sqrt(1 - exp(-2x))
+        _two_pole_coefficients(state, _S_COEF_V, key / params[_TURB_L + 1])
+        _two_pole_coefficients(state, _S_COEF_W, key / params[_TURB_L + 2])
+        state[_S_KEY] = key
+    state[_S_U] = state[_S_COEF_U] * state[_S_U] + state[_S_COEF_U + 1] * n_u
+    _two_pole_advance(state, _S_V, _S_COEF_V, n_v1, n_v2)
+    _two_pole_advance(state, _S_W, _S_COEF_W, n_w1, n_w2)
 
 
 @njit(cache=True)

@@ -1,0 +1,89 @@
+"""Per-call cost of the wind and sensor kernels inside compiled loops.
+
+``run()`` returns ``(name, value, unit)`` rows: the median over repeats of the time per call of
+``wind_step`` (fan schedule with spin-up lag, a gust and Dryden turbulence on) and of
+``sensors_step`` (every sensor on, differentiated mocap velocity, probe dropout), each called in
+an ``njit`` loop with a moving truth (so nothing is hoisted). Timed with the process's CPU clock,
+so other jobs sharing the machine do not inflate the figures. A few seconds, plus Numba
+compilation on a cold cache.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from numba import njit
+
+from vtoladapt import layout
+from vtoladapt.sensors import (MocapConfig, ProbeConfig, SensorsConfig, sensors_initial_state,
+                               sensors_step)
+from vtoladapt.wind import WindConfig, comparison_schedule, wind_initial_state, wind_step
+
+DT = 0.004
+
+
+# not cached: Numba's cache does not see edits to the kernels it calls in other files
+@njit(cache=False)
+def _loop_wind(params, state, rng, n_calls):
+    out = np.empty(3)
+    p_W = np.zeros(3)
+    acc = 0.0
+    for k in range(n_calls):
+        t = (k % 12500) * 0.004
+        wind_step(params, state, t, 0.004, p_W, rng, out)
+        acc += out[0] + out[1] + out[2]
+    return acc
+
+
+@njit(cache=False)
+def _loop_sensors(params, state, x, f_B, v_i, rng, n_calls):
+    meas = np.empty(20)
+    acc = 0.0
+    for k in range(n_calls):
+        s = 1e-4 * (k % 1000)
+        x[0] = s
+        x[4] = s
+        f_B[0] = s
+        v_i[0] = 5.0 + s
+        sensors_step(params, state, k * 0.004, 0.004, x, f_B, v_i, rng, meas)
+        acc += meas[0] + meas[13] + meas[19]
+    return acc
+
+
+def _median_us_per_call(fn, args, n_calls: int, repeats: int) -> float:
+    fn(*args, 10)  # compile / warm up
+    times = []
+    for _ in range(repeats):
+        t0 = time.process_time()
+        fn(*args, n_calls)
+        times.append((time.process_time() - t0) / n_calls * 1e6)
+    return float(np.median(times))
+
+
+def run() -> list[tuple[str, float, str]]:
+    """Time ``wind_step`` and ``sensors_step``; return ``(name, us per call, "us/call")`` rows."""
+    wind = WindConfig.from_mapping({
+        "fan_array": {"schedule": comparison_schedule(), "spin_up_time_constant_s": 0.5},
+        "turbulence": {"enabled": True, "w20_mps": 7.7, "altitude_m": 2.0},
+        "gusts": [{"shape": "one_minus_cosine", "start_s": 12.0, "duration_s": 2.0,
+                   "amplitude_mps": [0.0, 1.0, 0.0]}]})
+    wp = wind.to_kernel()
+    rng = np.random.default_rng(0)
+    wind_us = _median_us_per_call(_loop_wind, (wp, wind_initial_state(wp), rng), 200_000, 15)
+
+    sens = SensorsConfig(mocap=MocapConfig(velocity_from="differentiate"),
+                         probe=ProbeConfig(dropout_probability=0.01))
+    sp = sens.to_kernel()
+    x = layout.pack_state([0.0, 0.0, -1.5], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0],
+                          [0.0, 0.0, 0.0], [0.5] * 5)
+    f_B = np.array([0.0, 0.0, -9.80665])
+    v_i = np.array([5.0, 0.0, 0.3])
+    sensors_us = _median_us_per_call(
+        _loop_sensors, (sp, sensors_initial_state(sp, rng), x, f_B, v_i, rng), 200_000, 15)
+    return [("wind_step (fan + lag + gust + Dryden)", wind_us, "us/call"),
+            ("sensors_step (all sensors on)", sensors_us, "us/call")]
+
+
+if __name__ == "__main__":
+    for name, value, unit in run():
+        print(f"{name:45s} {value:8.3f} {unit}")

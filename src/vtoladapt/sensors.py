@@ -1,0 +1,507 @@
+"""Sensors of the closed-loop simulator: IMU, motion capture, attitude estimate and airflow probe.
+
+The controller never sees the plant state; it sees the measurement array of
+:mod:`vtoladapt.layout` (``MEAS_*``) that :func:`sensors_step` writes every control tick from
+the true state. Each sensor is configured in a sub-table of a scenario's ``[sensors]`` table
+(``imu``, ``mocap``, ``attitude``, ``probe``) and each switches to a perfect sensor with
+``ideal = true``. The defaults are realistic for the paper's set-up:
+
+* **IMU** (``[sensors.imu]``), sampled at the control rate. White noise with the datasheet
+  densities of a Pixhawk-class MEMS IMU (ICM-20689 / BMI088 class: gyro ~0.007 deg/s/sqrt(Hz),
+  accelerometer ~175 ug/sqrt(Hz)); a sample averaged over one tick ``dt`` has standard deviation
+  ``density / sqrt(dt) = density * sqrt(rate)`` (0.11 deg/s and 0.027 m/s^2 at 250 Hz). Constant
+  biases, drawn once per run, stand for what the autopilot's start-up calibration leaves
+  (0.1 deg/s, 0.05 m/s^2, 1 sigma); an optional bias random walk (off by default). Outputs
+  saturate at the full-scale range (2000 deg/s, 16 g). The accelerometer measures the specific
+  force ``a - g`` in body axes (:func:`specific_force_B`), so at rest and level it reads
+  ``[0, 0, -9.80665]`` (FRD).
+* **Motion capture** (``[sensors.mocap]``): position noise 0.5 mm (Vicon / OptiTrack class),
+  velocity either with its own noise (``velocity_from = "direct"``, 0.02 m/s: what the
+  autopilot's estimator fusing the motion capture delivers) or by differencing the noisy
+  positions with a first-order low-pass (``"differentiate"``). Both are delayed by
+  ``latency_s`` (12 ms = 3 ticks at 250 Hz: camera processing plus the link to the autopilot),
+  rounded to a whole number of ticks and kept in a ring buffer in the sensor state.
+* **Attitude estimate** (``[sensors.attitude]``): the true ``q_WB`` rotated by a small random
+  body-axis rotation of 0.2 deg (1 sigma per axis), drawn each tick.
+* **Airflow probe** (``[sensors.probe]``), ``model = "ideal_noise"``: the true incident velocity
+  through a first-order lag (3 ms: the SDP33's "< 3 ms" response, Sensirion datasheet; Shi et al.
+  2020, Sec. Airflow Sensing) plus white noise (0.1 m/s per axis). A reading drops out with
+  ``dropout_probability`` per tick (``MEAS_V_I_VALID = 0`` and NaN values, to exercise the
+  controller's fallback); below ``min_airspeed_mps`` the reading is kept but flagged invalid
+  (``MEAS_V_I_VALID = 0``), as flow angles are meaningless there. ``model = "pressure"`` (the
+  SDP33 pressure model of :mod:`vtoladapt.probe`) is not available yet.
+
+Lags are discretised exactly for an input held at its current value over the tick
+(``y <- y + (1 - exp(-dt / tau)) (u - y)``), like the SDP33 model in
+:mod:`vtoladapt.probe.sensor`.
+
+Randomness
+----------
+Only from the ``numpy.random.Generator`` passed in. :func:`sensors_initial_state` draws
+``SENSOR_DRAWS_INITIAL`` standard normals (gyro bias xyz, accelerometer bias xyz); every
+:func:`sensors_step` draws ``SENSOR_NORMALS_PER_STEP`` standard normals and then one uniform, in
+this fixed order: gyro noise xyz, accelerometer noise xyz, gyro bias walk xyz, accelerometer bias
+walk xyz, mocap position NED, mocap velocity NED, attitude rotation xyz, probe xyz, probe dropout
+(uniform). Every channel draws whether it is ideal or not, so making one sensor ideal never
+changes the noise of the others: a run differs from another only where its settings differ.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+from numba import njit
+
+from . import layout
+from .config import ConfigError, build, setting
+from .frames import GRAVITY_MPS2
+
+MICRO_G_MPS2 = 1e-6 * GRAVITY_MPS2
+"""One micro-g in m/s^2."""
+
+MOCAP_RING_SIZE = 128
+"""Ticks of motion-capture history kept for the latency (127 ticks of delay at most)."""
+
+SENSOR_DRAWS_INITIAL = 6
+SENSOR_NORMALS_PER_STEP = 24
+SENSOR_UNIFORMS_PER_STEP = 1
+
+PROBE_MODELS = ("ideal_noise", "pressure")
+VELOCITY_SOURCES = ("direct", "differentiate")
+
+# --- kernel parameter layout (private to this module) -------------------------------------------
+_IMU_IDEAL = 0
+_GYRO_DENSITY = 1        # rad/s/sqrt(Hz)
+_ACCEL_DENSITY = 2       # m/s^2/sqrt(Hz)
+_GYRO_BIAS_STD = 3       # rad/s
+_ACCEL_BIAS_STD = 4      # m/s^2
+_GYRO_WALK = 5           # rad/s/sqrt(s)
+_ACCEL_WALK = 6          # m/s^2/sqrt(s)
+_GYRO_RANGE = 7          # rad/s
+_ACCEL_RANGE = 8         # m/s^2
+_MOCAP_IDEAL = 9
+_MOCAP_POS_STD = 10      # m
+_MOCAP_VEL_DIFF = 11     # 1.0: velocity by differencing positions; 0.0: direct noise
+_MOCAP_VEL_STD = 12      # m/s
+_MOCAP_VEL_LP_HZ = 13    # Hz (0: no filter)
+_MOCAP_LATENCY = 14      # s
+_ATT_IDEAL = 15
+_ATT_STD = 16            # rad
+_PROBE_IDEAL = 17
+_PROBE_MODEL = 18        # index into PROBE_MODELS
+_PROBE_STD = 19          # m/s
+_PROBE_TAU = 20          # s
+_PROBE_DROPOUT = 21      # probability per tick
+_PROBE_MIN_V = 22        # m/s
+SENSORS_KERNEL_SIZE = 23
+PROBE_MODEL_IDEAL_NOISE = 0
+
+# --- state layout -----------------------------------------------------------------------------
+_ST_INIT = 0          # 0.0 until the first step has filled the buffers
+_ST_GYRO_BIAS = 1     # rad/s (3)
+_ST_ACCEL_BIAS = 4    # m/s^2 (3)
+_ST_PROBE = 7         # probe model state: lagged incident velocity, m/s (3)
+_ST_PREV_P = 10       # previous delayed noisy mocap position, m (3)
+_ST_VEL_F = 13        # low-passed differenced mocap velocity, m/s (3)
+_ST_DT_KEY = 16       # dt the cached coefficients below were computed for (0: none yet)
+_ST_INV_SQRT_DT = 17  # 1 / sqrt(dt): white-noise density -> per-sample sigma
+_ST_SQRT_DT = 18      # sqrt(dt): random-walk density -> per-step increment
+_ST_MOCAP_GAIN = 19   # 1 - exp(-2 pi f_c dt) of the differenced-velocity low-pass
+_ST_PROBE_GAIN = 20   # 1 - exp(-dt / tau) of the probe lag
+_ST_DELAY = 21        # mocap latency in whole ticks
+_ST_RING_HEAD = 22    # ring slot written this tick
+_ST_RING = 23         # MOCAP_RING_SIZE slots of (p_W, v_W)
+_RING_STRIDE = 6
+SENSORS_STATE_SIZE = _ST_RING + _RING_STRIDE * MOCAP_RING_SIZE
+
+
+# ==================================================================================================
+# Configuration
+# ==================================================================================================
+
+@dataclass(frozen=True)
+class ImuConfig:
+    """Gyroscope and accelerometer, sampled at the control rate (``[sensors.imu]``)."""
+
+    ideal: bool = setting("-", "perfect IMU (true rate and specific force)", default=False)
+    gyro_noise_density_dps_rtHz: float = setting(
+        "deg/s/sqrt(Hz)", "gyro white-noise density (ICM-20689 / BMI088 class)", default=0.007,
+        ge=0.0)
+    accel_noise_density_ug_rtHz: float = setting(
+        "ug/sqrt(Hz)", "accelerometer white-noise density (ICM-20689 / BMI088 class)",
+        default=175.0, ge=0.0)
+    gyro_bias_std_dps: float = setting(
+        "deg/s", "std of the constant gyro bias left after start-up calibration", default=0.1,
+        ge=0.0)
+    accel_bias_std_mps2: float = setting(
+        "m/s^2", "std of the constant accelerometer bias left after calibration", default=0.05,
+        ge=0.0)
+    gyro_bias_random_walk_dps_rts: float = setting(
+        "deg/s/sqrt(s)", "gyro bias random walk (0: constant bias)", default=0.0, ge=0.0)
+    accel_bias_random_walk_mps2_rts: float = setting(
+        "m/s^2/sqrt(s)", "accelerometer bias random walk (0: constant bias)", default=0.0, ge=0.0)
+    gyro_range_dps: float = setting("deg/s", "gyro full-scale range", default=2000.0, gt=0.0)
+    accel_range_mps2: float = setting("m/s^2", "accelerometer full-scale range (16 g)",
+                                      default=16.0 * GRAVITY_MPS2, gt=0.0)
+
+
+@dataclass(frozen=True)
+class MocapConfig:
+    """Motion-capture position and velocity (``[sensors.mocap]``)."""
+
+    ideal: bool = setting("-", "perfect, undelayed position and velocity", default=False)
+    position_noise_std_m: float = setting("m", "position noise per axis (Vicon/OptiTrack ~0.5 mm)",
+                                          default=0.0005, ge=0.0)
+    velocity_from: str = setting(
+        "-", "'direct': truth plus noise; 'differentiate': difference of the noisy positions, "
+        "low-passed", default="direct", choices=VELOCITY_SOURCES)
+    velocity_noise_std_mps: float = setting(
+        "m/s", "velocity noise per axis ('direct')", default=0.02, ge=0.0)
+    velocity_lowpass_hz: float = setting(
+        "Hz", "first-order low-pass cut-off on the differenced velocity ('differentiate'; "
+        "0: none)", default=20.0, ge=0.0)
+    latency_s: float = setting(
+        "s", "delay of position and velocity, rounded to whole control ticks", default=0.012,
+        ge=0.0, le=0.25)
+
+
+@dataclass(frozen=True)
+class AttitudeConfig:
+    """Attitude estimate ``q_WB`` (``[sensors.attitude]``)."""
+
+    ideal: bool = setting("-", "perfect attitude", default=False)
+    noise_std_deg: float = setting("deg", "small-rotation noise per body axis, each tick",
+                                   default=0.2, ge=0.0, le=10.0)
+
+
+@dataclass(frozen=True)
+class ProbeConfig:
+    """Airflow probe: incident velocity in body axes (``[sensors.probe]``)."""
+
+    ideal: bool = setting("-", "perfect, always valid incident velocity", default=False)
+    model: str = setting("-", "'ideal_noise': truth, lag and noise; 'pressure': not yet available",
+                         default="ideal_noise", choices=PROBE_MODELS)
+    noise_std_mps: float = setting("m/s", "white noise per body axis", default=0.1, ge=0.0)
+    time_constant_s: float = setting("s", "first-order lag (SDP33 response < 3 ms)",
+                                     default=0.003, ge=0.0, le=1.0)
+    dropout_probability: float = setting(
+        "-", "probability per tick of an invalid reading (NaN values, valid flag 0)",
+        default=0.0, ge=0.0, le=1.0)
+    min_airspeed_mps: float = setting(
+        "m/s", "readings below this airspeed are flagged invalid (values kept)", default=1.0,
+        ge=0.0)
+
+    def describe(self) -> str:
+        """One line on the probe model, for logs and reports."""
+        if self.ideal:
+            return "ideal (true incident velocity, always valid)"
+        return (f"{self.model}: noise {self.noise_std_mps:g} m/s per axis, lag "
+                f"{1e3 * self.time_constant_s:g} ms, dropout {self.dropout_probability:g} per tick, "
+                f"valid above {self.min_airspeed_mps:g} m/s")
+
+    def _check(self, source: str) -> None:
+        if self.model == "pressure":
+            raise ConfigError(
+                f"{source}: [sensors.probe] model = 'pressure': the pressure model of the probe is "
+                "not available in this version; allowed now: 'ideal_noise'")
+
+
+@dataclass(frozen=True)
+class SensorsConfig:
+    """All the sensors of a scenario (``[sensors]``)."""
+
+    imu: ImuConfig = setting("-", "IMU", default=ImuConfig())
+    mocap: MocapConfig = setting("-", "motion capture", default=MocapConfig())
+    attitude: AttitudeConfig = setting("-", "attitude estimate", default=AttitudeConfig())
+    probe: ProbeConfig = setting("-", "airflow probe", default=ProbeConfig())
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any], *, source: str = "<config>",
+                     section: str = "sensors") -> "SensorsConfig":
+        """Build from a scenario's ``[sensors]`` table.
+
+        Raises
+        ------
+        ConfigError
+            Naming the file, the table (e.g. ``sensors.imu``), the key and what is allowed.
+        """
+        return build(cls, data, source=source, section=section)
+
+    @classmethod
+    def all_ideal(cls) -> "SensorsConfig":
+        """Every sensor perfect: the measurement is the truth."""
+        return cls(imu=ImuConfig(ideal=True), mocap=MocapConfig(ideal=True),
+                   attitude=AttitudeConfig(ideal=True), probe=ProbeConfig(ideal=True))
+
+    def to_kernel(self) -> np.ndarray:
+        """The configuration as the float64 array the sensor kernels take (SI units, radians)."""
+        self.probe._check("SensorsConfig")
+        p = np.zeros(SENSORS_KERNEL_SIZE)
+        imu, mocap, att, probe = self.imu, self.mocap, self.attitude, self.probe
+        d2r = math.pi / 180.0
+        p[_IMU_IDEAL] = float(imu.ideal)
+        p[_GYRO_DENSITY] = imu.gyro_noise_density_dps_rtHz * d2r
+        p[_ACCEL_DENSITY] = imu.accel_noise_density_ug_rtHz * MICRO_G_MPS2
+        p[_GYRO_BIAS_STD] = imu.gyro_bias_std_dps * d2r
+        p[_ACCEL_BIAS_STD] = imu.accel_bias_std_mps2
+        p[_GYRO_WALK] = imu.gyro_bias_random_walk_dps_rts * d2r
+        p[_ACCEL_WALK] = imu.accel_bias_random_walk_mps2_rts
+        p[_GYRO_RANGE] = imu.gyro_range_dps * d2r
+        p[_ACCEL_RANGE] = imu.accel_range_mps2
+        p[_MOCAP_IDEAL] = float(mocap.ideal)
+        p[_MOCAP_POS_STD] = mocap.position_noise_std_m
+        p[_MOCAP_VEL_DIFF] = float(mocap.velocity_from == "differentiate")
+        p[_MOCAP_VEL_STD] = mocap.velocity_noise_std_mps
+        p[_MOCAP_VEL_LP_HZ] = mocap.velocity_lowpass_hz
+        p[_MOCAP_LATENCY] = mocap.latency_s
+        p[_ATT_IDEAL] = float(att.ideal)
+        p[_ATT_STD] = att.noise_std_deg * d2r
+        p[_PROBE_IDEAL] = float(probe.ideal)
+        p[_PROBE_MODEL] = PROBE_MODELS.index(probe.model)
+        p[_PROBE_STD] = probe.noise_std_mps
+        p[_PROBE_TAU] = probe.time_constant_s
+        p[_PROBE_DROPOUT] = probe.dropout_probability
+        p[_PROBE_MIN_V] = probe.min_airspeed_mps
+        return p
+
+
+def imu_biases(state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Current IMU biases in a sensor state: ``(gyro_bias_radps, accel_bias_mps2)``, copies."""
+    return (np.array(state[_ST_GYRO_BIAS:_ST_GYRO_BIAS + 3]),
+            np.array(state[_ST_ACCEL_BIAS:_ST_ACCEL_BIAS + 3]))
+
+
+def latency_ticks(latency_s: float, dt_s: float) -> int:
+    """Whole control ticks of delay for a latency (nearest, halves up), as the kernel rounds it."""
+    return int(latency_s / dt_s + 0.5)
+
+
+# ==================================================================================================
+# Kernels
+# ==================================================================================================
+
+@njit(cache=True)
+def specific_force_B(a_W: np.ndarray, R_WB: np.ndarray) -> np.ndarray:
+    """Specific force ``R^T (a - g)`` in body axes (m/s^2): what an accelerometer measures.
+
+    ``a_W`` is the acceleration (NED, m/s^2) and ``g = [0, 0, 9.80665]`` (NED), so at rest and
+    level it is ``[0, 0, -9.80665]`` and in free fall zero.
+    """
+    d0 = a_W[0]
+    d1 = a_W[1]
+    d2 = a_W[2] - GRAVITY_MPS2
+    out = np.empty(3)
+    for j in range(3):
+        out[j] = R_WB[0, j] * d0 + R_WB[1, j] * d1 + R_WB[2, j] * d2
+    return out
+
+
+@njit(cache=True)
+def sensors_initial_state(params: np.ndarray, rng) -> np.ndarray:
+    """A fresh sensor state; draws the constant IMU biases (six standard normals) from ``rng``."""
+    state = np.zeros(SENSORS_STATE_SIZE)
+    for j in range(3):
+        state[_ST_GYRO_BIAS + j] = params[_GYRO_BIAS_STD] * rng.standard_normal()
+    for j in range(3):
+        state[_ST_ACCEL_BIAS + j] = params[_ACCEL_BIAS_STD] * rng.standard_normal()
+    return state
+
+
+@njit(cache=True, inline="always")
+def _clip(x: float, limit: float) -> float:
+    return min(limit, max(-limit, x))
+
+
+@njit(cache=True, inline="always")
+def _imu_step(params, state, dt, x_true, specific_force_B, rng, meas_out):
+    ideal = params[_IMU_IDEAL] != 0.0
+    sq = state[_ST_INV_SQRT_DT]
+    for j in range(3):
+        n = rng.standard_normal()
+        w = x_true[layout.X_OMEGA_B + j]
+        if not ideal:
+            w = _clip(w + state[_ST_GYRO_BIAS + j] + params[_GYRO_DENSITY] * sq * n,
+                      params[_GYRO_RANGE])
+        meas_out[layout.MEAS_OMEGA_B + j] = w
+    for j in range(3):
+        n = rng.standard_normal()
+        f = specific_force_B[j]
+        if not ideal:
+            f = _clip(f + state[_ST_ACCEL_BIAS + j] + params[_ACCEL_DENSITY] * sq * n,
+                      params[_ACCEL_RANGE])
+        meas_out[layout.MEAS_ACCEL_B + j] = f
+    # biases walk after this tick's reading: b_{k+1} = b_k + q sqrt(dt) n
+    sdt = state[_ST_SQRT_DT]
+    for j in range(3):
+        state[_ST_GYRO_BIAS + j] += params[_GYRO_WALK] * sdt * rng.standard_normal()
+    for j in range(3):
+        state[_ST_ACCEL_BIAS + j] += params[_ACCEL_WALK] * sdt * rng.standard_normal()
+
+
+@njit(cache=True, inline="always")
+def _mocap_step(params, state, dt, x_true, rng, meas_out):
+    n_delay = int(state[_ST_DELAY])
+    head = (int(state[_ST_RING_HEAD]) + 1) % MOCAP_RING_SIZE
+    state[_ST_RING_HEAD] = head
+    k = _ST_RING + _RING_STRIDE * head
+    for j in range(3):
+        state[k + j] = x_true[layout.X_P_W + j]
+        state[k + 3 + j] = x_true[layout.X_V_W + j]
+    d = _ST_RING + _RING_STRIDE * ((head - n_delay) % MOCAP_RING_SIZE)
+    ideal = params[_MOCAP_IDEAL] != 0.0
+    for j in range(3):
+        n = rng.standard_normal()
+        if ideal:
+            meas_out[layout.MEAS_P_W + j] = x_true[layout.X_P_W + j]
+        else:
+            meas_out[layout.MEAS_P_W + j] = state[d + j] + params[_MOCAP_POS_STD] * n
+    differentiate = params[_MOCAP_VEL_DIFF] != 0.0
+    gain = state[_ST_MOCAP_GAIN]
+    for j in range(3):
+        n = rng.standard_normal()
+        if ideal:
+            meas_out[layout.MEAS_V_W + j] = x_true[layout.X_V_W + j]
+        elif differentiate:
+            p_now = meas_out[layout.MEAS_P_W + j]
+            raw = (p_now - state[_ST_PREV_P + j]) / dt
+            state[_ST_PREV_P + j] = p_now
+            state[_ST_VEL_F + j] += gain * (raw - state[_ST_VEL_F + j])
+            meas_out[layout.MEAS_V_W + j] = state[_ST_VEL_F + j]
+        else:
+            meas_out[layout.MEAS_V_W + j] = state[d + 3 + j] + params[_MOCAP_VEL_STD] * n
+
+
+@njit(cache=True, inline="always")
+def _attitude_step(params, x_true, rng, meas_out):
+    s = params[_ATT_STD]
+    r0 = s * rng.standard_normal()
+    r1 = s * rng.standard_normal()
+    r2 = s * rng.standard_normal()
+    q = x_true[layout.X_Q_WB:layout.X_Q_WB + 4]
+    m = layout.MEAS_Q_WB
+    if params[_ATT_IDEAL] != 0.0:
+        for i in range(4):
+            meas_out[m + i] = q[i]
+        return
+    angle = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+    c = np.cos(0.5 * angle)
+    k = 0.5 if angle < 1e-12 else np.sin(0.5 * angle) / angle
+    d0, d1, d2, d3 = c, k * r0, k * r1, k * r2
+    # q_meas = q_true * dq: a small rotation about body axes
+    w = q[0] * d0 - q[1] * d1 - q[2] * d2 - q[3] * d3
+    x = q[0] * d1 + q[1] * d0 + q[2] * d3 - q[3] * d2
+    y = q[0] * d2 - q[1] * d3 + q[2] * d0 + q[3] * d1
+    z = q[0] * d3 + q[1] * d2 - q[2] * d1 + q[3] * d0
+    norm = np.sqrt(w * w + x * x + y * y + z * z)
+    meas_out[m] = w / norm
+    meas_out[m + 1] = x / norm
+    meas_out[m + 2] = y / norm
+    meas_out[m + 3] = z / norm
+
+
+@njit(cache=True, inline="always")
+def _probe_ideal_noise(params, state, dt, v_i_B_true, rng, meas_out):
+    """``model = "ideal_noise"``: lagged truth plus white noise; draws three normals."""
+    gain = state[_ST_PROBE_GAIN]
+    for j in range(3):
+        n = rng.standard_normal()
+        state[_ST_PROBE + j] += gain * (v_i_B_true[j] - state[_ST_PROBE + j])
+        meas_out[layout.MEAS_V_I_B + j] = state[_ST_PROBE + j] + params[_PROBE_STD] * n
+
+
+@njit(cache=True, inline="always")
+def _probe_step(params, state, dt, v_i_B_true, rng, meas_out):
+    m = layout.MEAS_V_I_B
+    # One function per probe model (selected by params[_PROBE_MODEL]; only "ideal_noise" exists
+    # yet). Each draws exactly three normals so the dropout draw below keeps its place.
+    _probe_ideal_noise(params, state, dt, v_i_B_true, rng, meas_out)
+    u = rng.random()
+    if params[_PROBE_IDEAL] != 0.0:
+        for j in range(3):
+            meas_out[m + j] = v_i_B_true[j]
+        meas_out[layout.MEAS_V_I_VALID] = 1.0
+        return
+    if u < params[_PROBE_DROPOUT]:
+        for j in range(3):
+            meas_out[m + j] = np.nan
+        meas_out[layout.MEAS_V_I_VALID] = 0.0
+        return
+    v0 = meas_out[m]
+    v1 = meas_out[m + 1]
+    v2 = meas_out[m + 2]
+    airspeed = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    meas_out[layout.MEAS_V_I_VALID] = 1.0 if airspeed >= params[_PROBE_MIN_V] else 0.0
+
+
+@njit(cache=True, inline="always")
+def _dt_coefficients(params, state, dt):
+    """Coefficients that depend on the tick only, recomputed when ``dt`` changes."""
+    n_delay = int(params[_MOCAP_LATENCY] / dt + 0.5)
+    if n_delay >= MOCAP_RING_SIZE:
+        raise ValueError("sensors: mocap latency_s / dt exceeds the ring buffer "
+                         "(MOCAP_RING_SIZE - 1 ticks)")
+    state[_ST_DELAY] = n_delay
+    state[_ST_INV_SQRT_DT] = 1.0 / np.sqrt(dt)
+    state[_ST_SQRT_DT] = np.sqrt(dt)
+    fc = params[_MOCAP_VEL_LP_HZ]
+    state[_ST_MOCAP_GAIN] = 1.0 if fc <= 0.0 else -np.expm1(-2.0 * np.pi * fc * dt)
+    tau = params[_PROBE_TAU]
+    state[_ST_PROBE_GAIN] = 1.0 if tau <= 0.0 else -np.expm1(-dt / tau)
+    state[_ST_DT_KEY] = dt
+
+
+@njit(cache=True, inline="always")
+def _first_step(state, x_true, v_i_B_true):
+    """Fill the latency buffer and settle the lags at the first truth seen."""
+    for s in range(MOCAP_RING_SIZE):
+        k = _ST_RING + _RING_STRIDE * s
+        for j in range(3):
+            state[k + j] = x_true[layout.X_P_W + j]
+            state[k + 3 + j] = x_true[layout.X_V_W + j]
+    state[_ST_RING_HEAD] = MOCAP_RING_SIZE - 1  # the first step writes slot 0
+    for j in range(3):
+        state[_ST_PREV_P + j] = x_true[layout.X_P_W + j]
+        state[_ST_VEL_F + j] = x_true[layout.X_V_W + j]
+        state[_ST_PROBE + j] = v_i_B_true[j]
+    state[_ST_INIT] = 1.0
+
+
+@njit(cache=True)
+def sensors_step(params: np.ndarray, state: np.ndarray, t: float, dt: float, x_true: np.ndarray,
+                 specific_force_B: np.ndarray, v_i_B_true: np.ndarray, rng,
+                 meas_out: np.ndarray) -> None:
+    """Write one tick's measurement from the truth and advance the sensor state.
+
+    Parameters
+    ----------
+    params : numpy.ndarray
+        From :meth:`SensorsConfig.to_kernel`.
+    state : numpy.ndarray
+        From :func:`sensors_initial_state`; updated in place. The first call settles the lags
+        and fills the latency buffer with the truth it is given.
+    t : float
+        Time of this tick (s). The sensors are time-invariant; it is part of the interface.
+    dt : float
+        Control tick (s), > 0; sets the per-sample noise ``density / sqrt(dt)``, the lags and the
+        latency in ticks (``round(latency_s / dt)``).
+    x_true : numpy.ndarray, shape (layout.X_SIZE,)
+        True plant state.
+    specific_force_B : numpy.ndarray, shape (3,)
+        True specific force ``a - g`` in body axes (m/s^2), see :func:`specific_force_B`.
+    v_i_B_true : numpy.ndarray, shape (3,)
+        True incident velocity in body axes (m/s).
+    rng : numpy.random.Generator
+        ``SENSOR_NORMALS_PER_STEP`` normals then one uniform per call, whatever the settings.
+    meas_out : numpy.ndarray, shape (layout.MEAS_SIZE,)
+        Receives the measurement (``layout.MEAS_*``).
+    """
+    if state[_ST_INIT] == 0.0:
+        _first_step(state, x_true, v_i_B_true)
+    if dt != state[_ST_DT_KEY]:
+        _dt_coefficients(params, state, dt)
+    _imu_step(params, state, dt, x_true, specific_force_B, rng, meas_out)
+    _mocap_step(params, state, dt, x_true, rng, meas_out)
+    _attitude_step(params, x_true, rng, meas_out)
+    _probe_step(params, state, dt, v_i_B_true, rng, meas_out)
