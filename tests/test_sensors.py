@@ -386,7 +386,8 @@ dropout_probability = 0.01
 
 
 @pytest.mark.parametrize("data, fragment", [
-    ({"probe": {"model": "pressure"}}, r"\[sensors.probe\] model = 'pressure'.*not available"),
+    ({"probe": {"calibration": "magic"}}, r"\[sensors.probe\] calibration = 'magic'"),
+    ({"probe": {"sdp33": {"noise_std_Pa": -1.0}}}, r"noise_std_Pa = -1.0"),
     ({"probe": {"model": "magic"}}, r"model = 'magic'"),
     ({"imu": {"gyro_noise": 1.0}}, r"\[sensors.imu\] gyro_noise.*unknown key"),
     ({"mocap": {"latency_s": -0.01}}, r"latency_s = -0.01: out of range"),
@@ -398,10 +399,6 @@ def test_invalid_sensor_tables_raise_config_error(data, fragment):
     with pytest.raises(ConfigError, match=fragment):
         SensorsConfig.from_mapping(data, source="s.toml")
 
-
-def test_pressure_model_is_rejected_even_when_built_directly():
-    with pytest.raises(ConfigError, match="pressure"):
-        SensorsConfig(probe=ProbeConfig(model="pressure")).to_kernel()
 
 
 README_EXAMPLE = """

@@ -28,8 +28,10 @@ the true state. Each sensor is configured in a sub-table of a scenario's ``[sens
   2020, Sec. Airflow Sensing) plus white noise (0.1 m/s per axis). A reading drops out with
   ``dropout_probability`` per tick (``MEAS_V_I_VALID = 0`` and NaN values, to exercise the
   controller's fallback); below ``min_airspeed_mps`` the reading is kept but flagged invalid
-  (``MEAS_V_I_VALID = 0``), as flow angles are meaningless there. ``model = "pressure"`` (the
-  SDP33 pressure model of :mod:`vtoladapt.probe`) is not available yet.
+  (``MEAS_V_I_VALID = 0``), as flow angles are meaningless there. ``model = "pressure"``: the
+  paper's sensor end to end (tip pressures, three SDP33 sensors, the flight computer's single-k or
+  spline calibration, see :class:`ProbeConfig`); the calibration's own validity flag (low dynamic
+  pressure, flow outside the calibrated cone) also marks a reading invalid.
 
 Lags are discretised exactly for an input held at its current value over the tick
 (``y <- y + (1 - exp(-dt / tau)) (u - y)``), like the SDP33 model in
@@ -47,9 +49,11 @@ changes the noise of the others: a run differs from another only where its setti
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping
+from pathlib import Path
+from typing import Any, Mapping, Optional
 
 import numpy as np
 from numba import njit
@@ -57,6 +61,9 @@ from numba import njit
 from . import layout
 from .config import ConfigError, build, setting
 from .frames import GRAVITY_MPS2
+from .probe import (ProbeTip, SDP33Sensor, calibrate_tip, incident_velocity_from_pressures,
+                    load_calibration, probe_differential_pressures, sdp33_sensor_step)
+from .probe.sensor import SENSOR_OFFSET_PA
 
 MICRO_G_MPS2 = 1e-6 * GRAVITY_MPS2
 """One micro-g in m/s^2."""
@@ -96,7 +103,16 @@ _PROBE_TAU = 20          # s
 _PROBE_DROPOUT = 21      # probability per tick
 _PROBE_MIN_V = 22        # m/s
 SENSORS_KERNEL_SIZE = 23
+# pressure probe only, appended: true and assumed air density, tip, SDP33, calibration (to the end)
+_PP_RHO_TRUE = SENSORS_KERNEL_SIZE
+_PP_RHO_ASSUMED = SENSORS_KERNEL_SIZE + 1
+_PP_TIP = SENSORS_KERNEL_SIZE + 2
+_PP_SDP = _PP_TIP + 3
+SDP33_KERNEL_SIZE = 7
+_PP_CAL = _PP_SDP + SDP33_KERNEL_SIZE
 PROBE_MODEL_IDEAL_NOISE = 0
+PROBE_MODEL_PRESSURE = 1
+TIP_CALIBRATION_CONE_DEG = 20.0
 
 # --- state layout -----------------------------------------------------------------------------
 _ST_INIT = 0          # 0.0 until the first step has filled the buffers
@@ -178,13 +194,23 @@ class AttitudeConfig:
 
 @dataclass(frozen=True)
 class ProbeConfig:
-    """Airflow probe: incident velocity in body axes (``[sensors.probe]``)."""
+    """Airflow probe: incident velocity in body axes (``[sensors.probe]``).
+
+    ``model = "ideal_noise"``: lagged truth plus white noise. ``model = "pressure"``: the paper's
+    sensor end to end: the tip's port pressures at the true incident flow
+    (:func:`vtoladapt.probe.probe_differential_pressures`), three SDP33 sensors (lag, offset,
+    noise, quantisation; :func:`vtoladapt.probe.sdp33_sensor_step`), and the flight computer's
+    calibration inverting them (:func:`vtoladapt.probe.incident_velocity_from_pressures`):
+    ``calibration = "single_k"`` (the paper's eq:aoa) or ``"calibrated"`` (our spline), fitted
+    to the simulated tip, or loaded from ``calibration_file`` (a ``vtoladapt probe calibrate``
+    output; ``calibration`` picks the model in it).
+    """
 
     ideal: bool = setting("-", "perfect, always valid incident velocity", default=False)
-    model: str = setting("-", "'ideal_noise': truth, lag and noise; 'pressure': not yet available",
-                         default="ideal_noise", choices=PROBE_MODELS)
-    noise_std_mps: float = setting("m/s", "white noise per body axis", default=0.1, ge=0.0)
-    time_constant_s: float = setting("s", "first-order lag (SDP33 response < 3 ms)",
+    model: str = setting("-", "'ideal_noise': truth, lag and noise; 'pressure': tip, SDP33 sensors and "
+                         "calibration", default="ideal_noise", choices=PROBE_MODELS)
+    noise_std_mps: float = setting("m/s", "white noise per body axis (ideal_noise)", default=0.1, ge=0.0)
+    time_constant_s: float = setting("s", "first-order lag (ideal_noise; SDP33 response < 3 ms)",
                                      default=0.003, ge=0.0, le=1.0)
     dropout_probability: float = setting(
         "-", "probability per tick of an invalid reading (NaN values, valid flag 0)",
@@ -192,20 +218,52 @@ class ProbeConfig:
     min_airspeed_mps: float = setting(
         "m/s", "readings below this airspeed are flagged invalid (values kept)", default=1.0,
         ge=0.0)
+    tip: ProbeTip = setting("-", "tip geometry (pressure)", default=ProbeTip())
+    sdp33: SDP33Sensor = setting("-", "the three differential-pressure sensors (pressure)",
+                                 default=SDP33Sensor())
+    sdp33_offset_std_Pa: float = setting(
+        "Pa", "zero offsets drawn per run from the scenario seed, added to sdp33.offset_Pa "
+        "(pressure; SDP33 datasheet: 0.2 Pa)", default=0.2, ge=0.0, le=50.0)
+    calibration: str = setting("-", "the flight computer's calibration (pressure)", default="calibrated",
+                               choices=("single_k", "calibrated"))
+    calibration_file: Optional[str] = setting(
+        "-", "calibration.json from `vtoladapt probe calibrate` (pressure); default: fitted to the "
+        "simulated tip", default=None)
 
     def describe(self) -> str:
         """One line on the probe model, for logs and reports."""
         if self.ideal:
             return "ideal (true incident velocity, always valid)"
+        if self.model == "pressure":
+            source = self.calibration_file or "the simulated tip's own tunnel calibration"
+            return (f"pressure model (tip port angle {self.tip.port_angle_deg:g} deg, SDP33 noise "
+                    f"{self.sdp33.noise_std_Pa:g} Pa, offsets {self.sdp33_offset_std_Pa:g} Pa std, lag "
+                    f"{1e3 * self.sdp33.time_constant_s:g} ms); flight computer uses the "
+                    f"'{self.calibration}' calibration ({source}); dropout "
+                    f"{self.dropout_probability:g} per tick")
         return (f"{self.model}: noise {self.noise_std_mps:g} m/s per axis, lag "
                 f"{1e3 * self.time_constant_s:g} ms, dropout {self.dropout_probability:g} per tick, "
                 f"valid above {self.min_airspeed_mps:g} m/s")
 
-    def _check(self, source: str) -> None:
-        if self.model == "pressure":
-            raise ConfigError(
-                f"{source}: [sensors.probe] model = 'pressure': the pressure model of the probe is "
-                "not available in this version; allowed now: 'ideal_noise'")
+    def calibration_kernel(self, base_dir: Optional[Path] = None) -> np.ndarray:
+        """The flight computer's calibration as a kernel array (pressure model)."""
+        if self.calibration_file is not None:
+            path = Path(self.calibration_file)
+            if base_dir is not None and not path.is_absolute():
+                path = base_dir / path
+            return load_calibration(path, model=self.calibration).to_kernel()
+        return _tip_calibration(self.tip)[self.calibration].to_kernel()
+
+
+@functools.lru_cache(maxsize=8)
+def _tip_calibration(tip: ProbeTip) -> dict:
+    """Both calibrations of a simulated tip (deterministic, ~1 s, so fitted once per tip).
+
+    Over a 20-degree cone, the range of the NASA five-hole probe calibrations and more than the
+    flight envelope's flow angles; a 30-degree grid would bend the single k toward large angles
+    (3 deg error at alpha = 12 deg instead of 0.75 deg).
+    """
+    return calibrate_tip(tip, cone_max_deg=TIP_CALIBRATION_CONE_DEG)
 
 
 @dataclass(frozen=True)
@@ -235,10 +293,21 @@ class SensorsConfig:
         return cls(imu=ImuConfig(ideal=True), mocap=MocapConfig(ideal=True),
                    attitude=AttitudeConfig(ideal=True), probe=ProbeConfig(ideal=True))
 
-    def to_kernel(self) -> np.ndarray:
-        """The configuration as the float64 array the sensor kernels take (SI units, radians)."""
-        self.probe._check("SensorsConfig")
-        p = np.zeros(SENSORS_KERNEL_SIZE)
+    def to_kernel(self, air_density_true_kgpm3: float = 1.225, air_density_assumed_kgpm3: float = 1.225,
+                  base_dir: Optional[Path] = None) -> np.ndarray:
+        """The configuration as the float64 array the sensor kernels take (SI units, radians).
+
+        The densities matter for the pressure probe only: the true air makes the pressures, the
+        flight computer's assumed density turns them back into a speed. ``base_dir`` resolves a
+        relative ``probe.calibration_file``.
+        """
+        probe_extra = np.zeros(0)
+        if self.probe.model == "pressure" and not self.probe.ideal:
+            probe_extra = np.concatenate((
+                [air_density_true_kgpm3, air_density_assumed_kgpm3], self.probe.tip.to_kernel(),
+                self.probe.sdp33.to_kernel(), self.probe.calibration_kernel(base_dir)))
+        p = np.zeros(SENSORS_KERNEL_SIZE + probe_extra.size)
+        p[SENSORS_KERNEL_SIZE:] = probe_extra
         imu, mocap, att, probe = self.imu, self.mocap, self.attitude, self.probe
         d2r = math.pi / 180.0
         p[_IMU_IDEAL] = float(imu.ideal)
@@ -265,6 +334,17 @@ class SensorsConfig:
         p[_PROBE_DROPOUT] = probe.dropout_probability
         p[_PROBE_MIN_V] = probe.min_airspeed_mps
         return p
+
+
+def draw_probe_offsets(params: np.ndarray, offset_std_Pa: float, rng: np.random.Generator) -> np.ndarray:
+    """Add per-run SDP33 zero offsets (three normals from ``rng``) to a pressure probe's parameters.
+
+    Called once per run after :func:`sensors_initial_state`, and only for the pressure model,
+    so the other sensors' random streams are the same whichever probe model is chosen.
+    """
+    offsets = offset_std_Pa * rng.standard_normal(3)
+    params[_PP_SDP + SENSOR_OFFSET_PA:_PP_SDP + SENSOR_OFFSET_PA + 3] += offsets
+    return offsets
 
 
 def imu_biases(state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -412,11 +492,27 @@ def _probe_ideal_noise(params, state, dt, v_i_B_true, rng, meas_out):
 
 
 @njit(cache=True, inline="always")
+def _probe_pressure(params, state, dt, v_i_B_true, rng, meas_out) -> bool:
+    """``model = "pressure"``: tip pressures, SDP33 sensors, calibration; draws three normals."""
+    q_true = np.empty(3)
+    q_meas = np.empty(3)
+    probe_differential_pressures(v_i_B_true, params[_PP_RHO_TRUE], params[_PP_TIP:_PP_TIP + 3], q_true)
+    sdp33_sensor_step(q_true, state[_ST_PROBE:_ST_PROBE + 3], params[_PP_SDP:_PP_SDP + SDP33_KERNEL_SIZE],
+                      dt, rng, q_meas)
+    return incident_velocity_from_pressures(q_meas, params[_PP_RHO_ASSUMED], params[_PP_CAL:],
+                                            meas_out[layout.MEAS_V_I_B:layout.MEAS_V_I_B + 3])
+
+
+@njit(cache=True, inline="always")
 def _probe_step(params, state, dt, v_i_B_true, rng, meas_out):
     m = layout.MEAS_V_I_B
-    # One function per probe model (selected by params[_PROBE_MODEL]; only "ideal_noise" exists
-    # yet). Each draws exactly three normals so the dropout draw below keeps its place.
-    _probe_ideal_noise(params, state, dt, v_i_B_true, rng, meas_out)
+    # One function per probe model (selected by params[_PROBE_MODEL]). Each draws exactly three
+    # normals so the dropout draw below keeps its place.
+    model_valid = True
+    if params[_PROBE_MODEL] == PROBE_MODEL_PRESSURE:
+        model_valid = _probe_pressure(params, state, dt, v_i_B_true, rng, meas_out)
+    else:
+        _probe_ideal_noise(params, state, dt, v_i_B_true, rng, meas_out)
     u = rng.random()
     if params[_PROBE_IDEAL] != 0.0:
         for j in range(3):
@@ -432,7 +528,7 @@ def _probe_step(params, state, dt, v_i_B_true, rng, meas_out):
     v1 = meas_out[m + 1]
     v2 = meas_out[m + 2]
     airspeed = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-    meas_out[layout.MEAS_V_I_VALID] = 1.0 if airspeed >= params[_PROBE_MIN_V] else 0.0
+    meas_out[layout.MEAS_V_I_VALID] = 1.0 if (model_valid and airspeed >= params[_PROBE_MIN_V]) else 0.0
 
 
 @njit(cache=True, inline="always")

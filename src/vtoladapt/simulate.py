@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable, Optional
 
 import numpy as np
@@ -46,7 +47,7 @@ class PreparedRun:
 def prepare(scenario: Scenario) -> PreparedRun:
     """Convert a validated scenario into kernel arrays. All random draws come from the scenario seed."""
     from .control.api import controller_arrays
-    from .sensors import sensors_initial_state
+    from .sensors import draw_probe_offsets, sensors_initial_state
     from .wind import wind_initial_state
 
     vehicle = scenario.load_vehicle()
@@ -64,15 +65,21 @@ def prepare(scenario: Scenario) -> PreparedRun:
     q0 = quat_from_euler(np.radians(ic.yaw_deg), np.radians(ic.pitch_deg), np.radians(ic.roll_deg))
     x0 = layout.pack_state(ic.position_m, ic.velocity_mps, q0, (0.0, 0.0, 0.0), motors)
     wind_params = scenario.wind.to_kernel()
-    sensor_params = scenario.sensors.to_kernel()
+    plant_density = scenario.plant.air_density_kgpm3 or vehicle.envelope.air_density_kgpm3
+    base_dir = Path(scenario.source_path).parent if scenario.source_path else None
+    sensor_params = scenario.sensors.to_kernel(plant_density, vehicle.envelope.air_density_kgpm3, base_dir)
     times = np.arange(scenario.n_ticks) * scenario.dt_control_s
     reference = reference_trajectory(scenario.reference).reference_table(times)
+    sensor_state = sensors_initial_state(sensor_params, rng)
+    probe = scenario.sensors.probe
+    if probe.model == "pressure" and not probe.ideal:
+        draw_probe_offsets(sensor_params, probe.sdp33_offset_std_Pa, rng)
     return PreparedRun(
         scenario=scenario, vehicle=vehicle, x0=x0,
         plant_params=scenario.plant.to_kernel(vehicle), mixer_params=mixer_params(vehicle),
         controller_params=ctrl_params, controller_state=ctrl_state,
         wind_params=wind_params, wind_state=wind_initial_state(wind_params),
-        sensor_params=sensor_params, sensor_state=sensors_initial_state(sensor_params, rng),
+        sensor_params=sensor_params, sensor_state=sensor_state,
         reference_table=reference, theta_true=scenario.plant.theta_true_scaled(vehicle),
         gamma=scenario.controller.gamma, rng=rng, prior_description=prior_description)
 
