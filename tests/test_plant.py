@@ -136,21 +136,18 @@ def test_pusher_thrust_ratio_follows_uiuc_fit(veh):
     assert plant.pusher_thrust_ratio(5.0, n, kernel(veh, pusher_advance_ratio_loss=False)) == 1.0
 
 
-def test_uiuc_coefficients_match_the_data():
-    """The plant's default C_T(J) coefficients are the least-squares fit of the UIUC 7x4 data."""
-    from pathlib import Path
-    import csv
+def test_uiuc_coefficients_match_the_data_fit():
+    """The plant's default C_T(J) is the fitting module's fit of the UIUC 7x4 data, and C_T(0) its static mean."""
+    from vtoladapt.fitting import fit_uiuc_static_ct, pusher_thrust_ratio_model
 
-    path = Path(__file__).resolve().parents[2] / "shared" / "data" / "uiuc-propdb" / "volume1_exp.csv"
-    if not path.exists():
-        pytest.skip(f"UIUC data not found at {path}")
-    rows = [r for r in csv.DictReader(path.open()) if r["BladeName"] == "magf 7.0x4.0"]
-    J = np.array([float(r["J"]) for r in rows])
-    CT = np.array([float(r["CT"]) for r in rows])
-    ct0 = CT[J == 0].mean()
-    a = np.linalg.lstsq(np.vstack([J, J**2]).T, CT / ct0 - 1, rcond=None)[0]
+    try:
+        model = pusher_thrust_ratio_model()
+        static = fit_uiuc_static_ct()
+    except FileNotFoundError as exc:
+        pytest.skip(f"UIUC data not found: {exc}")
+    np.testing.assert_allclose(model.coefficients[1:], plant.UIUC_7X4_CT_RATIO_COEFFS, rtol=1e-4)
+    ct0 = static["CT"]["mean"]
     assert ct0 == pytest.approx(plant.UIUC_7X4_STATIC_CT, rel=1e-3)
-    np.testing.assert_allclose(a, plant.UIUC_7X4_CT_RATIO_COEFFS, rtol=1e-3)
 
 
 def test_plant_config_rejects_bad_values():

@@ -24,7 +24,6 @@ from typing import Optional
 import numpy as np
 
 from .config import ConfigError, read_toml
-from .scenario import Scenario, scenario_from_mapping
 
 
 @dataclass(frozen=True)
@@ -74,6 +73,8 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
     """Draw and validate every run before any runs (a bad key or value fails here, naming it)."""
     if runs < 1:
         raise ConfigError(f"--runs = {runs}: must be >= 1")
+    from .scenario import scenario_from_mapping
+
     path = Path(scenario_path)
     base = read_toml(path)
     base_scenario = scenario_from_mapping(base, str(path))
@@ -96,9 +97,10 @@ def run_one(spec: RunSpec) -> dict:
     """Run one campaign member (executed on a Dask worker) and return its row."""
     from .experiments import fan_throttle_series
     from .metrics import run_metrics
+    from .scenario import scenario_from_mapping
     from .simulate import simulate
 
-    scenario: Scenario = scenario_from_mapping(spec.mapping, spec.source)
+    scenario = scenario_from_mapping(spec.mapping, spec.source)
     result = simulate(scenario)
     row = {"run": spec.index, **spec.drawn}
     row.update(run_metrics(result, fan_throttle_series(scenario, result.time_s)))

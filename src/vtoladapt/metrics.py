@@ -50,7 +50,7 @@ def run_metrics(result: SimulationResult, fan_pct: np.ndarray) -> dict[str, floa
                            axis=1) / GRAVITY_MPS2
         late = t >= PRED_ERR_SKIP_S
         out["pred_err_rms_g"] = _rms(e[late])
-        out["pred_err_p95_g"] = float(np.percentile(e[late], 95))
+        out["pred_err_p95_g"] = float(np.percentile(e[late], 95)) if late.any() else float("nan")
     V = result["lyapunov_V"]
     dV = np.diff(V)
     out["lyapunov_decreasing_fraction"] = float(np.mean(dV < 0)) if dV.size else float("nan")

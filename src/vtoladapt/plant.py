@@ -41,8 +41,10 @@ from .vehicle import PARAMETER_NAMES, Vehicle
 
 #: UIUC magf 7x4 static thrust coefficient (mean of the 16 static points, 3069-7203 RPM).
 UIUC_7X4_STATIC_CT = 0.08188
-#: UIUC magf 7x4 C_T(J)/C_T(0) - 1 = a1 J + a2 J^2, least squares over J in [0, 0.78].
-UIUC_7X4_CT_RATIO_COEFFS = (-0.7477, -1.2540)
+#: UIUC magf 7x4 C_T(J)/C_T(0) - 1 = a1 J + a2 J^2: the fit of
+#: :func:`vtoladapt.fitting.pusher_thrust_ratio_model` (J sweeps and static points, J in [0, 0.78]),
+#: kept here as numbers so the plant does not load the fitting stack; a test pins them to the fit.
+UIUC_7X4_CT_RATIO_COEFFS = (-0.84419, -1.10227)
 
 
 @dataclass(frozen=True)

@@ -59,7 +59,7 @@ import numpy as np
 from numba import njit
 
 from . import layout
-from .config import ConfigError, build, setting
+from .config import build, setting
 from .frames import GRAVITY_MPS2
 from .probe import (ProbeTip, SDP33Sensor, calibrate_tip, incident_velocity_from_pressures,
                     load_calibration, probe_differential_pressures, sdp33_sensor_step)

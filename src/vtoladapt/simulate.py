@@ -52,13 +52,13 @@ def prepare(scenario: Scenario) -> PreparedRun:
 
     vehicle = scenario.load_vehicle()
     rng = np.random.default_rng(scenario.seed)
-    theta0, P0_diag, lower, upper, prior_description = controller_prior(scenario, vehicle)
+    ctrl_vehicle, theta0, P0_diag, lower, upper, prior_description = controller_prior(scenario, vehicle)
     theta_init = None
     if scenario.controller_prior.initial_theta == "random":
         frac = scenario.controller_prior.random_fraction
         theta_init = np.clip(theta0 * (1.0 + frac * rng.uniform(-1.0, 1.0, size=theta0.shape)), lower, upper)
     ctrl_params, ctrl_state = controller_arrays(
-        vehicle, scenario.controller, theta_0=theta0, P0_diag=P0_diag, theta_lower=lower,
+        ctrl_vehicle, scenario.controller, theta_0=theta0, P0_diag=P0_diag, theta_lower=lower,
         theta_upper=upper, theta_init=theta_init)
     ic = scenario.initial
     motors = hover_trim_motor(vehicle, scenario.plant) if ic.trimmed_motors else np.zeros(layout.N_MOTORS)
@@ -76,7 +76,7 @@ def prepare(scenario: Scenario) -> PreparedRun:
         draw_probe_offsets(sensor_params, probe.sdp33_offset_std_Pa, rng)
     return PreparedRun(
         scenario=scenario, vehicle=vehicle, x0=x0,
-        plant_params=scenario.plant.to_kernel(vehicle), mixer_params=mixer_params(vehicle),
+        plant_params=scenario.plant.to_kernel(vehicle), mixer_params=mixer_params(ctrl_vehicle),
         controller_params=ctrl_params, controller_state=ctrl_state,
         wind_params=wind_params, wind_state=wind_initial_state(wind_params),
         sensor_params=sensor_params, sensor_state=sensor_state,
@@ -96,19 +96,25 @@ def reference_trajectory(ref: ReferenceConfig):
 
 
 def controller_prior(scenario: Scenario, vehicle: Vehicle):
-    """theta_0, P0 diagonal and theta-hat bounds (adaptation scaling) and a one-line description."""
+    """The flight computer's model: ``(vehicle, theta_0, P0 diagonal, lower, upper, description)``.
+
+    Without a posterior it is the vehicle file (Table I, Table III). With one, the vehicle's force
+    model becomes the posterior's (its k1, k2 too, so the regressor and theta_0 agree) and P0 and
+    the theta-hat bounds follow :func:`vtoladapt.fitting.controller_prior`. The plant keeps its
+    own truth either way.
+    """
     from .control.kernel import default_theta_bounds
 
     path = scenario.posterior_path()
     if path is None:
         theta0 = vehicle.theta_scaled.copy()
         lower, upper = default_theta_bounds(vehicle, theta0)
-        return theta0, np.array(vehicle.adaptation.P0_diag), lower, upper, \
+        return vehicle, theta0, np.array(vehicle.adaptation.P0_diag), lower, upper, \
             f"Table I of {vehicle.name} (published means)"
-    from .fitting import controller_prior as prior_from_posterior, load_posterior
+    from .fitting import apply_posterior
 
-    theta0, P0, lower, upper = prior_from_posterior(load_posterior(path), vehicle)
-    return theta0, P0, lower, upper, f"posterior {path}"
+    ctrl_vehicle, (theta0, P0, lower, upper) = apply_posterior(vehicle, path)
+    return ctrl_vehicle, theta0, P0, lower, upper, f"posterior {path}"
 
 
 def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) -> SimulationResult:

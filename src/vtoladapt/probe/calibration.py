@@ -38,7 +38,6 @@ from pathlib import Path
 from typing import Mapping
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from vtoladapt.probe.data import ProbeCalibrationData
 from vtoladapt.probe.errors import ProbeError, require_number
@@ -172,6 +171,8 @@ def fit_single_k(data: ProbeCalibrationData, *, q_inf_min_Pa: float = DEFAULT_Q_
     def cost(k: float) -> float:
         d = np.column_stack([q[:, 0], k * q[:, 2], k * q[:, 1]])
         return float(np.mean(flow_angle_error_rad(d, n_true) ** 2))
+
+    from scipy.optimize import minimize_scalar  # imported here: the simulator loads this module
 
     res = minimize_scalar(cost, bounds=(k0 / 4.0, k0 * 4.0), method="bounded",
                           options={"xatol": 1e-10 * k0})

@@ -1,0 +1,150 @@
+"""Closed-loop simulation speed, and start-up time of ``vtoladapt run``.
+
+* in-process: 60 s simulated with the composite controller, every sensor on (pressure probe), Dryden
+  turbulence on, fan at 70 %, after a warm-up run (no start-up, no compilation): wall time and the
+  real-time factor, with the plant at 1 kHz (the default) and at 250 Hz (one RK4 step per tick);
+* the loop's parts in compiled loops (per controller tick);
+* ``vtoladapt run`` of a 1 s scenario as a new process: warm (kernels cached on disk) and cold
+  (an empty Numba cache directory, so everything compiles).
+
+Set ``VTOLADAPT_BENCH_COLD=0`` to skip the cold start (it takes about a minute).
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+SCENARIO = {
+    "name": "bench", "vehicle": "caltech_vtol", "duration_s": 60.0, "seed": 1,
+    "wind": {"fan_array": {"schedule": [[0, 70], [60, 70]]},
+             "turbulence": {"enabled": True, "mean_wind_fraction": [0.05, 0.05, 0.03]}},
+    "sensors": {"probe": {"model": "pressure"}},
+    "controller": {"kind": "composite"},
+}
+
+
+def _loop_rows() -> list[tuple[str, float, str]]:
+    from vtoladapt.scenario import scenario_from_mapping
+    from vtoladapt.simulate import simulate
+
+    scenario = scenario_from_mapping(SCENARIO, "bench_sim")
+    rows = []
+    for substeps, label in ((4, "1 kHz plant"), (1, "250 Hz plant")):
+        sc = replace(scenario, plant_substeps=substeps)
+        simulate(replace(sc, duration_s=1.0))  # warm-up: load or compile the kernels
+        walls = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            simulate(sc)
+            walls.append(time.perf_counter() - t0)
+        wall = min(walls)
+        rows.append((f"60 s closed loop, composite, all sensors+turbulence, {label}", wall * 1e3, "ms"))
+        rows.append((f"real-time factor, {label}", 60.0 / wall, "x"))
+    return rows
+
+
+def _part_rows() -> list[tuple[str, float, str]]:
+    from numba import njit
+
+    from vtoladapt import layout
+    from vtoladapt.control.kernel import DIAG_SIZE, controller_step
+    from vtoladapt.plant import RK4_WORK_SIZE, rk4_step_ws
+    from vtoladapt.scenario import scenario_from_mapping
+    from vtoladapt.sensors import sensors_step
+    from vtoladapt.simulate import prepare
+    from vtoladapt.wind import wind_step
+
+    run = prepare(scenario_from_mapping(SCENARIO, "bench_sim"))
+
+    @njit
+    def plant_tick(x, m, w, p, n):
+        f = np.empty(3)
+        work = np.empty(RK4_WORK_SIZE)
+        for _ in range(n):
+            for _s in range(4):
+                rk4_step_ws(x, m, w, p, 0.001, f, work)
+
+    @njit
+    def ctrl(p, s, meas, ref, cmd, diag, n):
+        for _ in range(n):
+            controller_step(p, s, meas, ref, 0.004, cmd, diag)
+
+    @njit
+    def sens(p, s, x, f, vi, rng, meas, n):
+        for k in range(n):
+            sensors_step(p, s, k * 0.004, 0.004, x, f, vi, rng, meas)
+
+    @njit
+    def wind(p, s, pos, rng, out, n):
+        for k in range(n):
+            wind_step(p, s, k * 0.004, 0.004, pos, rng, out)
+
+    x = run.x0.copy()
+    motors = np.array([0.58, 0.58, 0.58, 0.58, 0.2])
+    v_wind = np.array([-9.0, 0.0, 0.0])
+    meas = np.zeros(layout.MEAS_SIZE)
+    meas[layout.MEAS_Q_WB] = 1.0
+    meas[layout.MEAS_V_I_B] = 9.0
+    meas[layout.MEAS_V_I_VALID] = 1.0
+    meas[layout.MEAS_ACCEL_B + 2] = -9.8
+    rng = np.random.default_rng(0)
+    cmd = np.zeros(layout.CMD_SIZE)
+    diag = np.zeros(DIAG_SIZE)
+    out = np.zeros(3)
+
+    def per_call(fn, *args, n=5000):
+        fn(*args, 10)
+        best = np.inf
+        for _ in range(5):
+            t0 = time.perf_counter()
+            fn(*args, n)
+            best = min(best, (time.perf_counter() - t0) / n)
+        return best * 1e6
+
+    return [
+        ("plant, 4 RK4 steps (one 4 ms tick at 1 kHz)", per_call(plant_tick, x, motors, v_wind, run.plant_params), "us/tick"),
+        ("controller_step (composite, compiled)", per_call(ctrl, run.controller_params, run.controller_state,
+                                                           meas, run.reference_table[0], cmd, diag), "us/tick"),
+        ("sensors_step (all on, pressure probe)", per_call(sens, run.sensor_params, run.sensor_state, x,
+                                                          np.array([0.0, 0.0, -9.8]), np.array([9.0, 0.0, 0.5]),
+                                                          rng, meas), "us/tick"),
+        ("wind_step (fan + Dryden)", per_call(wind, run.wind_params, run.wind_state, x[:3], rng, out), "us/tick"),
+    ]
+
+
+def _cli_start_rows() -> list[tuple[str, float, str]]:
+    from vtoladapt.config import read_toml  # noqa: F401  (imports the package before timing)
+
+    rows = []
+    exe = [sys.executable, "-m", "vtoladapt.cli"]
+    with tempfile.TemporaryDirectory() as tmp:
+        scen = Path(tmp) / "s.toml"
+        scen.write_text('name = "start"\nvehicle = "caltech_vtol"\nduration_s = 1.0\n')
+        cmd = exe + ["run", str(scen), "--out", str(Path(tmp) / "out"), "--quiet"]
+        subprocess.run(cmd, check=True, capture_output=True)  # make sure the on-disk cache is filled
+        t0 = time.perf_counter()
+        subprocess.run(cmd, check=True, capture_output=True)
+        rows.append(("vtoladapt run, 1 s scenario, warm start (new process)", time.perf_counter() - t0, "s"))
+        if os.environ.get("VTOLADAPT_BENCH_COLD", "1") != "0":
+            env = dict(os.environ, NUMBA_CACHE_DIR=str(Path(tmp) / "numba_cache"))
+            t0 = time.perf_counter()
+            subprocess.run(cmd, check=True, capture_output=True, env=env)
+            rows.append(("vtoladapt run, 1 s scenario, cold start (empty Numba cache)",
+                         time.perf_counter() - t0, "s"))
+    return rows
+
+
+def run() -> list[tuple[str, float, str]]:
+    return _loop_rows() + _part_rows() + _cli_start_rows()
+
+
+if __name__ == "__main__":
+    for name, value, unit in run():
+        print(f"{name:70s} {value:10.3f} {unit}")
