@@ -26,12 +26,13 @@ def fan_events(t: np.ndarray, fan_pct: np.ndarray) -> tuple[np.ndarray, float | 
 def run_metrics(result: SimulationResult, fan_pct: np.ndarray) -> dict[str, float]:
     """Velocity-tracking, prediction-error, saturation and Lyapunov metrics of one run.
 
+    Velocity error is the paper's ``v~ = v - v_r`` (eq:wr), from the true state.
+
     ``fan_pct`` is the fan-array throttle at each log row (from the scenario's wind schedule).
     """
     t = result.time_s
     v_err = np.linalg.norm(result.velocity_error_W, axis=1)
-    p_err = np.linalg.norm(
-        result.position_W - result.columns_like(("ref_p_N_m", "ref_p_E_m", "ref_p_D_m")), axis=1)
+    p_err = np.linalg.norm(result.position_error_W, axis=1)
     high, t_off = fan_events(t, fan_pct)
     out: dict[str, float] = {
         "vel_err_rms_mps": _rms(v_err),

@@ -34,6 +34,7 @@ class SimulationResult:
         if self.data.ndim != 2 or self.data.shape[1] != len(self.columns):
             raise ValueError(f"data has shape {self.data.shape}, expected (T, {len(self.columns)})")
         self._index = {name: i for i, name in enumerate(self.columns)}
+        self._v_tilde: np.ndarray | None = None
 
     # --- access ---------------------------------------------------------------------------
     def __getitem__(self, name: str) -> np.ndarray:
@@ -67,8 +68,34 @@ class SimulationResult:
 
     @property
     def velocity_error_W(self) -> np.ndarray:
-        """Velocity minus the reference velocity (NED, m/s), from the true state."""
-        return self.velocity_W - self.columns_like(("ref_v_N_mps", "ref_v_E_mps", "ref_v_D_mps"))
+        """The paper's velocity tracking error ``v~ = v - v_r`` (NED, m/s) from the true state.
+
+        ``v_r = p_d' - Lambda_p (p - p_d)`` (eq:wr, with the run's ``Lambda_p`` and correction
+        limit from the metadata), so a steady position offset shows as a velocity error, as in
+        the paper's figures. Computed once and cached.
+        """
+        if self._v_tilde is None:
+            from .control.tracking import reference_velocity
+
+            lam = np.asarray(self.metadata["Lambda_p"], dtype=float)
+            corr_max = float(self.metadata["velocity_correction_max_mps"])
+            p_tilde = self.position_W - self.columns_like(("ref_p_N_m", "ref_p_E_m", "ref_p_D_m"))
+            v_d = self.columns_like(("ref_v_N_mps", "ref_v_E_mps", "ref_v_D_mps"))
+            a_d = self.columns_like(("ref_a_N_mps2", "ref_a_E_mps2", "ref_a_D_mps2"))
+            v = self.velocity_W
+            v_r = np.empty(3)
+            v_r_dot = np.empty(3)
+            out = np.empty_like(v)
+            for k in range(len(v)):
+                reference_velocity(p_tilde[k], v_d[k], a_d[k], v[k], lam, corr_max, v_r, v_r_dot)
+                out[k] = v[k] - v_r
+            self._v_tilde = out
+        return self._v_tilde
+
+    @property
+    def position_error_W(self) -> np.ndarray:
+        """Position minus the reference position (NED, m)."""
+        return self.position_W - self.columns_like(("ref_p_N_m", "ref_p_E_m", "ref_p_D_m"))
 
     @property
     def theta_hat(self) -> np.ndarray:

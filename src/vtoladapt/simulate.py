@@ -13,7 +13,7 @@ from .frames import quat_from_euler
 from .mixer import mixer_params
 from .plant import hover_trim_motor
 from .results import SimulationResult
-from .scenario import ReferenceConfig, Scenario
+from .scenario import Scenario
 from .vehicle import Vehicle
 
 ProgressCallback = Callable[[float, float], None]
@@ -47,6 +47,7 @@ class PreparedRun:
 def prepare(scenario: Scenario) -> PreparedRun:
     """Convert a validated scenario into kernel arrays. All random draws come from the scenario seed."""
     from .control.api import controller_arrays
+    from .control.trajectory import trajectory_from_reference
     from .sensors import draw_probe_offsets, sensors_initial_state
     from .wind import wind_initial_state
 
@@ -69,7 +70,7 @@ def prepare(scenario: Scenario) -> PreparedRun:
     base_dir = Path(scenario.source_path).parent if scenario.source_path else None
     sensor_params = scenario.sensors.to_kernel(plant_density, vehicle.envelope.air_density_kgpm3, base_dir)
     times = np.arange(scenario.n_ticks) * scenario.dt_control_s
-    reference = reference_trajectory(scenario.reference).reference_table(times)
+    reference = trajectory_from_reference(scenario.reference).reference_table(times)
     sensor_state = sensors_initial_state(sensor_params, rng)
     probe = scenario.sensors.probe
     if probe.model == "pressure" and not probe.ideal:
@@ -82,17 +83,6 @@ def prepare(scenario: Scenario) -> PreparedRun:
         sensor_params=sensor_params, sensor_state=sensor_state,
         reference_table=reference, theta_true=scenario.plant.theta_true_scaled(vehicle),
         gamma=scenario.controller.gamma, rng=rng, prior_description=prior_description)
-
-
-def reference_trajectory(ref: ReferenceConfig):
-    """The position reference a scenario's ``[reference]`` table describes."""
-    from .control.trajectory import Hold, MinJerkWaypoints
-
-    yaw = np.radians(ref.yaw_deg)
-    if ref.kind == "hold":
-        return Hold(ref.position_m, yaw)
-    rows = np.array(ref.waypoints, dtype=float)
-    return MinJerkWaypoints(rows[:, 0], rows[:, 1:4], yaw)
 
 
 def controller_prior(scenario: Scenario, vehicle: Vehicle):
@@ -143,6 +133,8 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
         "dt_control_s": scenario.dt_control_s, "plant_substeps": scenario.plant_substeps,
         "duration_s": scenario.duration_s, "wall_time_s": wall,
         "controller_prior": run.prior_description,
+        "Lambda_p": list(scenario.controller.Lambda_p),
+        "velocity_correction_max_mps": scenario.controller.velocity_correction_max_mps,
         "probe_model": scenario.sensors.probe.describe(),
         "theta_true_scaled": run.theta_true.tolist(),
     }

@@ -1,0 +1,331 @@
+"""The controller as a Python object, for use in your own loop (outside our simulator).
+
+>>> import numpy as np, vtoladapt
+>>> from vtoladapt.control import Controller, ControllerConfig, Measurement, Reference
+>>> ctrl = Controller(vtoladapt.load_vehicle("caltech_vtol"), ControllerConfig(kind="composite"))
+>>> meas = Measurement.from_parts(p_W=(0, 0, -1.5), v_W=(0, 0, 0), q_WB=(1, 0, 0, 0),
+...                               omega_B=(0, 0, 0), accel_B=(0, 0, -9.80665), v_i_B=(0, 0, 0))
+>>> cmd = ctrl.step(0.0, meas, Reference.hold((0, 0, -1.5)))
+>>> 0.55 < cmd.u_z < 0.61      # hover throttle: sqrt(g / C_Tz) with C_Tz = 28.7 m/s^2
+True
+
+``step`` does no Python-level work beyond one call of the compiled kernel
+(:func:`.kernel.controller_step`): the records are thin named views of float64 arrays in the
+layouts of :mod:`vtoladapt.layout`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import layout as L
+from .config import ControllerConfig
+from .kernel import (
+    CONTROLLER_DIAG_COLUMNS,
+    DIAG_SIZE,
+    controller_initial_state,
+    controller_params,
+    controller_step,
+    default_theta_bounds,
+    state_P,
+    state_P_inv,
+)
+from . import kernel as _k
+
+
+def _fill(a: np.ndarray, off: int, value, n: int, name: str) -> None:
+    v = np.asarray(value, dtype=float)
+    if v.shape != (n,):
+        raise ValueError(f"{name} must have {n} elements, got shape {v.shape}")
+    a[off:off + n] = v
+
+
+class _Record:
+    """A named view of one float64 array (``.array``), passed to the kernel as it is."""
+
+    __slots__ = ("_a",)
+    SIZE = 0
+    COLUMNS: tuple[str, ...] = ()
+
+    def __init__(self, array=None):
+        if array is None:
+            self._a = np.zeros(self.SIZE)
+        else:
+            a = np.asarray(array, dtype=np.float64)
+            if a.shape != (self.SIZE,):
+                raise ValueError(f"{type(self).__name__} array must have shape ({self.SIZE},), got {a.shape}")
+            self._a = np.ascontiguousarray(a)
+
+    @property
+    def array(self) -> np.ndarray:
+        """The underlying float64 array (shared, not a copy)."""
+        return self._a
+
+    def as_dict(self) -> dict[str, float]:
+        """``{column name: value}`` (units in the names)."""
+        return {n: float(v) for n, v in zip(self.COLUMNS, self._a)}
+
+    def copy(self):
+        return type(self)(self._a.copy())
+
+    def __repr__(self) -> str:
+        body = ", ".join(f"{n}={v:.6g}" for n, v in zip(self.COLUMNS, self._a))
+        return f"{type(self).__name__}({body})"
+
+    def __eq__(self, other) -> bool:
+        return type(other) is type(self) and np.array_equal(self._a, other._a, equal_nan=True)
+
+    __hash__ = None
+
+
+def _vec_property(off: int, n: int, doc: str):
+    def get(self):
+        return self._a[off:off + n]
+
+    def set(self, value):
+        _fill(self._a, off, value, n, doc.split(",")[0])
+
+    return property(get, set, doc=doc)
+
+
+def _scalar_property(off: int, doc: str):
+    def get(self):
+        return float(self._a[off])
+
+    def set(self, value):
+        self._a[off] = float(value)
+
+    return property(get, set, doc=doc)
+
+
+class Measurement(_Record):
+    """What the controller sees (layout ``MEAS_*``): NED world, FRD body, SI units."""
+
+    __slots__ = ()
+    SIZE = L.MEAS_SIZE
+    COLUMNS = L.MEASUREMENT_COLUMNS
+    p_W = _vec_property(L.MEAS_P_W, 3, "position, m NED (motion capture)")
+    v_W = _vec_property(L.MEAS_V_W, 3, "velocity, m/s NED")
+    q_WB = _vec_property(L.MEAS_Q_WB, 4, "attitude quaternion q_WB, scalar first")
+    omega_B = _vec_property(L.MEAS_OMEGA_B, 3, "body rate, rad/s FRD (gyro)")
+    accel_B = _vec_property(L.MEAS_ACCEL_B, 3, "specific force a - g, m/s^2 body (accelerometer)")
+    v_i_B = _vec_property(L.MEAS_V_I_B, 3, "incident velocity, m/s body (airflow probe)")
+    v_i_valid = _scalar_property(L.MEAS_V_I_VALID, "1.0 if the probe reading is valid, else 0.0")
+
+    @classmethod
+    def from_parts(cls, p_W, v_W, q_WB, omega_B, accel_B, v_i_B, v_i_valid=True) -> "Measurement":
+        """A measurement from named parts (see the properties for units and frames)."""
+        m = cls()
+        a = m._a
+        _fill(a, L.MEAS_P_W, p_W, 3, "p_W")
+        _fill(a, L.MEAS_V_W, v_W, 3, "v_W")
+        _fill(a, L.MEAS_Q_WB, q_WB, 4, "q_WB")
+        _fill(a, L.MEAS_OMEGA_B, omega_B, 3, "omega_B")
+        _fill(a, L.MEAS_ACCEL_B, accel_B, 3, "accel_B")
+        _fill(a, L.MEAS_V_I_B, v_i_B, 3, "v_i_B")
+        a[L.MEAS_V_I_VALID] = 1.0 if v_i_valid else 0.0
+        return m
+
+
+class Reference(_Record):
+    """What the controller is asked to do (layout ``REF_*``)."""
+
+    __slots__ = ()
+    SIZE = L.REF_SIZE
+    COLUMNS = L.REFERENCE_COLUMNS
+    p_W = _vec_property(L.REF_P_W, 3, "desired position, m NED")
+    v_W = _vec_property(L.REF_V_W, 3, "desired velocity, m/s NED")
+    a_W = _vec_property(L.REF_A_W, 3, "desired acceleration, m/s^2 NED")
+    yaw_rad = _scalar_property(L.REF_YAW, "desired heading, rad (0 = north)")
+    yaw_rate_radps = _scalar_property(L.REF_YAW_RATE, "desired heading rate, rad/s (informative)")
+
+    @classmethod
+    def from_parts(cls, p_W, v_W=(0.0, 0.0, 0.0), a_W=(0.0, 0.0, 0.0), yaw_rad=0.0,
+                   yaw_rate_radps=0.0) -> "Reference":
+        return cls(L.pack_reference(p_W, v_W, a_W, yaw_rad, yaw_rate_radps))
+
+    @classmethod
+    def hold(cls, p_W, yaw_rad=0.0) -> "Reference":
+        """Hold a position (m NED) at a heading (rad)."""
+        return cls.from_parts(p_W, yaw_rad=yaw_rad)
+
+
+class Command(_Record):
+    """The controller's output (layout ``CMD_*``), held until the next tick."""
+
+    __slots__ = ()
+    SIZE = L.CMD_SIZE
+    COLUMNS = L.COMMAND_COLUMNS
+    u_x = _scalar_property(L.CMD_U_X, "pusher throttle, fraction [0, 1]")
+    u_z = _scalar_property(L.CMD_U_Z, "collective lift throttle, fraction [0, 1]")
+    tau_B = _vec_property(L.CMD_TAU_B, 3, "body moment command, N m FRD")
+
+    @property
+    def throttle_x_pct(self) -> float:
+        return 100.0 * float(self._a[L.CMD_U_X])
+
+    @property
+    def throttle_z_pct(self) -> float:
+        return 100.0 * float(self._a[L.CMD_U_Z])
+
+
+class ControllerSnapshot:
+    """A copy of a controller's complete memory (from :meth:`Controller.get_state`)."""
+
+    __slots__ = ("state", "t_last")
+
+    def __init__(self, state: np.ndarray, t_last):
+        self.state = state
+        self.t_last = t_last
+
+
+class ControllerState:
+    """Named, read-only view of a controller's memory (``Controller.state``)."""
+
+    __slots__ = ("_s",)
+
+    def __init__(self, s: np.ndarray):
+        self._s = s
+
+    @property
+    def theta_hat(self) -> np.ndarray:
+        """theta-hat (8,), adaptation scaling (copy)."""
+        return _k.state_theta_hat(self._s).copy()
+
+    @property
+    def P(self) -> np.ndarray:
+        """Adaptation gain P (8, 8) (copy)."""
+        return state_P(self._s)
+
+    @property
+    def P_inv(self) -> np.ndarray:
+        """Information matrix P^-1 (8, 8) (copy)."""
+        return state_P_inv(self._s).copy()
+
+    @property
+    def integrator(self) -> np.ndarray:
+        """PID integral term (3,), m/s^2 NED (copy)."""
+        return _k.state_integrator(self._s).copy()
+
+    @property
+    def filtered_accel(self) -> np.ndarray:
+        """Filtered specific force a_m (3,), m/s^2 body (copy)."""
+        return _k.state_filtered_accel(self._s).copy()
+
+    @property
+    def filtered_regressor(self) -> np.ndarray:
+        """Filtered regressor W (3, 8) (copy)."""
+        return _k.state_filtered_regressor(self._s).copy()
+
+    @property
+    def wind_estimate(self) -> np.ndarray:
+        """Wind estimate (3,), m/s NED (copy)."""
+        return _k.state_wind_estimate(self._s).copy()
+
+    @property
+    def last_command_throttles(self) -> np.ndarray:
+        """``[u_x, u_z]`` of the last command (copy)."""
+        return _k.state_last_command(self._s).copy()
+
+    @property
+    def array(self) -> np.ndarray:
+        """The raw state array (copy)."""
+        return self._s.copy()
+
+
+class Controller:
+    """One of the five controllers, stepping in the caller's loop.
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The controller's model of the aircraft (inertia, force model, limits).
+    config : ControllerConfig, optional
+        Gains and settings (default: ``ControllerConfig()``, the composite controller).
+    theta_0, P0_diag, theta_lower, theta_upper, theta_init : arrays, optional
+        Prior mean, initial gain (diagonal or full 8x8), bounds and initial theta-hat, all in the
+        adaptation scaling (see :func:`.kernel.controller_params`).
+    """
+
+    __slots__ = ("vehicle", "config", "_params", "_state", "_diag", "_t_last", "_dt_nominal")
+
+    def __init__(self, vehicle, config: ControllerConfig | None = None, theta_0=None, P0_diag=None,
+                 theta_lower=None, theta_upper=None, theta_init=None):
+        self.vehicle = vehicle
+        self.config = ControllerConfig() if config is None else config
+        if not isinstance(self.config, ControllerConfig):
+            raise TypeError(f"config must be a ControllerConfig, got {type(config).__name__}")
+        self._params = controller_params(self.config, vehicle, theta_0=theta_0, P0_diag=P0_diag,
+                                         theta_lower=theta_lower, theta_upper=theta_upper,
+                                         theta_init=theta_init)
+        self._dt_nominal = 1.0 / self.config.loop_rate_hz
+        self._diag = np.zeros(DIAG_SIZE)
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the initial state (theta-hat = theta_init, P = P0, filters and integrator empty)."""
+        self._state = controller_initial_state(self._params)
+        self._diag[:] = 0.0
+        self._t_last = None
+
+    def step(self, t: float, measurement: Measurement, reference: Reference) -> Command:
+        """Compute the command for time ``t`` (s) from a measurement and a reference.
+
+        ``dt`` is ``t`` minus the previous call's ``t`` (``1/loop_rate_hz`` on the first call).
+        Raises ValueError if ``t`` does not increase.
+        """
+        t_last = self._t_last
+        if t_last is None:
+            dt = self._dt_nominal
+        else:
+            dt = t - t_last
+            if not dt > 0.0:
+                raise ValueError(f"t = {t!r}: must increase (previous step at t = {t_last!r})")
+        cmd = Command.__new__(Command)
+        cmd._a = np.empty(L.CMD_SIZE)
+        controller_step(self._params, self._state, measurement._a, reference._a, dt, cmd._a, self._diag)
+        self._t_last = t
+        return cmd
+
+    @property
+    def state(self) -> ControllerState:
+        """Named view of the controller's memory (theta_hat, P, integrator, ...)."""
+        return ControllerState(self._state)
+
+    def get_state(self) -> ControllerSnapshot:
+        """A copy of the complete memory; :meth:`set_state` restores it bit for bit."""
+        return ControllerSnapshot(self._state.copy(), self._t_last)
+
+    def set_state(self, snapshot: ControllerSnapshot) -> None:
+        """Restore a snapshot taken by :meth:`get_state` (of a controller with the same layout)."""
+        s = np.asarray(snapshot.state, dtype=float)
+        if s.shape != self._state.shape:
+            raise ValueError(f"snapshot state has shape {s.shape}, expected {self._state.shape}")
+        self._state = s.copy()
+        self._t_last = snapshot.t_last
+
+    @property
+    def params(self) -> np.ndarray:
+        """The kernel parameter array (copy)."""
+        return self._params.copy()
+
+    @property
+    def diagnostics_array(self) -> np.ndarray:
+        """Internals of the last step (copy), named by :data:`CONTROLLER_DIAG_COLUMNS`."""
+        return self._diag.copy()
+
+    @property
+    def diagnostics(self) -> dict[str, float]:
+        """``{name: value}`` of the last step's internals (units in the names)."""
+        return {n: float(v) for n, v in zip(CONTROLLER_DIAG_COLUMNS, self._diag)}
+
+
+def controller_arrays(vehicle, config: ControllerConfig, theta_0=None, P0_diag=None, theta_lower=None,
+                      theta_upper=None, theta_init=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(params, initial state)`` kernel arrays for the simulator's compiled loop."""
+    params = controller_params(config, vehicle, theta_0=theta_0, P0_diag=P0_diag, theta_lower=theta_lower,
+                               theta_upper=theta_upper, theta_init=theta_init)
+    return params, controller_initial_state(params)
+
+
+__all__ = ["Command", "Controller", "ControllerSnapshot", "ControllerState", "Measurement", "Reference",
+           "controller_arrays", "default_theta_bounds"]

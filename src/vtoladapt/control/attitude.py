@@ -1,0 +1,314 @@
+"""Desired attitude: the wing solution (eq:fbar_solve, eq:alphad, eq:Rd) blended with hover.
+
+The wing solution (paper, "Desired Attitude Determination")
+------------------------------------------------------------
+With the body-frame force command ``f_rb = R^T f_r`` and the measured incident velocity ``v_i``,
+the incident-wind axes are ``x_i = v_i/|v_i|``, ``y_i = v_i x f_rb / |v_i x f_rb|``,
+``z_i = x_i x y_i``; the wing supplies the force along ``-z_i`` by the angle of attack ``alpha_d``
+of eq:alphad, and ``R_d = R R_i R_alpha`` (eq:Rd). ``R R_i`` depends only on world quantities
+(its columns are ``R x_i``, ``R y_i``, ``R z_i``, and ``R v_i`` is the air-relative velocity in NED),
+so it is computed in the world frame: the result does not depend on how the current attitude
+``R`` is parametrised. ``R_alpha`` is the rotation about ``y_i`` by ``+alpha_d``, so that in the
+desired frame ``v_i = V (cos alpha_d, 0, sin alpha_d)``: angle of attack ``alpha_d``, sideslip 0.
+
+By construction ``-f_rb . z_i = |f_rb x x_i| >= 0``: the lift demanded is the part of the force
+command normal to the airflow, and the wing is rolled so its lift points that way (upright
+whenever the command has an upward component normal to the flow, i.e. whenever the commanded
+acceleration is below 1 g).
+
+eq:alphad with the model's per-unit-mass lift ``L = (rho S / 2m) V^2 (C_L0 + C_L1 alpha)``:
+``L_0 = (rho S/2m) V^2 C_L0``, ``L_1 = (rho S/2m) V^2 C_L1`` (the paper's L_0, L_1 divided by the
+mass, as f_b is). alpha_d is saturated on both sides: ``alpha_max`` above ``L_max = L_0 + L_1
+alpha_max`` (the paper) and ``alpha_min`` below ``L_min = L_0 + L_1 alpha_min`` (the paper is
+silent; the force the wing cannot supply is left to the thrusters, eq:f_proj, and reported as the
+allocation residual).
+
+Where the wing solution is undefined
+------------------------------------
+* **v_i parallel to f_rb** (or f_r = 0): with ``n = |x_i x f_r|`` (the force normal to the flow)
+  below ``eta = 1e-3 m/s^2``, ``y_i = normalise(x_i x f_r + (eta - n) y_fb)``, where ``y_fb`` is the
+  previous ``y_i`` (projected normal to ``x_i``), else the upright right-wing axis ``e_D x x_i``,
+  else the reference heading's right axis. This is continuous in the inputs, is exactly the
+  paper's ``y_i`` whenever ``n >= eta``, and never divides by zero.
+* **Low airspeed.** Below ``V_lo`` the desired attitude is the multirotor solution: body ``-z``
+  along ``f_r`` (tilt limited, with at least ``min_lift`` upward so that f_r = 0 or a downward
+  command still gives an upright attitude), heading from the reference yaw. Between ``V_lo`` and
+  ``V_hi`` (``vehicle.envelope.hover_blend_airspeed_mps``) the two solutions are slerped with the
+  weight ``w = s^2 (3 - 2 s)``, ``s = (V - V_lo)/(V_hi - V_lo)``: C1 in V, no jump at either
+  end. (If the two solutions are exactly 180 deg apart, e.g. a reference heading opposite to the
+  airflow, the slerp's path is ambiguous; it stays continuous in V.)
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..frames import rotmat_to_quat
+
+Y_REGULARISATION_MPS2 = 1e-3
+"""eta of the y_i regularisation (m/s^2): below this normal force y_i leans on its fallback."""
+V_WING_MIN_MPS = 1e-6
+"""Below this airspeed x_i = v_i/|v_i| is not formed at all (the blend weight is 0 there anyway)."""
+
+
+@njit(cache=True)
+def hover_blend_weight(V: float, V_lo: float, V_hi: float) -> float:
+    """Weight of the wing solution: 0 for ``V <= V_lo``, 1 for ``V >= V_hi``, smoothstep (C1) between."""
+    if not V > V_lo:
+        return 0.0
+    if V >= V_hi:
+        return 1.0
+    s = (V - V_lo) / (V_hi - V_lo)
+    return s * s * (3.0 - 2.0 * s)
+
+
+@njit(cache=True)
+def multirotor_attitude(f_r_W, yaw_rad, tilt_max_rad, min_lift_mps2, R_d) -> None:
+    """Multirotor desired attitude: body ``-z`` along ``f_r``, heading from ``yaw_rad``, into ``R_d``.
+
+    The upward part of ``f_r`` is at least ``min_lift_mps2`` and the tilt at most ``tilt_max_rad``
+    (both continuous clamps), so the thrust axis is always well defined and upright.
+    """
+    up = max(-f_r_W[2], min_lift_mps2)
+    hx = f_r_W[0]
+    hy = f_r_W[1]
+    h = np.sqrt(hx * hx + hy * hy)
+    h_max = up * np.tan(tilt_max_rad)
+    if h > h_max:
+        s = h_max / h
+        hx *= s
+        hy *= s
+    n = np.sqrt(hx * hx + hy * hy + up * up)
+    b3x, b3y, b3z = -hx / n, -hy / n, up / n
+    cy, sy = np.cos(yaw_rad), np.sin(yaw_rad)
+    # b2 = b3 x x_c, x_c = (cos yaw, sin yaw, 0); |b3 x x_c| >= b3z >= cos(tilt_max) > 0
+    b2x = -b3z * sy
+    b2y = b3z * cy
+    b2z = b3x * sy - b3y * cy
+    m = np.sqrt(b2x * b2x + b2y * b2y + b2z * b2z)
+    b2x /= m
+    b2y /= m
+    b2z /= m
+    R_d[0, 0] = b2y * b3z - b2z * b3y
+    R_d[1, 0] = b2z * b3x - b2x * b3z
+    R_d[2, 0] = b2x * b3y - b2y * b3x
+    R_d[0, 1] = b2x
+    R_d[1, 1] = b2y
+    R_d[2, 1] = b2z
+    R_d[0, 2] = b3x
+    R_d[1, 2] = b3y
+    R_d[2, 2] = b3z
+
+
+@njit(cache=True)
+def _unit_normal_to(x, c0, c1, c2, out) -> float:
+    """``out`` = unit part of ``c`` normal to unit ``x``; returns the norm before normalising."""
+    d = c0 * x[0] + c1 * x[1] + c2 * x[2]
+    out[0] = c0 - d * x[0]
+    out[1] = c1 - d * x[1]
+    out[2] = c2 - d * x[2]
+    n = np.sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2])
+    if n > 0.0:
+        out[0] /= n
+        out[1] /= n
+        out[2] /= n
+    return n
+
+
+@njit(cache=True)
+def incident_frame_W(x_i_W, f_r_W, y_prev_W, have_y_prev, yaw_rad, R_i_W) -> None:
+    """World-frame incident-wind axes ``R R_i = [x_i, y_i, z_i]`` (eq:Rd) into ``R_i_W``.
+
+    ``x_i_W`` is the unit air-relative velocity in NED. ``y_i`` follows the paper
+    (``v_i x f_rb`` normalised) with the regularisation of the module notes.
+    """
+    y_fb = np.empty(3)
+    n = 0.0
+    if have_y_prev:
+        n = _unit_normal_to(x_i_W, y_prev_W[0], y_prev_W[1], y_prev_W[2], y_fb)
+    if not n > 1e-3:
+        # e_D x x_i: the right wing of an upright aircraft flying along x_i
+        n = _unit_normal_to(x_i_W, -x_i_W[1], x_i_W[0], 0.0, y_fb)
+    if not n > 1e-3:
+        _unit_normal_to(x_i_W, -np.sin(yaw_rad), np.cos(yaw_rad), 0.0, y_fb)
+    # x_i x f_r (= R (v_i x f_rb) / V); |x_i x f_r| is the force normal to the flow
+    yx = x_i_W[1] * f_r_W[2] - x_i_W[2] * f_r_W[1]
+    yy = x_i_W[2] * f_r_W[0] - x_i_W[0] * f_r_W[2]
+    yz = x_i_W[0] * f_r_W[1] - x_i_W[1] * f_r_W[0]
+    n_raw = np.sqrt(yx * yx + yy * yy + yz * yz)
+    if n_raw < Y_REGULARISATION_MPS2:
+        k = Y_REGULARISATION_MPS2 - n_raw
+        yx += k * y_fb[0]
+        yy += k * y_fb[1]
+        yz += k * y_fb[2]
+    m = np.sqrt(yx * yx + yy * yy + yz * yz)
+    if m > 1e-12:
+        yx /= m
+        yy /= m
+        yz /= m
+    else:
+        yx, yy, yz = y_fb[0], y_fb[1], y_fb[2]
+    R_i_W[0, 0] = x_i_W[0]
+    R_i_W[1, 0] = x_i_W[1]
+    R_i_W[2, 0] = x_i_W[2]
+    R_i_W[0, 1] = yx
+    R_i_W[1, 1] = yy
+    R_i_W[2, 1] = yz
+    R_i_W[0, 2] = x_i_W[1] * yz - x_i_W[2] * yy
+    R_i_W[1, 2] = x_i_W[2] * yx - x_i_W[0] * yz
+    R_i_W[2, 2] = x_i_W[0] * yy - x_i_W[1] * yx
+
+
+@njit(cache=True)
+def desired_angle_of_attack(lift_required_mps2, V, CL0, CL1, aero_scale_per_m, alpha_min_rad,
+                            alpha_max_rad) -> float:
+    """Desired angle of attack from the lift model (eq:alphad), saturated to ``[alpha_min, alpha_max]``.
+
+    ``lift_required_mps2 = -f_rb . z_i`` (per unit mass); ``L_0 = (rho S/2m) V^2 C_L0`` and
+    ``L_1 = (rho S/2m) V^2 C_L1`` are per unit mass like f_b.
+    """
+    q = aero_scale_per_m * V * V
+    L0 = q * CL0
+    L1 = q * CL1
+    if not L1 > 1e-12:
+        return alpha_max_rad if lift_required_mps2 > L0 else alpha_min_rad
+    if lift_required_mps2 >= L0 + L1 * alpha_max_rad:
+        return alpha_max_rad
+    if lift_required_mps2 <= L0 + L1 * alpha_min_rad:
+        return alpha_min_rad
+    return (lift_required_mps2 - L0) / L1
+
+
+@njit(cache=True)
+def wing_attitude(v_i_W, f_r_W, CL0, CL1, aero_scale_per_m, alpha_min_rad, alpha_max_rad,
+                  y_prev_W, have_y_prev, yaw_rad, R_d) -> tuple:
+    """Wing desired attitude ``R_d = R R_i R_alpha`` (eq:Rd, eq:alphad) into ``R_d``.
+
+    Parameters
+    ----------
+    v_i_W : (3,) air-relative velocity ``R v_i`` in NED (m/s), ``|v_i_W| > 0``.
+    f_r_W : (3,) force command per unit mass (m/s^2, NED).
+    CL0, CL1 : lift coefficients (the current theta-hat).
+    aero_scale_per_m : ``rho S / (2 m)`` (1/m).
+    alpha_min_rad, alpha_max_rad : saturation of alpha_d.
+    y_prev_W, have_y_prev : previous ``y_i`` (NED) for the degenerate case.
+    yaw_rad : reference heading, last fallback for ``y_i``.
+
+    Returns
+    -------
+    (alpha_d_rad, lift_required_mps2)
+    """
+    V = np.sqrt(v_i_W[0] ** 2 + v_i_W[1] ** 2 + v_i_W[2] ** 2)
+    x = np.empty(3)
+    for i in range(3):
+        x[i] = v_i_W[i] / V
+    Ri = np.empty((3, 3))
+    incident_frame_W(x, f_r_W, y_prev_W, have_y_prev, yaw_rad, Ri)
+    lift = -(f_r_W[0] * Ri[0, 2] + f_r_W[1] * Ri[1, 2] + f_r_W[2] * Ri[2, 2])
+    alpha_d = desired_angle_of_attack(lift, V, CL0, CL1, aero_scale_per_m, alpha_min_rad, alpha_max_rad)
+    ca, sa = np.cos(alpha_d), np.sin(alpha_d)
+    # R_alpha = R_y(alpha_d): columns (ca, 0, -sa), (0, 1, 0), (sa, 0, ca)
+    for r in range(3):
+        R_d[r, 0] = ca * Ri[r, 0] - sa * Ri[r, 2]
+        R_d[r, 1] = Ri[r, 1]
+        R_d[r, 2] = sa * Ri[r, 0] + ca * Ri[r, 2]
+    return alpha_d, lift
+
+
+@njit(cache=True)
+def quat_slerp(qa, qb, w, out) -> None:
+    """Spherical interpolation from unit ``qa`` (w = 0) to ``qb`` (w = 1), the short way, into ``out``."""
+    d = qa[0] * qb[0] + qa[1] * qb[1] + qa[2] * qb[2] + qa[3] * qb[3]
+    sgn = 1.0
+    if d < 0.0:
+        d = -d
+        sgn = -1.0
+    if d > 0.9995:
+        # nearly equal: normalised lerp is exact to 1e-7 and avoids 0/0
+        ka = 1.0 - w
+        kb = sgn * w
+    else:
+        th = np.arccos(min(d, 1.0))
+        s = np.sin(th)
+        ka = np.sin((1.0 - w) * th) / s
+        kb = sgn * np.sin(w * th) / s
+    n = 0.0
+    for i in range(4):
+        out[i] = ka * qa[i] + kb * qb[i]
+        n += out[i] * out[i]
+    n = np.sqrt(n)
+    for i in range(4):
+        out[i] /= n
+    if out[0] < 0.0:
+        for i in range(4):
+            out[i] = -out[i]
+
+
+@njit(cache=True)
+def desired_attitude(f_r_W, v_i_W, yaw_rad, CL0, CL1, aero_scale_per_m, alpha_min_rad, alpha_max_rad,
+                     V_lo, V_hi, tilt_max_rad, min_lift_mps2, y_prev_W, have_y_prev, q_d, y_i_W) -> tuple:
+    """Desired attitude ``q_d`` (scalar first) blending the multirotor and the wing solutions.
+
+    See the module notes. ``y_i_W`` receives the wing solution's ``y_i`` (NED) when it was
+    formed (to be passed back as ``y_prev_W`` next tick).
+
+    Returns
+    -------
+    (alpha_d_rad, blend_weight, wing_formed)
+        ``alpha_d`` of the wing solution (0 if not formed), the wing weight in [0, 1], and whether
+        the wing solution was formed (``V > 1e-6 m/s``).
+    """
+    V = np.sqrt(v_i_W[0] ** 2 + v_i_W[1] ** 2 + v_i_W[2] ** 2)
+    w = hover_blend_weight(V, V_lo, V_hi)
+    R_mc = np.empty((3, 3))
+    alpha_d = 0.0
+    formed = False
+    q_w = np.empty(4)
+    if V > V_WING_MIN_MPS:
+        R_w = np.empty((3, 3))
+        alpha_d, _ = wing_attitude(v_i_W, f_r_W, CL0, CL1, aero_scale_per_m, alpha_min_rad,
+                                   alpha_max_rad, y_prev_W, have_y_prev, yaw_rad, R_w)
+        for i in range(3):
+            y_i_W[i] = R_w[i, 1]
+        formed = True
+        q_w = rotmat_to_quat(R_w)
+    if w >= 1.0:
+        for i in range(4):
+            q_d[i] = q_w[i]
+        return alpha_d, w, formed
+    multirotor_attitude(f_r_W, yaw_rad, tilt_max_rad, min_lift_mps2, R_mc)
+    q_mc = rotmat_to_quat(R_mc)
+    if w <= 0.0:
+        for i in range(4):
+            q_d[i] = q_mc[i]
+        return alpha_d, w, formed
+    quat_slerp(q_mc, q_w, w, q_d)
+    return alpha_d, w, formed
+
+
+@njit(cache=True)
+def desired_frame_rate(q_prev, q_now, dt) -> np.ndarray:
+    """Mean rate of the desired frame over a tick, in the desired frame: ``log(R_prev^T R_now) / dt``."""
+    # q_e = q_prev^* q_now
+    a0, a1, a2, a3 = q_prev[0], -q_prev[1], -q_prev[2], -q_prev[3]
+    b0, b1, b2, b3 = q_now[0], q_now[1], q_now[2], q_now[3]
+    e0 = a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3
+    e1 = a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2
+    e2 = a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1
+    e3 = a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0
+    if e0 < 0.0:
+        e0, e1, e2, e3 = -e0, -e1, -e2, -e3
+    s = np.sqrt(e1 * e1 + e2 * e2 + e3 * e3)
+    out = np.zeros(3)
+    if s < 1e-12:
+        k = 2.0 / dt
+    else:
+        k = 2.0 * np.arctan2(s, e0) / s / dt
+    out[0] = k * e1
+    out[1] = k * e2
+    out[2] = k * e3
+    return out
+
+
+__all__ = ["desired_angle_of_attack", "desired_attitude", "desired_frame_rate", "hover_blend_weight",
+           "incident_frame_W", "multirotor_attitude", "quat_slerp", "wing_attitude"]
