@@ -584,6 +584,8 @@ def run_scenario_file(path, out: Path, duration_s: Optional[float] = None, seed:
         if controller not in CONTROLLER_LABELS:
             raise ConfigError(f"--controller = {controller!r}: unknown; allowed: {', '.join(CONTROLLER_LABELS)}")
         scenario = replace(scenario, controller=replace(scenario.controller, kind=controller))
+        if scenario.experiment.kind == "comparison":  # compare just this one
+            scenario = replace(scenario, experiment=replace(scenario.experiment, controllers=(controller,)))
     metrics = run_experiment(scenario, Path(out), show_progress)
     _note(f"wrote {out}/metrics.json, report.md, report.html and figures", show_progress)
     return metrics

@@ -1,0 +1,53 @@
+"""`vtoladapt reproduce` end to end at a short horizon: files exist, parse, follow the schema."""
+import json
+import math
+
+import pytest
+from PIL import Image
+
+from vtoladapt.cli import main
+from vtoladapt.experiments import ADAPTIVE_IDS, COMPOSITE_IDS
+from vtoladapt.vehicle import PARAMETER_NAMES
+
+CONTROLLERS = ("composite", "composite_pconst", "tracking_only", "pid", "pd")
+
+
+@pytest.fixture(scope="module")
+def reproduced(tmp_path_factory):
+    out = tmp_path_factory.mktemp("repro")
+    assert main(["reproduce", "--out", str(out), "--duration-scale", "0.12", "--quiet"]) == 0
+    return out
+
+
+def test_figures_exist_and_are_images(reproduced):
+    for name in ("fig_parameter_convergence.png", "fig_tracking_comparison.png", "fig_tracking_axes.png"):
+        with Image.open(reproduced / name) as img:
+            assert img.size[0] > 800 and img.size[1] > 600
+
+
+def test_metrics_schema(reproduced):
+    m = json.loads((reproduced / "metrics.json").read_text())
+    for cid in CONTROLLERS:
+        c = m["comparison"]["controllers"][cid]
+        for key in ("vel_err_rms_mps", "vel_err_max_mps", "vel_err_rms_high_wind_mps",
+                    "overshoot_after_fan_off_mps"):
+            assert isinstance(c[key], float) and math.isfinite(c[key]), (cid, key)
+        if cid in COMPOSITE_IDS:
+            assert math.isfinite(c["pred_err_rms_g"]) and math.isfinite(c["pred_err_p95_g"])
+        else:
+            assert "pred_err_p95_g" not in c
+    ratios = m["convergence"]["param_std_ratio"]
+    assert set(ratios) == set(PARAMETER_NAMES)
+    assert all(isinstance(v, float) for v in ratios.values())
+    for name, claim in m["claims"].items():
+        assert set(claim) >= {"holds", "value", "threshold"}, name
+        assert isinstance(claim["holds"], bool)
+    assert len(ADAPTIVE_IDS) == 3
+
+
+def test_report_lists_claims_and_embeds_figures(reproduced):
+    md = (reproduced / "report.md").read_text()
+    assert "claims" in md and "fig_tracking_comparison.png" in md and "single_k" in md
+    html = (reproduced / "report.html").read_text()
+    assert html.count("data:image/png;base64,") == 3
+    assert (reproduced / "comparison" / "runs" / "paper_comparison_pid.parquet").exists()
