@@ -264,11 +264,18 @@ def _shade_fan(ax, t, fan_pct) -> None:
                         lw=0)
 
 
-def figure_parameter_convergence(scenario: Scenario, results: list[SimulationResult], path: Path) -> Path:
+def _pyplot():
+    """matplotlib.pyplot on the Agg backend (files only; imported on first use: it is slow)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    return plt
+
+
+def figure_parameter_convergence(scenario: Scenario, results: list[SimulationResult], path: Path) -> Path:
+    plt = _pyplot()
 
     t = results[0].time_s
     theta = np.stack([r.theta_hat for r in results])
@@ -309,10 +316,7 @@ def figure_parameter_convergence(scenario: Scenario, results: list[SimulationRes
 
 
 def figure_tracking_comparison(scenario: Scenario, results: dict[str, SimulationResult], path: Path) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = _pyplot()
 
     first = next(iter(results.values()))
     t = first.time_s
@@ -349,10 +353,7 @@ def figure_tracking_comparison(scenario: Scenario, results: dict[str, Simulation
 
 
 def figure_tracking_axes(scenario: Scenario, results: dict[str, SimulationResult], path: Path) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = _pyplot()
 
     first = next(iter(results.values()))
     t = first.time_s
@@ -389,10 +390,7 @@ def figure_tracking_axes(scenario: Scenario, results: dict[str, SimulationResult
 
 def figure_single_run(scenario: Scenario, result: SimulationResult, path: Path) -> Path:
     """Airspeed, velocity error, theta-hat (relative to theta_0) and prediction error of one run."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = _pyplot()
 
     t = result.time_s
     fig, axes = plt.subplots(4, 1, figsize=(10, 10), sharex=True)

@@ -65,8 +65,31 @@ SMOOTHING_CANDIDATES = (1e-8, 1e-6, 1e-4, 1e-2)
 # single k (eq:aoa)
 # --------------------------------------------------------------------------------------------
 
+class _KernelEstimator:
+    """What both calibration models share: estimation through their kernel array."""
+
+    def estimate(self, q_Pa, rho):
+        """Incident velocity and validity for measured pressures.
+
+        Runs the compiled :func:`~vtoladapt.probe.estimation.incident_velocity_from_pressures`.
+
+        Parameters
+        ----------
+        q_Pa : array_like, shape (3,) or (N, 3)
+            ``[q_inf, q_alpha, q_beta]`` (Pa).
+        rho : float or array_like, shape (N,)
+            Air density (kg/m^3).
+
+        Returns
+        -------
+        v_i_B : numpy.ndarray, shape (3,) or (N, 3)
+        valid : bool or numpy.ndarray of bool
+        """
+        return estimate_incident_velocity(self.to_kernel(), q_Pa, rho)
+
+
 @dataclass(frozen=True)
-class SingleKCalibration:
+class SingleKCalibration(_KernelEstimator):
     """The paper's eq:aoa with one coefficient ``k``.
 
     Parameters
@@ -100,25 +123,6 @@ class SingleKCalibration:
         out[2] = self.q_inf_min_Pa
         out[3] = math.radians(self.angle_limit_deg)
         return out
-
-    def estimate(self, q_Pa, rho):
-        """Incident velocity and validity for measured pressures.
-
-        Runs the compiled :func:`~vtoladapt.probe.estimation.incident_velocity_from_pressures`.
-
-        Parameters
-        ----------
-        q_Pa : array_like, shape (3,) or (N, 3)
-            ``[q_inf, q_alpha, q_beta]`` (Pa).
-        rho : float or array_like, shape (N,)
-            Air density (kg/m^3).
-
-        Returns
-        -------
-        v_i_B : numpy.ndarray, shape (3,) or (N, 3)
-        valid : bool or numpy.ndarray of bool
-        """
-        return estimate_incident_velocity(self.to_kernel(), q_Pa, rho)
 
     def to_dict(self) -> dict:
         """JSON-ready description."""
@@ -185,7 +189,7 @@ def fit_single_k(data: ProbeCalibrationData, *, q_inf_min_Pa: float = DEFAULT_Q_
 # --------------------------------------------------------------------------------------------
 
 @dataclass(frozen=True, eq=False)
-class SplineCalibration:
+class SplineCalibration(_KernelEstimator):
     """Smoothing thin-plate spline ``C -> (alpha, beta, C_q)`` (see the module docstring).
 
     Parameters
@@ -309,25 +313,6 @@ class SplineCalibration:
         out[TB_HEADER:] = vals.T.ravel()
         self._kernel_cache.append(out)
         return out.copy()
-
-    def estimate(self, q_Pa, rho):
-        """Incident velocity and validity for measured pressures.
-
-        Runs the compiled :func:`~vtoladapt.probe.estimation.incident_velocity_from_pressures`.
-
-        Parameters
-        ----------
-        q_Pa : array_like, shape (3,) or (N, 3)
-            ``[q_inf, q_alpha, q_beta]`` (Pa).
-        rho : float or array_like, shape (N,)
-            Air density (kg/m^3).
-
-        Returns
-        -------
-        v_i_B : numpy.ndarray, shape (3,) or (N, 3)
-        valid : bool or numpy.ndarray of bool
-        """
-        return estimate_incident_velocity(self.to_kernel(), q_Pa, rho)
 
     # -- files --------------------------------------------------------------------------------
     def to_dict(self) -> dict:
