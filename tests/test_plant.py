@@ -23,6 +23,7 @@ def vacuum(p):
     p = p.copy()
     p[plant.P_RHO] = 0.0
     p[plant.P_KM] = 0.0
+    p[plant.P_KM_PUSHER] = 0.0
     return p
 
 
@@ -180,6 +181,15 @@ def test_mixer_round_trip_and_saturation(veh):
     T = t_unit * motor[:4] ** 2
     np.testing.assert_allclose([-(y * T).sum(), (x * T).sum()], [0.05, -0.08], atol=1e-9)
     assert np.all((motor >= 0) & (motor <= 1))
+    # a yaw demand just beyond authority at low collective is reduced to the largest feasible one,
+    # with the commanded sign, not dropped (T0 + s d >= 0 for every rotor)
+    cmd = np.array([0.0, 0.2932, 0.0, 0.0, -0.051])
+    assert mix(cmd, mp, motor)
+    T = t_unit * motor[:4] ** 2
+    yaw = -(s * km * T).sum()
+    T_each = t_unit * 0.2932**2  # each rotor's share; yaw moves two up and two down by the same amount
+    assert yaw == pytest.approx(-4 * km * T_each, rel=1e-9)  # the slowed pair reaches zero thrust
+    assert T.min() == pytest.approx(0.0, abs=1e-12)
     # NaN never reaches the motors
     assert np.all(np.isfinite(motor)) and not np.isnan(motor).any()
     mix(np.full(5, np.nan), mp, motor)

@@ -85,7 +85,7 @@ def mix(cmd, p, motor_cmd) -> bool:
             if d > 0.0 and T[i] > T_max:
                 s = min(s, max(T_max - T0[i], 0.0) / d)
             elif d < 0.0 and T[i] < 0.0:
-                s = min(s, max(-T0[i], 0.0) / -d)
+                s = min(s, max(T0[i], 0.0) / -d)  # T0 + s d >= 0
         for i in range(N_LIFT):
             T[i] = T0[i] + s * (T[i] - T0[i])
         lo = T.min()

@@ -15,7 +15,8 @@ lacks, each switchable:
   Database; the data set holds no APC 7x4). The rotor speed is linear in throttle, with the full
   speed that makes the static thrust equal the vehicle's ``CTx`` at 100 %;
 * **motor lag and saturation**: first-order lag per motor, commands clipped to [0, 1];
-* **rotor reaction torques** about body z (and the pusher's about body x);
+* **the pusher's reaction torque** about body x (the lift rotors' about body z are always on: they
+  are the aircraft's yaw control);
 * **aerodynamic rate damping** (roll, pitch, yaw) proportional to airspeed.
 
 Rotor/wing interaction (slipstream over the wing) is not modelled: the lift rotors sit outboard
@@ -92,8 +93,9 @@ class PlantConfig:
                                                           default=None, gt=0.0, le=1.0)
     pusher_motor_time_constant_s: Optional[float] = setting("s", "true pusher lag (default: vehicle's)",
                                                             default=None, gt=0.0, le=1.0)
-    rotor_reaction_torque: bool = setting("-", "rotor drag torques (yaw from lift rotors, roll from pusher)",
-                                          default=True)
+    rotor_reaction_torque: bool = setting(
+        "-", "the pusher's drag torque rolls the airframe (unmodelled by the controller); the lift "
+        "rotors' yaw torques are always on: they are how the aircraft yaws", default=True)
     aero_rate_damping: bool = setting("-", "aerodynamic roll/pitch/yaw rate damping", default=True)
     Clp: float = setting("-", "roll damping derivative", default=-0.4, le=0.0)
     Cmq: float = setting("-", "pitch damping derivative (V-tail)", default=-6.0, le=0.0)
@@ -156,7 +158,8 @@ class PlantConfig:
             p[P_ROTOR_X + i] = x
             p[P_ROTOR_Y + i] = y
             p[P_ROTOR_SPIN + i] = vehicle.geometry.lift_rotor_spin[i]
-        p[P_KM] = vehicle.actuators.yaw_torque_per_thrust_m if self.rotor_reaction_torque else 0.0
+        p[P_KM] = vehicle.actuators.yaw_torque_per_thrust_m
+        p[P_KM_PUSHER] = vehicle.actuators.yaw_torque_per_thrust_m if self.rotor_reaction_torque else 0.0
         p[P_DAMP_ON] = float(self.aero_rate_damping)
         p[P_CLP], p[P_CMQ], p[P_CNR] = self.Clp, self.Cmq, self.Cnr
         return p
@@ -199,7 +202,8 @@ P_CLP = 59
 P_CMQ = 60
 P_CNR = 61
 P_FORCE_MASS = 62  # mass the coefficients were normalised by (vehicle's), kg
-P_SIZE = 63
+P_KM_PUSHER = 63   # pusher drag torque per thrust (0 when rotor_reaction_torque is off), m
+P_SIZE = 64
 PUSHER_J_MAX = 0.8  # edge of the UIUC data; the quadratic is not extrapolated beyond
 
 
@@ -285,7 +289,7 @@ def true_forces_moments(x, v_i_B, p, f_B, tau_B) -> None:
     # pusher
     wp = x[X_MOTOR + MOTOR_PUSHER]
     Tp = m_ref * p[P_THETA + forces.I_CTX] * wp * wp * pusher_thrust_ratio(vx, p[P_PUSH_NMAX] * wp, p)
-    tx += -p[P_KM] * Tp  # pusher drag torque rolls the airframe
+    tx += -p[P_KM_PUSHER] * Tp  # pusher drag torque rolls the airframe
     # wing
     r = np.sqrt(vx * vx + vz * vz)
     alpha = np.arctan2(vz, vx)
