@@ -264,24 +264,20 @@ def _shade_fan(ax, t, fan_pct) -> None:
                         lw=0)
 
 
-def _pyplot():
-    """matplotlib.pyplot on the Agg backend (files only; imported on first use: it is slow)."""
-    import matplotlib
+def _subplots(nrows: int, ncols: int, figsize: tuple, **kwargs):
+    """A figure and its axes without pyplot: files only, and pyplot's import costs a second."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(nrows, ncols, **kwargs)
 
 
 def figure_parameter_convergence(scenario: Scenario, results: list[SimulationResult], path: Path) -> Path:
-    plt = _pyplot()
-
     t = results[0].time_s
     theta = np.stack([r.theta_hat for r in results])
     truth = np.array(results[0].metadata["theta_true_scaled"])
     wind = fan_speed_series(scenario, t)
-    fig, axes = plt.subplots(4, 2, figsize=(11, 10), sharex=True)
+    fig, axes = _subplots(4, 2, figsize=(11, 10), sharex=True)
     units = {"CTx": "m/s² (u∈[0,1])", "CTz": "m/s² (u∈[0,1])", "CS": "scaled", "CD0": "-",
              "CD1": "1/rad", "CD2": "1/rad²", "CL0": "-", "CL1": "1/rad"}
     for i, name in enumerate(PARAMETER_NAMES):
@@ -311,18 +307,15 @@ def figure_parameter_convergence(scenario: Scenario, results: list[SimulationRes
     fig.legend(h1 + h2, l1 + l2, loc="upper center", bbox_to_anchor=(0.5, 0.97), ncol=6, frameon=False)
     fig.tight_layout(rect=(0, 0, 1, 0.94))
     fig.savefig(path, dpi=130)
-    plt.close(fig)
     return path
 
 
 def figure_tracking_comparison(scenario: Scenario, results: dict[str, SimulationResult], path: Path) -> Path:
-    plt = _pyplot()
-
     first = next(iter(results.values()))
     t = first.time_s
     dt = t[1] - t[0]
     fan = fan_throttle_series(scenario, t)
-    fig, axes = plt.subplots(3, 1, figsize=(10, 8.5), sharex=True)
+    fig, axes = _subplots(3, 1, figsize=(10, 8.5), sharex=True)
     ref_id = "composite" if "composite" in results else next(iter(results))
     airspeed = np.linalg.norm(results[ref_id].columns_like(("meas_v_i_x_mps", "meas_v_i_y_mps",
                                                             "meas_v_i_z_mps")), axis=1)
@@ -348,18 +341,15 @@ def figure_tracking_comparison(scenario: Scenario, results: dict[str, Simulation
     axes[0].set_title(f"Controller comparison ({scenario.name}); grey: fan on")
     fig.tight_layout()
     fig.savefig(path, dpi=130)
-    plt.close(fig)
     return path
 
 
 def figure_tracking_axes(scenario: Scenario, results: dict[str, SimulationResult], path: Path) -> Path:
-    plt = _pyplot()
-
     first = next(iter(results.values()))
     t = first.time_s
     dt = t[1] - t[0]
     fan = fan_throttle_series(scenario, t)
-    fig, axes = plt.subplots(3, 2, figsize=(12, 8), sharex=True)
+    fig, axes = _subplots(3, 2, figsize=(12, 8), sharex=True)
     for j, axis in enumerate("NED"):
         ax = axes[j, 0]
         for cid, res in results.items():
@@ -384,16 +374,13 @@ def figure_tracking_axes(scenario: Scenario, results: dict[str, SimulationResult
     axes[-1, 1].set_xlabel("time [s]")
     fig.tight_layout()
     fig.savefig(path, dpi=130)
-    plt.close(fig)
     return path
 
 
 def figure_single_run(scenario: Scenario, result: SimulationResult, path: Path) -> Path:
     """Airspeed, velocity error, theta-hat (relative to theta_0) and prediction error of one run."""
-    plt = _pyplot()
-
     t = result.time_s
-    fig, axes = plt.subplots(4, 1, figsize=(10, 10), sharex=True)
+    fig, axes = _subplots(4, 1, figsize=(10, 10), sharex=True)
     axes[0].plot(t, result["airspeed_mps"], label="true airspeed")
     axes[0].plot(t, fan_speed_series(scenario, t), "k--", lw=1, label="fan mean wind")
     axes[0].set_ylabel("airspeed [m/s]")
@@ -417,7 +404,6 @@ def figure_single_run(scenario: Scenario, result: SimulationResult, path: Path) 
     axes[0].set_title(f"{scenario.name}: controller {scenario.controller.kind}")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
     return path
 
 
