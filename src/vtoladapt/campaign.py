@@ -171,12 +171,9 @@ def _write_outputs(rows: list[dict], out: Path) -> None:
                       "min": float(np.nanmin(vals)), "p95": float(np.nanpercentile(vals, 95)),
                       "max": float(np.nanmax(vals))}
     (out / "summary.json").write_text(json.dumps({"runs": len(rows), "columns": summary}, indent=2))
-    import matplotlib
+    from .experiments import new_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
+    fig, axes = new_figure(1, 2, figsize=(10, 3.8))
     for ax, key, label in ((axes[0], "vel_err_rms_mps", "RMS velocity error [m/s]"),
                            (axes[1], "pos_err_max_m", "max position error [m]")):
         vals = np.array([r[key] for r in rows])
@@ -187,7 +184,6 @@ def _write_outputs(rows: list[dict], out: Path) -> None:
     fig.suptitle(f"Campaign of {len(rows)} runs")
     fig.tight_layout()
     fig.savefig(out / "fig_campaign.png", dpi=120)
-    plt.close(fig)
 
 
 def register_cli(subparsers) -> None:
