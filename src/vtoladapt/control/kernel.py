@@ -313,17 +313,31 @@ def _vector(name: str, value, n: int = N_THETA) -> np.ndarray:
     return a
 
 
+def theta_bound_half_widths(theta_0, theta_std, bound_fraction, bound_sigmas: float) -> np.ndarray:
+    """Half-widths of the theta-hat box: ``max(bound_fraction |theta_0|, bound_sigmas |std|)``.
+
+    The one rule for the bounds, whether theta_0 comes from the vehicle file or a fitted posterior.
+    Never narrower than ``1e-13 |theta_0|`` (1e-13 where theta_0 = 0): well above rounding, far
+    below any real bound, so a degenerate setting cannot give a zero-width box that freezes
+    theta-hat.
+    """
+    th0 = np.asarray(theta_0, dtype=float)
+    half = np.maximum(np.asarray(bound_fraction, dtype=float) * np.abs(th0),
+                      bound_sigmas * np.abs(np.asarray(theta_std, dtype=float)))
+    return np.maximum(half, 1e-13 * np.where(th0 != 0.0, np.abs(th0), 1.0))
+
+
 def default_theta_bounds(vehicle, theta_0=None, theta_std=None) -> tuple[np.ndarray, np.ndarray]:
     """Box bounds of theta-hat: ``theta_0 +- max(bound_fraction |theta_0|, bound_sigmas std)``.
 
     ``bound_fraction``, ``bound_sigmas`` from ``vehicle.adaptation``; ``std`` defaults to
-    ``vehicle.theta_std_scaled`` (Table I), all in the adaptation scaling.
+    ``vehicle.theta_std_scaled`` (Table I), all in the adaptation scaling
+    (:func:`theta_bound_half_widths`).
     """
     th0 = vehicle.theta_scaled if theta_0 is None else _vector("theta_0", theta_0)
     std = vehicle.theta_std_scaled if theta_std is None else _vector("theta_std", theta_std)
-    frac = np.asarray(vehicle.adaptation.bound_fraction, dtype=float)
-    half = np.maximum(frac * np.abs(th0), vehicle.adaptation.bound_sigmas * np.abs(std))
-    half = np.maximum(half, 1e-12 * np.maximum(1.0, np.abs(th0)))
+    half = theta_bound_half_widths(th0, std, vehicle.adaptation.bound_fraction,
+                                   vehicle.adaptation.bound_sigmas)
     return th0 - half, th0 + half
 
 
@@ -900,5 +914,6 @@ def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
 __all__ = ["CONTROLLER_DIAG_COLUMNS", "DIAG_SIZE", "KIND_COMPOSITE", "KIND_COMPOSITE_PCONST", "KIND_PD",
            "KIND_PID", "KIND_TRACKING_ONLY", "P_SIZE", "S_SIZE", "controller_initial_state",
            "controller_params", "controller_step", "default_theta_bounds", "set_state_theta_hat",
+           "theta_bound_half_widths",
            "state_P", "state_P_inv", "state_filtered_accel", "state_filtered_regressor",
            "state_integrator", "state_last_command", "state_theta_hat", "state_wind_estimate"]
