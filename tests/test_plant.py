@@ -1,6 +1,8 @@
 """The plant against closed forms, conservation laws and scipy's integrator."""
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import vtoladapt
 from vtoladapt import layout, plant
@@ -124,6 +126,55 @@ def test_stall_blend_and_flat_plate(veh):
     a = np.radians(40)
     CL_off, _ = plant.true_aero_coefficients(a, np.sin(a), np.cos(a), p_off)
     assert CL_off == pytest.approx(0.3705 + 3.2502 * np.radians(40), rel=1e-12)
+
+
+@settings(max_examples=300, deadline=None)
+@given(alpha=st.floats(-4.0, 4.0), M=st.floats(0.5, 1000.0), alpha_stall_deg=st.floats(1.0, 59.0))
+def test_stall_blend_is_beard_mclain_sigmoid(alpha, M, alpha_stall_deg):
+    """The one-exp form equals Beard & McLain's two-exp sigmoid, and stays in [0, 1] for any sharpness."""
+    a0 = np.radians(alpha_stall_deg)
+    a = min(max(alpha, -np.pi), np.pi)
+    with np.errstate(over="ignore"):
+        e1 = np.exp(min(-M * (a - a0), 700.0))
+        e2 = np.exp(min(M * (a + a0), 700.0))
+        reference = (1.0 + e1 + e2) / ((1.0 + e1) * (1.0 + e2))
+    s = plant.stall_blend(alpha, M, np.exp(min(M * a0, 700.0)))
+    assert 0.0 <= s <= 1.0
+    if M * (abs(a) + a0) < 650.0:  # the reference itself is exact only without its clamps
+        assert s == pytest.approx(reference, rel=1e-12, abs=1e-15)
+
+
+def test_motor_lag_is_integrated_exactly(veh):
+    """Motor outputs follow u(t) = c + (u0 - c) exp(-t / tau) to rounding, whatever the step."""
+    p = kernel(veh)
+    cmd = np.array([0.9, 0.1, 0.5, 0.7, 1.4])  # the pusher's 1.4 saturates to 1
+    u0 = np.array([0.3, 0.6, 0.5, 0.2, 0.0])
+    x = layout.pack_state([0, 0, -5], [0, 0, 0], [1, 0, 0, 0], [0, 0, 0], u0)
+    integrate(x, cmd, np.zeros(3), p, 0.004, 25)  # 0.1 s in steps as long as the lift motors' lag
+    tau = np.array([veh.actuators.lift_motor_time_constant_s] * 4 + [veh.actuators.pusher_motor_time_constant_s])
+    c = np.clip(cmd, 0.0, 1.0)
+    np.testing.assert_allclose(x[layout.X_MOTOR:], c + (u0 - c) * np.exp(-0.1 / tau), rtol=0, atol=1e-14)
+
+
+def test_first_stage_reuse_is_exact(veh):
+    """A tick that reuses the sensors' first-stage evaluation ends bit-identical to one that does not."""
+    p = kernel(veh)
+    x0 = layout.pack_state([0, 0, -5], [2.0, 0.5, -0.3], quat_from_euler(0.2, 0.1, -0.05),
+                           [0.1, -0.2, 0.05], [0.55, 0.6, 0.58, 0.52, 0.3])
+    motor = np.array([0.6, 0.55, 0.62, 0.57, 0.4])
+    wind = np.array([-7.0, 0.5, 0.2])
+    a, b = x0.copy(), x0.copy()
+    work_a, work_b = np.empty(plant.RK4_WORK_SIZE), np.empty(plant.RK4_WORK_SIZE)
+    f_B, v_i = np.empty(3), np.empty(3)
+    plant.plant_first_stage(a, wind, p, f_B, v_i, work_a)
+    plant.plant_advance(a, motor, wind, p, 0.001, 4, True, work_a)
+    plant.plant_advance(b, motor, wind, p, 0.001, 4, False, work_b)
+    assert np.array_equal(a, b)
+    xdot = np.empty(layout.X_SIZE)
+    f_ref = np.empty(3)
+    plant.plant_derivative(x0, motor, wind, p, xdot, f_ref)
+    np.testing.assert_array_equal(f_B, f_ref)
+    np.testing.assert_allclose(quat_to_rotmat(x0[6:10]) @ v_i, -wind + x0[3:6], atol=1e-12)
 
 
 def test_pusher_thrust_ratio_follows_uiuc_fit(veh):

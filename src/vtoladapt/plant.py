@@ -22,7 +22,11 @@ lacks, each switchable:
 Rotor/wing interaction (slipstream over the wing) is not modelled: the lift rotors sit outboard
 of the wing root on booms and the paper gives nothing to calibrate it against.
 
-Kernels take the plant parameter array built once by :meth:`PlantConfig.to_kernel`.
+Kernels take the plant parameter array built once by :meth:`PlantConfig.to_kernel`. The
+rigid-body derivative runs 16 times per controller tick (four RK4 steps at 1 kHz), so the force
+kernels it calls take and return scalars and are inlined into it (``inline="always"``): as
+separate calls, the reference counting of the parameter array alone took a fifth of the
+plant's time.
 """
 from __future__ import annotations
 
@@ -36,7 +40,7 @@ from numba import njit
 from . import forces
 from .config import ConfigError, build, setting
 from .frames import GRAVITY_MPS2
-from .layout import MOTOR_PUSHER, N_LIFT, N_MOTORS, X_MOTOR, X_OMEGA_B, X_Q_WB, X_SIZE, X_V_W
+from .layout import MOTOR_PUSHER, N_LIFT, N_MOTORS, X_MOTOR, X_OMEGA_B, X_P_W, X_Q_WB, X_SIZE, X_V_W
 from .models import theta_to_scaled
 from .vehicle import PARAMETER_NAMES, Vehicle
 
@@ -146,6 +150,7 @@ class PlantConfig:
         p[P_STALL_ON] = float(self.stall)
         p[P_ALPHA_STALL] = math.radians(self.stall_angle_deg)
         p[P_STALL_M] = self.stall_blend_rate_per_rad
+        p[P_STALL_EXP] = math.exp(min(self.stall_blend_rate_per_rad * p[P_ALPHA_STALL], 700.0))
         p[P_CY_BETA] = self.CY_beta_per_rad if self.side_force else 0.0
         p[P_PUSH_J_ON] = float(self.pusher_advance_ratio_loss)
         p[P_CT_A1], p[P_CT_A2] = self.pusher_CT_ratio_coeffs
@@ -203,20 +208,29 @@ P_CMQ = 60
 P_CNR = 61
 P_FORCE_MASS = 62  # mass the coefficients were normalised by (vehicle's), kg
 P_KM_PUSHER = 63   # pusher drag torque per thrust (0 when rotor_reaction_torque is off), m
-P_SIZE = 64
+P_STALL_EXP = 64   # exp(M alpha_stall) (clamped), so the stall blend needs one exp per evaluation
+P_SIZE = 65
 PUSHER_J_MAX = 0.8  # edge of the UIUC data; the quadratic is not extrapolated beyond
+N_BODY = X_MOTOR    # the rigid-body part of the state: p, v, q, omega (the motors follow)
+ROTOR_TERMS_SIZE = 7
 
 
-@njit(cache=True)
-def stall_blend(alpha_rad: float, alpha_stall_rad: float, M: float) -> float:
-    """Beard & McLain's stall blending sigmoid: 0 in attached flow, 1 past stall."""
-    a = min(max(alpha_rad, -np.pi), np.pi)
-    e1 = np.exp(min(-M * (a - alpha_stall_rad), 700.0))
-    e2 = np.exp(min(M * (a + alpha_stall_rad), 700.0))
-    return (1.0 + e1 + e2) / ((1.0 + e1) * (1.0 + e2))
+@njit(cache=True, inline="always")
+def stall_blend(alpha_rad: float, M: float, exp_M_alpha_stall: float) -> float:
+    """Beard & McLain's stall blending sigmoid: 0 in attached flow, 1 past stall.
+
+    ``sigma = (1 + e1 + e2) / ((1 + e1)(1 + e2))`` with ``e1 = e^{-M(|a| - a0)}``,
+    ``e2 = e^{M(|a| + a0)}`` (sigma is even in alpha) is ``s1 + s2 - s1 s2`` with
+    ``s1 = 1/(1 + z C)``, ``s2 = z/(z + C)``, ``z = e^{-M|a|} <= 1``, ``C = e^{M a0}``: one exp per
+    call (``C`` is a constant of the run, ``exp_M_alpha_stall``) and nothing overflows.
+    """
+    z = np.exp(-min(M * min(abs(alpha_rad), np.pi), 700.0))
+    s1 = 1.0 / (1.0 + z * exp_M_alpha_stall)
+    s2 = z / (z + exp_M_alpha_stall)
+    return s1 + s2 - s1 * s2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def true_aero_coefficients(alpha_rad: float, sin_alpha: float, cos_alpha: float, p: np.ndarray) -> tuple:
     """True lift and drag coefficients: linear polars blended into a flat plate past stall.
 
@@ -226,7 +240,7 @@ def true_aero_coefficients(alpha_rad: float, sin_alpha: float, cos_alpha: float,
     CD = forces.drag_coefficient(alpha_rad, p[P_THETA + forces.I_CD0], p[P_THETA + forces.I_CD1],
                                  p[P_THETA + forces.I_CD2])
     if p[P_STALL_ON] > 0.0:
-        s = stall_blend(alpha_rad, p[P_ALPHA_STALL], p[P_STALL_M])
+        s = stall_blend(alpha_rad, p[P_STALL_M], p[P_STALL_EXP])
         if s > 1e-12:
             CN = 2.0 * sin_alpha
             CL = (1.0 - s) * CL + s * CN * cos_alpha
@@ -234,7 +248,7 @@ def true_aero_coefficients(alpha_rad: float, sin_alpha: float, cos_alpha: float,
     return CL, CD
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def pusher_thrust_ratio(v_axial_mps: float, n_revps: float, p: np.ndarray) -> float:
     """C_T(J)/C_T(0) of the pusher at the current advance ratio (UIUC 7x4 fit)."""
     if p[P_PUSH_J_ON] <= 0.0:
@@ -246,35 +260,51 @@ def pusher_thrust_ratio(v_axial_mps: float, n_revps: float, p: np.ndarray) -> fl
     return 1.0 + p[P_CT_A1] * J + p[P_CT_A2] * J * J
 
 
-@njit(cache=True)
-def true_forces_moments(x, v_i_B, p, f_B, tau_B) -> None:
-    """True specific force (m/s^2, body) and moment (N m, body) at state ``x``.
+@njit(cache=True, inline="always")
+def rotor_terms(motor, off, p) -> tuple:
+    """What the five rotors contribute that depends on their speeds only, at ``motor[off:off+5]``.
 
-    Uses the motor outputs in ``x`` (after lag), the incident velocity ``v_i_B`` (eq:vi) and the
-    plant's own parameters. Allocation-free: it runs 16 times per controller tick.
+    Returns ``(T_lift_N, roll_Nm, pitch_Nm, yaw_Nm, sum_i u_i^k1, T_pusher_static_N,
+    n_pusher_revps)``: total lift-rotor thrust, the lift rotors' moments (differential thrust and
+    reaction torque), the sum that scales the rotor side force, and the pusher's static thrust
+    and speed (its advance-ratio loss needs the airflow, see :func:`true_forces_moments`).
+    Evaluated once per distinct motor state (RK4 stages 2 and 3 share one).
     """
-    vx, vy, vz = v_i_B[0], v_i_B[1], v_i_B[2]
-    V2 = vx * vx + vy * vy + vz * vz
-    V = np.sqrt(V2)
-    mass = p[P_MASS]
     m_ref = p[P_FORCE_MASS]  # coefficients are per unit of the vehicle's mass: newtons = m_ref * coeff
-    # lift rotors: thrust per rotor (N) and total
     T_unit = m_ref * p[P_THETA + forces.I_CTZ] / N_LIFT  # N at full throttle, per rotor
+    k1 = p[P_K1]
     tx = 0.0
     ty = 0.0
     tz = 0.0
     T_total = 0.0
     u_k1_sum = 0.0
-    k1 = p[P_K1]
     for i in range(N_LIFT):
-        w = x[X_MOTOR + i]
+        w = motor[off + i]
         T = T_unit * w * w
         T_total += T
-        tx += -p[P_ROTOR_Y + i] * T
+        tx -= p[P_ROTOR_Y + i] * T
         ty += p[P_ROTOR_X + i] * T
-        tz += -p[P_ROTOR_SPIN + i] * p[P_KM] * T
+        tz -= p[P_ROTOR_SPIN + i] * p[P_KM] * T
         if w > 0.0:
             u_k1_sum += w**k1
+    wp = motor[off + MOTOR_PUSHER]
+    return (T_total, tx, ty, tz, u_k1_sum, m_ref * p[P_THETA + forces.I_CTX] * wp * wp,
+            p[P_PUSH_NMAX] * wp)
+
+
+@njit(cache=True, inline="always")
+def true_forces_moments(vx, vy, vz, wx, wy, wz, rotors, p) -> tuple:
+    """True specific force (m/s^2, body) and moment (N m, body): ``(fx, fy, fz, Mx, My, Mz)``.
+
+    ``(vx, vy, vz)`` is the incident velocity v_i in body axes (eq:vi), ``(wx, wy, wz)`` the body
+    rate, ``rotors`` the :func:`rotor_terms` of the current motor outputs. Scalars in, scalars
+    out: it runs 16 times per controller tick.
+    """
+    V2 = vx * vx + vy * vy + vz * vz
+    V = np.sqrt(V2)
+    mass = p[P_MASS]
+    m_ref = p[P_FORCE_MASS]
+    T_total, tx, ty, tz, u_k1_sum, Tp_static, n_pusher = rotors
     # rotor side force: each rotor's share of G is (u_i^k1 / 4) times G at full throttle
     h = np.sqrt(vx * vx + vy * vy)
     side = 0.0
@@ -282,14 +312,12 @@ def true_forces_moments(x, v_i_B, p, f_B, tau_B) -> None:
     sb = 0.0
     if h > 0.0 and u_k1_sum > 0.0:
         alpha_disk = np.arctan2(vz, h)
-        G_full = forces.side_force_basis(alpha_disk, V, 1.0, k1, p[P_K2])
+        G_full = forces.side_force_basis(alpha_disk, V, 1.0, p[P_K1], p[P_K2])
         side = 0.25 * m_ref * p[P_THETA + forces.I_CS] * G_full * u_k1_sum
         cb = vx / h
         sb = vy / h
-    # pusher
-    wp = x[X_MOTOR + MOTOR_PUSHER]
-    Tp = m_ref * p[P_THETA + forces.I_CTX] * wp * wp * pusher_thrust_ratio(vx, p[P_PUSH_NMAX] * wp, p)
-    tx += -p[P_KM_PUSHER] * Tp  # pusher drag torque rolls the airframe
+    Tp = Tp_static * pusher_thrust_ratio(vx, n_pusher, p)
+    tx -= p[P_KM_PUSHER] * Tp  # pusher drag torque rolls the airframe
     # wing
     r = np.sqrt(vx * vx + vz * vz)
     alpha = np.arctan2(vz, vx)
@@ -298,25 +326,31 @@ def true_forces_moments(x, v_i_B, p, f_B, tau_B) -> None:
     qS = 0.5 * p[P_RHO] * V2 * p[P_S]
     beta = np.arcsin(min(1.0, max(-1.0, vy / V))) if V > 0.0 else 0.0
     CY = p[P_CY_BETA] * beta
-    f_B[0] = (Tp - side * cb + qS * (CL * sa - CD * ca)) / mass
-    f_B[1] = (-side * sb + qS * CY) / mass
-    f_B[2] = (-T_total + qS * (-CL * ca - CD * sa)) / mass
+    fx = (Tp - side * cb + qS * (CL * sa - CD * ca)) / mass
+    fy = (-side * sb + qS * CY) / mass
+    fz = (-T_total + qS * (-CL * ca - CD * sa)) / mass
     if p[P_DAMP_ON] > 0.0:
         # L = q S b Clp (p b / 2V) = 1/4 rho V S b^2 Clp p: smooth at V = 0
         k = 0.25 * p[P_RHO] * V * p[P_S]
-        tx += k * p[P_SPAN] ** 2 * p[P_CLP] * x[X_OMEGA_B]
-        ty += k * p[P_CHORD] ** 2 * p[P_CMQ] * x[X_OMEGA_B + 1]
-        tz += k * p[P_SPAN] ** 2 * p[P_CNR] * x[X_OMEGA_B + 2]
-    tau_B[0] = tx
-    tau_B[1] = ty
-    tau_B[2] = tz
+        tx += k * p[P_SPAN] ** 2 * p[P_CLP] * wx
+        ty += k * p[P_CHORD] ** 2 * p[P_CMQ] * wy
+        tz += k * p[P_SPAN] ** 2 * p[P_CNR] * wz
+    return fx, fy, fz, tx, ty, tz
 
 
 @njit(cache=True)
-def plant_derivative_ws(x, motor_cmd, v_wind_W, p, xdot, f_B, work) -> None:
-    """:func:`plant_derivative` with a caller-owned workspace ``work`` (float64, >= 6)."""
-    q0, q1, q2, q3 = x[X_Q_WB], x[X_Q_WB + 1], x[X_Q_WB + 2], x[X_Q_WB + 3]
-    # R_WB of q (as frames.quat_to_rotmat), as scalars: this runs 16 times per tick
+def rigid_body_derivative(x, xo, rotors, v_wind_W, p, xdot, do) -> tuple:
+    """d/dt of the rigid-body state ``x[xo:xo+N_BODY]`` (p, v, q, omega) into ``xdot[do:do+N_BODY]``.
+
+    eq:pos_dyn (``p' = v``, ``v' = g + R f_b``) and eq:att_dyn (``q' = q * [0, omega] / 2``,
+    ``J omega' = (J omega) x omega + tau``), with the true forces at the motor state whose
+    :func:`rotor_terms` are ``rotors``. Returns ``(f_b, v_i)`` flattened to six scalars: the
+    specific force (body, m/s^2, what an accelerometer measures) and the incident velocity
+    (body, m/s, what the airflow probe meets). The offsets ``xo``, ``do`` let the RK4 stages live
+    in one work array without slicing it 16 times per tick.
+    """
+    q0, q1, q2, q3 = x[xo + X_Q_WB], x[xo + X_Q_WB + 1], x[xo + X_Q_WB + 2], x[xo + X_Q_WB + 3]
+    # R_WB of q (as frames.quat_to_rotmat), as scalars
     r00 = 1.0 - 2.0 * (q2 * q2 + q3 * q3)
     r01 = 2.0 * (q1 * q2 - q0 * q3)
     r02 = 2.0 * (q1 * q3 + q0 * q2)
@@ -327,106 +361,182 @@ def plant_derivative_ws(x, motor_cmd, v_wind_W, p, xdot, f_B, work) -> None:
     r21 = 2.0 * (q2 * q3 + q0 * q1)
     r22 = 1.0 - 2.0 * (q1 * q1 + q2 * q2)
     # eq:vi: v_i = R^T (v - v_w)
-    d0 = x[X_V_W] - v_wind_W[0]
-    d1 = x[X_V_W + 1] - v_wind_W[1]
-    d2 = x[X_V_W + 2] - v_wind_W[2]
-    v_i = work[0:3]
-    tau = work[3:6]
-    v_i[0] = r00 * d0 + r10 * d1 + r20 * d2
-    v_i[1] = r01 * d0 + r11 * d1 + r21 * d2
-    v_i[2] = r02 * d0 + r12 * d1 + r22 * d2
-    true_forces_moments(x, v_i, p, f_B, tau)
-    # eq:pos_dyn: p_dot = v, v_dot = g + R f_b
-    xdot[0] = x[X_V_W]
-    xdot[1] = x[X_V_W + 1]
-    xdot[2] = x[X_V_W + 2]
-    xdot[X_V_W] = r00 * f_B[0] + r01 * f_B[1] + r02 * f_B[2]
-    xdot[X_V_W + 1] = r10 * f_B[0] + r11 * f_B[1] + r12 * f_B[2]
-    xdot[X_V_W + 2] = r20 * f_B[0] + r21 * f_B[1] + r22 * f_B[2] + GRAVITY_MPS2
-    # eq:att_dyn: q_dot = 1/2 q * [0, omega]
-    wx, wy, wz = x[X_OMEGA_B], x[X_OMEGA_B + 1], x[X_OMEGA_B + 2]
-    xdot[X_Q_WB] = 0.5 * (-q1 * wx - q2 * wy - q3 * wz)
-    xdot[X_Q_WB + 1] = 0.5 * (q0 * wx + q2 * wz - q3 * wy)
-    xdot[X_Q_WB + 2] = 0.5 * (q0 * wy - q1 * wz + q3 * wx)
-    xdot[X_Q_WB + 3] = 0.5 * (q0 * wz + q1 * wy - q2 * wx)
-    # J omega_dot = (J omega) x omega + tau
-    Jf = p[P_J:P_J + 9]
-    Ji = p[P_JINV:P_JINV + 9]
-    hx = Jf[0] * wx + Jf[1] * wy + Jf[2] * wz
-    hy = Jf[3] * wx + Jf[4] * wy + Jf[5] * wz
-    hz = Jf[6] * wx + Jf[7] * wy + Jf[8] * wz
-    mx = hy * wz - hz * wy + tau[0]
-    my = hz * wx - hx * wz + tau[1]
-    mz = hx * wy - hy * wx + tau[2]
-    xdot[X_OMEGA_B] = Ji[0] * mx + Ji[1] * my + Ji[2] * mz
-    xdot[X_OMEGA_B + 1] = Ji[3] * mx + Ji[4] * my + Ji[5] * mz
-    xdot[X_OMEGA_B + 2] = Ji[6] * mx + Ji[7] * my + Ji[8] * mz
-    # motors: first-order lag toward the saturated command
-    lag = p[P_LAG_ON] > 0.0
-    for i in range(N_MOTORS):
-        if lag:
-            cmd = min(max(motor_cmd[i], 0.0), 1.0)
-            tau_m = p[P_TAU_PUSH] if i == MOTOR_PUSHER else p[P_TAU_LIFT]
-            xdot[X_MOTOR + i] = (cmd - x[X_MOTOR + i]) / tau_m
-        else:
-            xdot[X_MOTOR + i] = 0.0
+    d0 = x[xo + X_V_W] - v_wind_W[0]
+    d1 = x[xo + X_V_W + 1] - v_wind_W[1]
+    d2 = x[xo + X_V_W + 2] - v_wind_W[2]
+    wx, wy, wz = x[xo + X_OMEGA_B], x[xo + X_OMEGA_B + 1], x[xo + X_OMEGA_B + 2]
+    vx = r00 * d0 + r10 * d1 + r20 * d2
+    vy = r01 * d0 + r11 * d1 + r21 * d2
+    vz = r02 * d0 + r12 * d1 + r22 * d2
+    fx, fy, fz, mx, my, mz = true_forces_moments(vx, vy, vz, wx, wy, wz, rotors, p)
+    xdot[do + X_P_W] = x[xo + X_V_W]
+    xdot[do + X_P_W + 1] = x[xo + X_V_W + 1]
+    xdot[do + X_P_W + 2] = x[xo + X_V_W + 2]
+    xdot[do + X_V_W] = r00 * fx + r01 * fy + r02 * fz
+    xdot[do + X_V_W + 1] = r10 * fx + r11 * fy + r12 * fz
+    xdot[do + X_V_W + 2] = r20 * fx + r21 * fy + r22 * fz + GRAVITY_MPS2
+    xdot[do + X_Q_WB] = 0.5 * (-q1 * wx - q2 * wy - q3 * wz)
+    xdot[do + X_Q_WB + 1] = 0.5 * (q0 * wx + q2 * wz - q3 * wy)
+    xdot[do + X_Q_WB + 2] = 0.5 * (q0 * wy - q1 * wz + q3 * wx)
+    xdot[do + X_Q_WB + 3] = 0.5 * (q0 * wz + q1 * wy - q2 * wx)
+    hx = p[P_J] * wx + p[P_J + 1] * wy + p[P_J + 2] * wz
+    hy = p[P_J + 3] * wx + p[P_J + 4] * wy + p[P_J + 5] * wz
+    hz = p[P_J + 6] * wx + p[P_J + 7] * wy + p[P_J + 8] * wz
+    mx += hy * wz - hz * wy
+    my += hz * wx - hx * wz
+    mz += hx * wy - hy * wx
+    xdot[do + X_OMEGA_B] = p[P_JINV] * mx + p[P_JINV + 1] * my + p[P_JINV + 2] * mz
+    xdot[do + X_OMEGA_B + 1] = p[P_JINV + 3] * mx + p[P_JINV + 4] * my + p[P_JINV + 5] * mz
+    xdot[do + X_OMEGA_B + 2] = p[P_JINV + 6] * mx + p[P_JINV + 7] * my + p[P_JINV + 8] * mz
+    return fx, fy, fz, vx, vy, vz
+
+
+@njit(cache=True)
+def motor_time_constant(i, p) -> float:
+    """Lag time constant of motor ``i`` (s)."""
+    return p[P_TAU_PUSH] if i == MOTOR_PUSHER else p[P_TAU_LIFT]
 
 
 @njit(cache=True)
 def plant_derivative(x, motor_cmd, v_wind_W, p, xdot, f_B) -> None:
-    """Time derivative of the plant state (eq:pos_dyn, eq:att_dyn, motor lag) into ``xdot``.
+    """Time derivative of the whole plant state (eq:pos_dyn, eq:att_dyn, motor lag) into ``xdot``.
 
-    ``f_B`` receives the true specific force (what an accelerometer measures).
+    ``f_B`` receives the true specific force (what an accelerometer measures). This is the
+    right-hand side the ``solve_ivp`` reference integrates; the fixed-step path
+    (:func:`plant_advance`) integrates the motors exactly instead.
     """
-    plant_derivative_ws(x, motor_cmd, v_wind_W, p, xdot, f_B, np.empty(6))
+    f = rigid_body_derivative(x, 0, rotor_terms(x, X_MOTOR, p), v_wind_W, p, xdot, 0)
+    for i in range(3):
+        f_B[i] = f[i]
+    lag = p[P_LAG_ON] > 0.0
+    for i in range(N_MOTORS):
+        if lag:
+            cmd = min(max(motor_cmd[i], 0.0), 1.0)
+            xdot[X_MOTOR + i] = (cmd - x[X_MOTOR + i]) / motor_time_constant(i, p)
+        else:
+            xdot[X_MOTOR + i] = 0.0
 
 
-RK4_WORK_SIZE = 5 * X_SIZE + 9
+# --- fixed-step integration -------------------------------------------------------------------
+# work array layout: RK4 stages k1..k4 and the trial state (rigid body only), the motor outputs
+# at mid-step and end of step, the rotor terms at the start of the next step
+_W_K1 = 0
+_W_K2 = N_BODY
+_W_K3 = 2 * N_BODY
+_W_K4 = 3 * N_BODY
+_W_XT = 4 * N_BODY
+_W_M_MID = 5 * N_BODY
+_W_M_END = _W_M_MID + N_MOTORS
+_W_ROTORS = _W_M_END + N_MOTORS
+RK4_WORK_SIZE = _W_ROTORS + ROTOR_TERMS_SIZE
 
 
 @njit(cache=True)
-def _set_instant_motors(x, motor_cmd, p) -> None:
-    if p[P_LAG_ON] <= 0.0:
+def _store_rotor_terms(rotors, work) -> None:
+    for i in range(ROTOR_TERMS_SIZE):
+        work[_W_ROTORS + i] = rotors[i]
+
+
+@njit(cache=True)
+def _load_rotor_terms(work) -> tuple:
+    w = work
+    o = _W_ROTORS
+    return (w[o], w[o + 1], w[o + 2], w[o + 3], w[o + 4], w[o + 5], w[o + 6])
+
+
+@njit(cache=True)
+def plant_first_stage(x, v_wind_W, p, f_B, v_i_B, work) -> None:
+    """Evaluate the first RK4 stage of the next step at ``x`` into ``work``.
+
+    ``f_B`` receives the specific force and ``v_i_B`` the incident velocity (eq:vi), both body
+    axes: what the sensors sample at the start of a tick.
+
+    The sensors need the specific force at the start of the tick, and with motor lag on it is
+    exactly RK4's first stage of the coming step (the command only moves the motors' targets),
+    so :func:`plant_advance` called with ``first_stage_done=True`` (and ``x`` and the wind
+    unchanged) reuses it instead of evaluating it again.
+    """
+    rotors = rotor_terms(x, X_MOTOR, p)
+    f = rigid_body_derivative(x, 0, rotors, v_wind_W, p, work, _W_K1)
+    _store_rotor_terms(rotors, work)
+    for i in range(3):
+        f_B[i] = f[i]
+        v_i_B[i] = f[3 + i]
+
+
+@njit(cache=True)
+def plant_advance(x, motor_cmd, v_wind_W, p, h, n_steps, first_stage_done, work) -> None:
+    """Advance ``x`` in place by ``n_steps`` fixed steps of ``h`` seconds, inputs held.
+
+    The rigid body takes classical RK4 steps (quaternion renormalised after each). The motors'
+    first-order lag toward the held, saturated command is solved exactly,
+    ``u(t + s) = c + (u(t) - c) e^{-s/tau}``, and RK4's stages see the motors at their stage
+    times: the non-autonomous RK4 stays fourth order, the motors are exact, and stages 2 and 3
+    (both at mid-step) share one set of rotor terms. With the lag off the motors jump to the
+    command at the start.
+
+    ``first_stage_done``: :func:`plant_first_stage` has already evaluated stage 1 of the first
+    step at this ``x`` and wind (it is recomputed anyway when the lag is off, since the motors
+    jump to the new command).
+    """
+    lag = p[P_LAG_ON] > 0.0
+    if lag:
+        decay_lift = np.exp(-0.5 * h / p[P_TAU_LIFT])
+        decay_push = np.exp(-0.5 * h / p[P_TAU_PUSH])
+    else:
+        decay_lift = 0.0
+        decay_push = 0.0
         for i in range(N_MOTORS):
             x[X_MOTOR + i] = min(max(motor_cmd[i], 0.0), 1.0)
-
-
-@njit(cache=True)
-def rk4_step_ws(x, motor_cmd, v_wind_W, p, h, f_B, work) -> None:
-    """:func:`rk4_step` with a caller-owned workspace ``work`` (float64, >= ``RK4_WORK_SIZE``)."""
-    _set_instant_motors(x, motor_cmd, p)
-    k1 = work[0:X_SIZE]
-    k2 = work[X_SIZE:2 * X_SIZE]
-    k3 = work[2 * X_SIZE:3 * X_SIZE]
-    k4 = work[3 * X_SIZE:4 * X_SIZE]
-    xt = work[4 * X_SIZE:5 * X_SIZE]
-    f_tmp = work[5 * X_SIZE:5 * X_SIZE + 3]
-    dw = work[5 * X_SIZE + 3:5 * X_SIZE + 9]
-    plant_derivative_ws(x, motor_cmd, v_wind_W, p, k1, f_B, dw)
-    for i in range(X_SIZE):
-        xt[i] = x[i] + 0.5 * h * k1[i]
-    plant_derivative_ws(xt, motor_cmd, v_wind_W, p, k2, f_tmp, dw)
-    for i in range(X_SIZE):
-        xt[i] = x[i] + 0.5 * h * k2[i]
-    plant_derivative_ws(xt, motor_cmd, v_wind_W, p, k3, f_tmp, dw)
-    for i in range(X_SIZE):
-        xt[i] = x[i] + h * k3[i]
-    plant_derivative_ws(xt, motor_cmd, v_wind_W, p, k4, f_tmp, dw)
-    for i in range(X_SIZE):
-        x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-    n = np.sqrt(x[X_Q_WB] ** 2 + x[X_Q_WB + 1] ** 2 + x[X_Q_WB + 2] ** 2 + x[X_Q_WB + 3] ** 2)
-    for i in range(4):
-        x[X_Q_WB + i] /= n
+    if first_stage_done and lag:
+        rotors = _load_rotor_terms(work)
+    else:
+        rotors = rotor_terms(x, X_MOTOR, p)
+    for step in range(n_steps):
+        if step > 0 or not (first_stage_done and lag):
+            rigid_body_derivative(x, 0, rotors, v_wind_W, p, work, _W_K1)
+        for i in range(N_MOTORS):
+            c = min(max(motor_cmd[i], 0.0), 1.0)
+            d = decay_push if i == MOTOR_PUSHER else decay_lift
+            gap = (x[X_MOTOR + i] - c) * d
+            work[_W_M_MID + i] = c + gap
+            work[_W_M_END + i] = c + gap * d
+        rotors_mid = rotor_terms(work, _W_M_MID, p)
+        rotors_end = rotor_terms(work, _W_M_END, p)
+        for i in range(N_BODY):
+            work[_W_XT + i] = x[i] + 0.5 * h * work[_W_K1 + i]
+        rigid_body_derivative(work, _W_XT, rotors_mid, v_wind_W, p, work, _W_K2)
+        for i in range(N_BODY):
+            work[_W_XT + i] = x[i] + 0.5 * h * work[_W_K2 + i]
+        rigid_body_derivative(work, _W_XT, rotors_mid, v_wind_W, p, work, _W_K3)
+        for i in range(N_BODY):
+            work[_W_XT + i] = x[i] + h * work[_W_K3 + i]
+        rigid_body_derivative(work, _W_XT, rotors_end, v_wind_W, p, work, _W_K4)
+        for i in range(N_BODY):
+            x[i] += h / 6.0 * (work[_W_K1 + i] + 2.0 * work[_W_K2 + i] + 2.0 * work[_W_K3 + i] + work[_W_K4 + i])
+        for i in range(N_MOTORS):
+            x[X_MOTOR + i] = work[_W_M_END + i]
+        n = np.sqrt(x[X_Q_WB] ** 2 + x[X_Q_WB + 1] ** 2 + x[X_Q_WB + 2] ** 2 + x[X_Q_WB + 3] ** 2)
+        for i in range(4):
+            x[X_Q_WB + i] /= n
+        rotors = rotors_end
 
 
 @njit(cache=True)
 def rk4_step(x, motor_cmd, v_wind_W, p, h, f_B) -> None:
-    """Advance ``x`` in place by one fixed RK4 step of ``h`` seconds, then renormalise q.
+    """Advance ``x`` in place by one fixed step of ``h`` seconds (see :func:`plant_advance`).
 
     Inputs (motor commands, wind) are held over the step, as the controller holds its command.
     ``f_B`` receives the specific force at the start of the step.
     """
-    rk4_step_ws(x, motor_cmd, v_wind_W, p, h, f_B, np.empty(RK4_WORK_SIZE))
+    work = np.empty(RK4_WORK_SIZE)
+    v_i_B = np.empty(3)
+    lag = p[P_LAG_ON] > 0.0
+    if not lag:
+        for i in range(N_MOTORS):
+            x[X_MOTOR + i] = min(max(motor_cmd[i], 0.0), 1.0)
+    plant_first_stage(x, v_wind_W, p, f_B, v_i_B, work)
+    plant_advance(x, motor_cmd, v_wind_W, p, h, 1, lag, work)
 
 
 def hover_trim_motor(vehicle: Vehicle, plant: PlantConfig) -> np.ndarray:

@@ -128,7 +128,9 @@ _ST_MOCAP_GAIN = 19   # 1 - exp(-2 pi f_c dt) of the differenced-velocity low-pa
 _ST_PROBE_GAIN = 20   # 1 - exp(-dt / tau) of the probe lag
 _ST_DELAY = 21        # mocap latency in whole ticks
 _ST_RING_HEAD = 22    # ring slot written this tick
-_ST_RING = 23         # MOCAP_RING_SIZE slots of (p_W, v_W)
+_ST_Q_TRUE = 23       # scratch of the pressure probe: true [q_inf, q_alpha, q_beta] this tick, Pa (3)
+_ST_Q_MEAS = 26       # scratch of the pressure probe: the SDP33 readings this tick, Pa (3)
+_ST_RING = 29         # MOCAP_RING_SIZE slots of (p_W, v_W)
 _RING_STRIDE = 6
 SENSORS_STATE_SIZE = _ST_RING + _RING_STRIDE * MOCAP_RING_SIZE
 
@@ -494,8 +496,8 @@ def _probe_ideal_noise(params, state, dt, v_i_B_true, rng, meas_out):
 @njit(cache=True, inline="always")
 def _probe_pressure(params, state, dt, v_i_B_true, rng, meas_out) -> bool:
     """``model = "pressure"``: tip pressures, SDP33 sensors, calibration; draws three normals."""
-    q_true = np.empty(3)
-    q_meas = np.empty(3)
+    q_true = state[_ST_Q_TRUE:_ST_Q_TRUE + 3]  # scratch in the state: no allocation per tick
+    q_meas = state[_ST_Q_MEAS:_ST_Q_MEAS + 3]
     probe_differential_pressures(v_i_B_true, params[_PP_RHO_TRUE], params[_PP_TIP:_PP_TIP + 3], q_true)
     sdp33_sensor_step(q_true, state[_ST_PROBE:_ST_PROBE + 3], params[_PP_SDP:_PP_SDP + SDP33_KERNEL_SIZE],
                       dt, rng, q_meas)

@@ -26,8 +26,7 @@ from .control.kernel import (
     state_P_inv,
     state_theta_hat,
 )
-from .forces import airflow_angles, incident_velocity
-from .frames import quat_to_rotmat
+from .forces import airflow_angles
 from .layout import (
     CMD_SIZE,
     COMMAND_COLUMNS,
@@ -39,12 +38,10 @@ from .layout import (
     STATE_COLUMNS,
     WIND_COLUMNS,
     X_P_W,
-    X_Q_WB,
     X_SIZE,
-    X_V_W,
 )
 from .mixer import mix
-from .plant import RK4_WORK_SIZE, plant_derivative_ws, rk4_step_ws
+from .plant import RK4_WORK_SIZE, plant_advance, plant_first_stage
 from .sensors import sensors_step
 from .wind import wind_step
 
@@ -87,9 +84,8 @@ def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state,
     """
     n_ticks = ref_table.shape[0]
     v_wind = np.zeros(3)
-    xdot = np.empty(X_SIZE)
     f_B = np.empty(3)
-    f_tmp = np.empty(3)
+    v_i = np.empty(3)
     meas = np.empty(MEAS_SIZE)
     cmd = np.zeros(CMD_SIZE)
     diag = np.zeros(N_DIAG)
@@ -99,9 +95,7 @@ def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state,
     for k in range(n_ticks):
         t = t0 + k * dt
         wind_step(wind_p, wind_state, t, dt, x[X_P_W:X_P_W + 3], rng, v_wind)
-        plant_derivative_ws(x, motor_cmd, v_wind, plant_p, xdot, f_B, work)
-        R = quat_to_rotmat(x[X_Q_WB:X_Q_WB + 4])
-        v_i = incident_velocity(x[X_V_W:X_V_W + 3], v_wind, R)
+        plant_first_stage(x, v_wind, plant_p, f_B, v_i, work)
         sensors_step(sens_p, sens_state, t, dt, x, f_B, v_i, rng, meas)
         ref = ref_table[k]
         controller_step(ctrl_p, ctrl_state, meas, ref, dt, cmd, diag)
@@ -134,5 +128,4 @@ def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state,
             diag[DIAG_V_TILDE:DIAG_V_TILDE + 3], diag[DIAG_Q_TILDE],
             state_theta_hat(ctrl_state), state_P_inv(ctrl_state), theta_true, gamma)
 
-        for _ in range(n_sub):
-            rk4_step_ws(x, motor_cmd, v_wind, plant_p, h, f_tmp, work)
+        plant_advance(x, motor_cmd, v_wind, plant_p, h, n_sub, True, work)

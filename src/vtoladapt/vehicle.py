@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+import functools
 from functools import cached_property
 from pathlib import Path
 
@@ -247,4 +248,18 @@ def load_vehicle(name_or_path: str | Path) -> Vehicle:
             raise ConfigError(
                 f"vehicle {text!r}: unknown name; shipped vehicles: {', '.join(available_vehicles())}, "
                 "or give a path to a .toml file")
-    return vehicle_from_mapping(read_toml(path), str(path))
+    try:
+        stat = path.stat()
+    except OSError:
+        return vehicle_from_mapping(read_toml(path), str(path))  # read_toml names the missing file
+    return _load_vehicle_file(str(path), stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=32)
+def _load_vehicle_file(path: str, mtime_ns: int, size: int) -> Vehicle:
+    """Parse and validate a vehicle file once per version of it (keyed by time and size).
+
+    Vehicles are frozen with read-only arrays, so one object can serve every run of a campaign;
+    parsing the TOML took as long as a second of simulated flight.
+    """
+    return vehicle_from_mapping(read_toml(Path(path)), path)

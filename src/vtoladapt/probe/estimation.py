@@ -55,7 +55,9 @@ TB_HEADER = 8
 _CQ_MIN = 1.0e-3
 
 
-@njit(cache=True)
+# inline="always" here and below: the simulator's sensors_step calls these every tick, and
+# as separate calls their array arguments' reference counting cost more than their arithmetic.
+@njit(cache=True, inline="always")
 def aoa_incident_velocity(q_inf, q_alpha, q_beta, rho, k, out_v_i_B):
     """The paper's eq:aoa: incident velocity from the three differential pressures.
 
@@ -90,7 +92,7 @@ def _keys_weights(t):
             (0.5 * t - 0.5) * t * t)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _single_k(q_inf, q_alpha, q_beta, rho, cal, out):
     if cal.shape[0] < SK_SIZE:
         return False
@@ -188,7 +190,7 @@ def _table(q_inf, q_alpha, q_beta, rho, cal, out):
     return valid
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def incident_velocity_from_pressures(q, rho, calibration, out_v_i_B):
     """Incident velocity ``v_i_B`` from ``[q_inf, q_alpha, q_beta]`` with a validity flag.
 

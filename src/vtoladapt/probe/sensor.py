@@ -132,7 +132,9 @@ class SDP33Sensor:
         return self.noise_std_Pa ** 2 + self.resolution_Pa ** 2 / 12.0
 
 
-@njit(cache=True)
+# inline="always" here and below: the simulator's sensors_step calls these every tick, and
+# as separate calls their array arguments' reference counting cost more than their arithmetic.
+@njit(cache=True, inline="always")
 def sdp33_sensor_step(q_true, state, sensor, dt, rng, out_q):
     """Advance the three sensors by ``dt`` and write their readings.
 

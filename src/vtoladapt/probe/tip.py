@@ -166,7 +166,9 @@ def _as_batch(v_i_B, rho) -> tuple[np.ndarray, np.ndarray, bool]:
     return v, r, single
 
 
-@njit(cache=True)
+# inline="always" here and below: the simulator's sensors_step calls these every tick, and
+# as separate calls their array arguments' reference counting cost more than their arithmetic.
+@njit(cache=True, inline="always")
 def _ports(v_i_B, rho, tip):
     """(centre, bottom, top, right, left, static) pressures; see probe_port_pressures."""
     vx = v_i_B[0]
@@ -220,7 +222,7 @@ def probe_port_pressures(v_i_B, rho, tip, out_p):
         out_p[j] = p[j]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def probe_differential_pressures(v_i_B, rho, tip, out_q):
     """The three differential pressures the probe's sensors see (no sensor effects).
 
