@@ -1,4 +1,5 @@
 """Scenarios: validation with clear errors, determinism by seed, results round trip, the CLI."""
+import dataclasses
 import json
 
 import numpy as np
@@ -8,7 +9,7 @@ from vtoladapt.cli import main
 from vtoladapt.config import ConfigError
 from vtoladapt.results import SimulationResult
 from vtoladapt.scenario import load_scenario, scenario_from_mapping
-from vtoladapt.simulate import simulate
+from vtoladapt.simulate import simulate, simulate_many
 
 BASE = {"name": "t", "vehicle": "caltech_vtol", "duration_s": 2.0, "seed": 5,
         "wind": {"fan_array": {"schedule": [[0, 30], [2, 30]]},
@@ -49,6 +50,21 @@ def test_same_seed_bit_identical_different_seed_different():
     np.testing.assert_array_equal(a.data, b.data)
     c = simulate(sc.replace(seed=6))
     assert not np.array_equal(a.data, c.data)
+
+
+def test_parallel_runs_are_bit_identical_to_sequential_ones():
+    """simulate_many on two threads: each run as if alone, in the order given, progress summed."""
+    base = scenario_from_mapping(BASE, "t")
+    scenarios = [base.replace(seed=s, controller=dataclasses.replace(base.controller, kind=k))
+                 for s, k in ((5, "composite"), (6, "pid"), (7, "composite_pconst"))]
+    seen = []
+    parallel = simulate_many(scenarios, workers=2, progress=lambda done, total: seen.append((done, total)))
+    for sc, res in zip(scenarios, parallel):
+        np.testing.assert_array_equal(res.data, simulate(sc).data)
+        assert res.metadata["controller"] == sc.controller.kind
+    assert seen[-1] == (6.0, 6.0) and all(d <= t for d, t in seen)
+    with pytest.raises(ValueError, match="workers = 0"):
+        simulate_many(scenarios, workers=0)
 
 
 def test_result_parquet_round_trip(tmp_path):

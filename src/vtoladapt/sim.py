@@ -73,13 +73,14 @@ N_LOG = _C_LYAP + 1
 assert N_LOG == len(LOG_COLUMNS)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state,
                     ref_table, t0, dt, n_sub, rng, theta_true, gamma, log) -> None:
     """Simulate ``ref_table.shape[0]`` controller ticks from time ``t0``, one row of ``log`` per tick.
 
     ``x``, ``ctrl_state``, ``wind_state`` and ``sens_state`` are advanced in place, so a run
-    can be continued. ``theta_true`` (the plant's linear-model coefficients) is used only for
+    can be continued. The loop releases the GIL: runs with their own arrays and generators
+    advance in parallel threads (:func:`vtoladapt.simulate.simulate_many`). ``theta_true`` (the plant's linear-model coefficients) is used only for
     the Lyapunov function in the log, never by the controller.
     """
     n_ticks = ref_table.shape[0]
