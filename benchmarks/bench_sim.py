@@ -3,6 +3,8 @@
 * in-process: 60 s simulated with the composite controller, every sensor on (pressure probe), Dryden
   turbulence on, fan at 70 %, after a warm-up run (no start-up, no compilation): wall time and the
   real-time factor, with the plant at 1 kHz (the default) and at 250 Hz (one RK4 step per tick);
+* runs side by side (:func:`vtoladapt.simulate.simulate_many`, one thread per core): simulated
+  seconds per wall-clock second over 8 runs;
 * the loop's parts in compiled loops (per controller tick);
 * ``vtoladapt run`` of a 1 s scenario as a new process: warm (kernels cached on disk) and cold
   (an empty Numba cache directory, so everything compiles).
@@ -48,6 +50,21 @@ def _loop_rows() -> list[tuple[str, float, str]]:
         rows.append((f"60 s closed loop, composite, all sensors+turbulence, {label}", wall * 1e3, "ms"))
         rows.append((f"real-time factor, {label}", 60.0 / wall, "x"))
     return rows
+
+
+def _many_rows() -> list[tuple[str, float, str]]:
+    """Throughput of simulate_many: 8 seeds of the 60 s run on one thread per core."""
+    from vtoladapt.scenario import scenario_from_mapping
+    from vtoladapt.simulate import simulate_many
+
+    scenario = scenario_from_mapping(SCENARIO, "bench_sim")
+    runs = [replace(scenario, seed=s) for s in range(8)]
+    workers = os.cpu_count() or 1
+    simulate_many([replace(r, duration_s=1.0) for r in runs[:workers]])
+    t0 = time.perf_counter()
+    simulate_many(runs)
+    wall = time.perf_counter() - t0
+    return [(f"simulate_many, 8 x 60 s on {workers} threads: simulated s per wall s", 8 * 60.0 / wall, "x")]
 
 
 def _part_rows() -> list[tuple[str, float, str]]:
@@ -143,7 +160,7 @@ def _cli_start_rows() -> list[tuple[str, float, str]]:
 
 
 def run() -> list[tuple[str, float, str]]:
-    return _loop_rows() + _part_rows() + _cli_start_rows()
+    return _loop_rows() + _many_rows() + _part_rows() + _cli_start_rows()
 
 
 if __name__ == "__main__":
