@@ -44,7 +44,9 @@ def _operating_point(veh, consistent: bool = True):
     return meas, ref
 
 
-@njit(cache=True)
+# Not cached: Numba would reuse a cached loop, with the controller compiled into it, until this
+# file changes, however the package changes (the package's own cache guard does not reach here).
+@njit
 def _loop(params, state, meas, ref, dt, cmd, diag, n) -> float:
     acc = 0.0
     a0 = meas[L.MEAS_ACCEL_B]

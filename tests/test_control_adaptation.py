@@ -34,29 +34,53 @@ def _excitation(vehicle, n):
     return out
 
 
-@njit(cache=True)
+# Not cached: a cached test kernel keeps the adaptation compiled into it until this file changes,
+# however the package changes (the package's cache guard does not reach the tests).
+@njit
+def _row(W, r):
+    return (W[r, 0], W[r, 1], W[r, 2], W[r, 3], W[r, 4], W[r, 5], W[r, 6], W[r, 7])
+
+
+@njit
 def _drive(mode, theta, Gamma, Ws, theta_true, a_bias, n_steps, theta0, Gamma0, P0, lower, upper, lam, sigma,
            trace_max, theta_hist):
     """Run ``n_steps`` ticks cycling through ``Ws`` with ``a_m = W theta_true + a_bias`` and v~ = 0."""
-    e = np.empty(3)
-    P_diag = np.empty(N)
-    mats = np.empty((3, N, N))
-    a_m = np.empty(3)
-    R = np.eye(3)
-    v_t = np.zeros(3)
+    # the adaptation's memory and scratch in one array, the prior in another (as in the controller)
+    x = np.zeros(ad.MEM_SIZE + ad.WORK_SIZE)
+    prior = np.zeros(ad.PRIOR_SIZE)
+    for i in range(N):
+        x[ad.MEM_THETA + i] = theta[i]
+        prior[ad.PRIOR_THETA0 + i] = theta0[i]
+        prior[ad.PRIOR_LOWER + i] = lower[i]
+        prior[ad.PRIOR_UPPER + i] = upper[i]
+        for j in range(N):
+            x[ad.MEM_GAMMA + N * i + j] = Gamma[i, j]
+            prior[ad.PRIOR_GAMMA0 + N * i + j] = Gamma0[i, j]
+            prior[ad.PRIOR_P0 + N * i + j] = P0[i, j]
+    R = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    v_t = (0.0, 0.0, 0.0)
+    forget_a, forget_b = ad.forgetting_weights(lam, 0.004)
     n_p = Ws.shape[0]
     worst = 0
+    active = 0
     for k in range(n_steps):
         W = Ws[k % n_p]
         for i in range(3):
-            a_m[i] = a_bias[i]
+            a_m = a_bias[i]
             for j in range(N):
-                a_m[i] += W[i, j] * theta_true[j]
-        r = ad.adaptation_step(mode, theta, Gamma, W, a_m, W, R, v_t, 0.004, theta0, Gamma0, P0, lower, upper,
-                               lam, sigma, trace_max, e, P_diag, mats)
+                a_m += W[i, j] * theta_true[j]
+                x[ad.MEM_W + N * i + j] = W[i, j]
+            x[ad.MEM_A_M + i] = a_m
+        r, active, e = ad.adaptation_step(mode, x, 0, ad.MEM_SIZE, prior, 0, (_row(W, 0), _row(W, 1), _row(W, 2)), R,
+                                          v_t, 0.004, forget_a, forget_b, sigma, trace_max, active)
         worst = min(worst, r)
         if k >= n_steps - theta_hist.shape[0]:
-            theta_hist[k - (n_steps - theta_hist.shape[0])] = theta
+            for i in range(N):
+                theta_hist[k - (n_steps - theta_hist.shape[0]), i] = x[ad.MEM_THETA + i]
+    for i in range(N):
+        theta[i] = x[ad.MEM_THETA + i]
+        for j in range(N):
+            Gamma[i, j] = x[ad.MEM_GAMMA + N * i + j]
     return worst
 
 
@@ -205,6 +229,18 @@ def _random_spd(rng, n=N):
     return A @ A.T + 0.1 * np.eye(n)
 
 
+def _project(K, d0, theta, lo, hi, active_start):
+    """project_direction on arrays: the projected direction (n_active must not be -1)."""
+    x = np.zeros(3 * N + ad.PROJECTION_WORK_SIZE)
+    x[:N] = np.linalg.solve(K, d0)                      # tau, with d0 = K tau
+    x[N:2 * N] = d0
+    at_upper, at_lower = ad.bound_sides(theta, 0, lo, 0, hi, 0)
+    n_act, active = ad.project_direction(K.ravel(), 0, np.linalg.inv(K).ravel(), 0, x, 0, N, 2 * N, 3 * N,
+                                         at_upper, at_lower, int(active_start))
+    assert n_act >= 0 and n_act == bin(active).count("1")
+    return x[2 * N:3 * N].copy()
+
+
 def test_projection_matches_a_qp_solver_and_never_helps_the_wrong_way(rng):
     lo, hi = -np.ones(N), np.ones(N)
     for trial in range(60):
@@ -213,9 +249,10 @@ def test_projection_matches_a_qp_solver_and_never_helps_the_wrong_way(rng):
         at = rng.choice(N, size=rng.integers(1, N + 1), replace=False)
         theta[at] = np.where(rng.random(at.size) < 0.5, lo[at], hi[at])
         d0 = rng.normal(size=N)
-        d = np.empty(N)
-        n_act = ad.project_direction(K, d0, theta, lo, hi, d)
-        assert n_act >= 0
+        d = _project(K, d0, theta, lo, hi, 0)
+        # the answer does not depend on where the active-set iteration starts
+        for start in rng.integers(0, 1 << N, size=4):
+            np.testing.assert_allclose(_project(K, d0, theta, lo, hi, start), d, rtol=1e-9, atol=1e-12)
         Kinv = np.linalg.inv(K)
         cons = []
         for i in range(N):
@@ -255,42 +292,61 @@ def test_information_update_is_the_exact_solution_of_its_ode(rng):
     G = G0 + _random_spd(rng)
     W = rng.normal(size=(3, N))
     WtW = W.T @ W
+    WtW_gram = np.empty(N * N)
+    ad.gram(W.ravel(), 0, WtW_gram, 0)
+    np.testing.assert_allclose(WtW_gram.reshape(N, N), WtW, rtol=1e-14)
     lam, dt = 0.7, 0.05
-    out = np.empty((N, N))
-    ad.information_update(G, G0, WtW, lam, dt, out)
+
+    def step(lam):
+        out = G.ravel().copy()
+        ad.information_update(out, 0, G0.ravel(), 0, WtW_gram, 0, *ad.forgetting_weights(lam, dt))
+        return out.reshape(N, N)
+
     sol = solve_ivp(lambda t, y: (WtW - lam * (y.reshape(N, N) - G0)).ravel(), (0, dt), G.ravel(),
                     rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(out, sol.y[:, -1].reshape(N, N), rtol=1e-9, atol=1e-12)
-    ad.information_update(G, G0, WtW, 0.0, dt, out)           # lambda = 0: plain integration
-    np.testing.assert_allclose(out, G + dt * WtW, rtol=1e-14)
+    np.testing.assert_allclose(step(lam), sol.y[:, -1].reshape(N, N), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(step(0.0), G + dt * WtW, rtol=1e-14)      # lambda = 0: plain integration
 
 
 def test_lowpass_is_the_exact_first_order_step_response():
     fc, dt = 10.0, 0.004
     c = ad.lowpass_gain(fc, dt)
-    y = np.zeros(1)
+    y = 0.0
     for k in range(1, 51):
-        ad.lowpass_update(y, np.ones(1), c)
-        assert y[0] == pytest.approx(1 - np.exp(-2 * np.pi * fc * k * dt), rel=1e-12)
+        y = ad.lowpass(y, 1.0, c)
+        assert y == pytest.approx(1 - np.exp(-2 * np.pi * fc * k * dt), rel=1e-12)
 
 
 def test_small_linear_algebra_against_numpy(rng):
+    work = np.empty(2 * N * N)
     for _ in range(20):
         A = _random_spd(rng)
-        out = np.empty((N, N))
-        assert ad.spd_inverse(A, out, np.empty((N, N)))
+        out = np.empty(N * N)
+        assert ad.spd_inverse(A.ravel(), 0, out, 0, work, 0)
+        out = out.reshape(N, N)
         np.testing.assert_allclose(out, np.linalg.inv(A), rtol=1e-10, atol=1e-12)
         assert np.array_equal(out, out.T)
-        M = np.empty((N, N))
-        ad.inverse_factor(A, M, np.empty((N, N)))
-        x = rng.normal(size=N)
-        y = np.empty(N)
-        ad.factor_apply(M, x, y)
-        np.testing.assert_allclose(y, np.linalg.solve(A, x), rtol=1e-10, atol=1e-12)
+        # matrices at offsets inside larger arrays
+        store = np.zeros(5 + 2 * N * N)
+        store[5:5 + N * N] = A.ravel()
+        assert ad.cholesky_lower(store, 5, work, 0, N)
+        ad.inverse_factor(work, 0, store, 5 + N * N)
+        M = store[5 + N * N:].reshape(N, N)
+        np.testing.assert_allclose(M, np.linalg.inv(np.linalg.cholesky(A)), rtol=1e-10, atol=1e-12)
+        L = np.empty(N * N)
+        assert ad.cholesky_lower(A.ravel(), 0, L, 0, N)
+        b = rng.normal(size=N)
+        x = b.copy()
+        ad.cholesky_solve(L, 0, N, x, 0)
+        np.testing.assert_allclose(x, np.linalg.solve(A, b), rtol=1e-10, atol=1e-12)
+        x = np.concatenate([[7.0], b])
+        ad.factor_apply(store, 5 + N * N, x, 1)
+        np.testing.assert_allclose(x[1:], np.linalg.solve(A, b), rtol=1e-10, atol=1e-12)
+        assert x[0] == 7.0
         dg = np.empty(N)
-        ad.factor_diag(M, dg)
+        ad.factor_diag(store, 5 + N * N, dg, 0)
         np.testing.assert_allclose(dg, np.diag(np.linalg.inv(A)), rtol=1e-10)
-    assert not ad.spd_inverse(-np.eye(N), out, np.empty((N, N)))
+    assert not ad.spd_inverse(-np.eye(N).ravel(), 0, out.ravel(), 0, work, 0)
 
 
 def test_lyapunov_function_matches_its_definition(rng):

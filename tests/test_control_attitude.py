@@ -21,12 +21,10 @@ TILT, LIFT_MIN = np.radians(45), 1.0
 
 
 def _desired(f_r, v_i_W, yaw=0.0, y_prev=(0.0, 1.0, 0.0), have_prev=False):
-    q = np.empty(4)
-    y = np.empty(3)
-    alpha, w, formed = desired_attitude(np.asarray(f_r, float), np.asarray(v_i_W, float), yaw, CL0, CL1, A,
-                                        AMIN, AMAX, V_LO, V_HI, TILT, LIFT_MIN, np.asarray(y_prev, float),
-                                        have_prev, q, y)
-    return q, alpha, w, formed
+    q, _, alpha, w, formed = desired_attitude(np.asarray(f_r, float), np.asarray(v_i_W, float), yaw, CL0, CL1, A,
+                                              AMIN, AMAX, V_LO, V_HI, TILT, LIFT_MIN, np.asarray(y_prev, float),
+                                              have_prev)
+    return np.array(q), alpha, w, formed
 
 
 def _angles_in(R_d, v_i_W):
@@ -41,8 +39,8 @@ def test_wing_solution_flies_alpha_d_at_zero_sideslip_and_no_side_force(rng):
         d = rng.normal(size=3)
         v_i_W = V * d / np.linalg.norm(d)
         f_r = np.array([0.0, 0.0, -GRAVITY_MPS2]) + rng.normal(0, 3, 3)
-        R_d = np.empty((3, 3))
-        alpha_d, lift = wing_attitude(v_i_W, f_r, CL0, CL1, A, AMIN, AMAX, np.zeros(3), False, 0.0, R_d)
+        R_d, alpha_d, lift = wing_attitude(v_i_W, f_r, CL0, CL1, A, AMIN, AMAX, np.zeros(3), False, 0.0)
+        R_d = np.array(R_d)
         np.testing.assert_allclose(R_d.T @ R_d, np.eye(3), atol=1e-12)
         assert np.linalg.det(R_d) == pytest.approx(1.0, abs=1e-12)
         alpha, sin_beta = _angles_in(R_d, v_i_W)
@@ -75,20 +73,21 @@ def test_alpha_d_saturates_on_both_sides_and_is_continuous():
 
 @pytest.mark.parametrize("yaw", [0.0, 1.0, -2.5])
 def test_multirotor_attitude_hover_and_tilt(yaw):
-    R = np.empty((3, 3))
-    multirotor_attitude(np.array([0.0, 0.0, -GRAVITY_MPS2]), yaw, TILT, LIFT_MIN, R)
+    def R_d(f_r):
+        return np.array(multirotor_attitude(np.asarray(f_r, float), yaw, TILT, LIFT_MIN))
+
+    R = R_d([0.0, 0.0, -GRAVITY_MPS2])
     c, s = np.cos(yaw), np.sin(yaw)
     np.testing.assert_allclose(R, [[c, -s, 0], [s, c, 0], [0, 0, 1]], atol=1e-12)
     f_r = np.array([2.0, -1.0, -GRAVITY_MPS2])
-    multirotor_attitude(f_r, yaw, TILT, LIFT_MIN, R)
+    R = R_d(f_r)
     np.testing.assert_allclose(-R[:, 2], f_r / np.linalg.norm(f_r), atol=1e-12)   # body -z along f_r
     assert abs(R[:, 1] @ np.array([c, s, 0.0])) < 1e-12                           # heading kept
     # a horizontal command is tilt-limited; f_r = 0 and a downward f_r stay upright and finite
-    multirotor_attitude(np.array([50.0, 0.0, -1.0]), yaw, TILT, LIFT_MIN, R)
+    R = R_d([50.0, 0.0, -1.0])
     assert np.degrees(np.arccos(R[2, 2])) == pytest.approx(45.0, abs=1e-9)
     for f in ([0.0, 0.0, 0.0], [0.0, 0.0, 30.0]):
-        multirotor_attitude(np.array(f), yaw, TILT, LIFT_MIN, R)
-        np.testing.assert_allclose(R[:, 2], [0, 0, 1], atol=1e-12)
+        np.testing.assert_allclose(R_d(f)[:, 2], [0, 0, 1], atol=1e-12)
 
 
 def test_blend_weight_is_c1_and_clamped():

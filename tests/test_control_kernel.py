@@ -224,3 +224,28 @@ def test_equivalent_gains_are_shared(caltech):
     for k in CONTROLLER_KINDS:
         np.testing.assert_array_equal(arrays[k][P_K_V:P_K_V + 3], arrays["pid"][P_K_V:P_K_V + 3])
         np.testing.assert_array_equal(arrays[k][P_LAMBDA_P:P_LAMBDA_P + 3], arrays["pid"][P_LAMBDA_P:P_LAMBDA_P + 3])
+
+
+@pytest.mark.parametrize("kind", ["composite", "pid"])
+def test_gains_cached_per_dt_equal_gains_computed_every_tick(caltech, kind):
+    """The filter and lag gains are kept in the state for the last dt: reusing them is exact."""
+    from vtoladapt.control.kernel import S_GAINS_DT
+    config = ControllerConfig(kind=kind, omega_d_feedforward=True)
+    cached = controller_arrays(caltech, config)
+    fresh = controller_arrays(caltech, config)
+    outputs = []
+    for params, state in (cached, fresh):
+        cmd = np.zeros(L.CMD_SIZE)
+        diag = np.zeros(DIAG_SIZE)
+        rows = []
+        for k in range(400):
+            pitch = 0.1 * np.sin(0.05 * k)
+            m = _hover_meas(q=quat_from_euler(0.0, pitch, 0.0), v_i_B=(8.0 + np.sin(0.02 * k), 0.0, 1.0),
+                            valid=0.0 if 150 <= k < 200 else 1.0, v_W=(8.0, 0.0, 0.1 * np.cos(0.03 * k)))
+            dt = (0.004, 0.004, 0.005, 0.0041)[(k // 7) % 4]        # runs of equal dt, then a change
+            if state is fresh[1]:
+                state[S_GAINS_DT] = 0.0                              # forget the gains: recompute
+            controller_step(params, state, m, L.pack_reference((1.0, 0.0, -1.5)), dt, cmd, diag)
+            rows.append(np.concatenate([cmd, diag]))
+        outputs.append(np.array(rows))
+    np.testing.assert_array_equal(outputs[0], outputs[1])

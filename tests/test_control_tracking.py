@@ -52,15 +52,19 @@ def test_reference_velocity_and_force_command_hand_case():
     a_d = np.array([0.1, 0.2, 0.0])
     v = np.array([0.5, -0.2, 0.0])
     Lp = np.array([0.95, 0.95, 1.0])
-    v_r = np.empty(3)
-    v_r_dot = np.empty(3)
-    assert not reference_velocity(p_tilde, v_d, a_d, v, Lp, 100.0, v_r, v_r_dot)
+    v_r_out = np.empty(3)
+    v_r_dot_out = np.empty(3)
+    v_r, v_r_dot, saturated = reference_velocity(p_tilde, v_d, a_d, v, Lp, 100.0, v_r_out, v_r_dot_out)
+    assert not saturated
     np.testing.assert_allclose(v_r, [0.3 - 0.95, 1.9, -0.6], atol=1e-15)
     np.testing.assert_allclose(v_r_dot, [0.1 - 0.95 * 0.2, 0.2 + 0.95 * 0.2, -0.1], atol=1e-15)
+    # the optional output arrays receive the same values, as does the call without them
+    np.testing.assert_array_equal(v_r_out, v_r)
+    np.testing.assert_array_equal(v_r_dot_out, v_r_dot)
+    assert reference_velocity(p_tilde, v_d, a_d, v, Lp, 100.0) == (v_r, v_r_dot, saturated)
     Kv = np.array([1.8, 1.8, 4.0])
-    v_tilde = v - v_r
-    f_r = np.empty(3)
-    force_command(v_r_dot, v_tilde, Kv, f_r)
+    v_tilde = v - np.array(v_r)
+    f_r = force_command(v_r_dot, v_tilde, Kv)
     np.testing.assert_allclose(f_r, v_r_dot - Kv * v_tilde - np.array([0, 0, GRAVITY_MPS2]), atol=1e-14)
 
 
@@ -75,9 +79,8 @@ def test_saturated_reference_velocity_derivative_by_finite_differences():
 
     def vr(h):
         pt = (p + v * h) - (p_d + v_d * h + 0.5 * a_d * h * h)
-        out, out_dot = np.empty(3), np.empty(3)
-        sat = reference_velocity(pt, v_d + a_d * h, a_d, v, Lp, cmax, out, out_dot)
-        return out, out_dot, sat
+        out, out_dot, sat = reference_velocity(pt, v_d + a_d * h, a_d, v, Lp, cmax)
+        return np.array(out), np.array(out_dot), sat
 
     v0, vdot0, sat = vr(0.0)
     assert sat
@@ -89,8 +92,7 @@ def test_saturated_reference_velocity_derivative_by_finite_differences():
 
 def test_reference_angular_rate_identity_error_passes_omega_d_through():
     w_d = np.array([0.1, -0.2, 0.3])
-    out = np.empty(3)
-    reference_angular_rate(np.eye(3), np.array([1.0, 0, 0, 0]), w_d, np.array([10.0, 10.0, 6.0]), out)
+    out = reference_angular_rate(w_d, np.array([1.0, 0, 0, 0]), np.array([10.0, 10.0, 6.0]))
     np.testing.assert_allclose(out, w_d, atol=1e-15)
 
 
@@ -114,13 +116,11 @@ def test_reference_angular_acceleration_by_finite_differences(rng):
             R = _attitude_at(R0, w, np.zeros(3), t)
             Rd = _attitude_at(Rd0, w_d, w_d_dot, t)
             q = quat_error_from_quats(_q(Rd), _q(R))
-            out = np.empty(3)
-            reference_angular_rate(quat_to_rotmat(q), q, w_d + w_d_dot * t, Lq, out)
-            return out
+            return np.array(reference_angular_rate(quat_to_rotmat(q).T @ (w_d + w_d_dot * t), q, Lq))
 
         q0 = quat_error_from_quats(_q(Rd0), _q(R0))
-        analytic = np.empty(3)
-        reference_angular_acceleration(quat_to_rotmat(q0), q0, w, w_d, w_d_dot, Lq, analytic)
+        R_tilde = quat_to_rotmat(q0)
+        analytic = reference_angular_acceleration(q0, w, R_tilde.T @ w_d, R_tilde.T @ w_d_dot, Lq)
         h = 1e-5
         fd = (omega_r(h) - omega_r(-h)) / (2 * h)
         np.testing.assert_allclose(analytic, fd, atol=1e-5)
@@ -131,8 +131,7 @@ def test_moment_command_matches_direct_evaluation_and_dissipates_rate_error(rng)
     Kw = np.array([1.1, 1.2, 1.05])
     for _ in range(20):
         w, wr, wrd = rng.normal(0, 2, 3), rng.normal(0, 2, 3), rng.normal(0, 5, 3)
-        tau = np.empty(3)
-        moment_command(J, w, wr, wrd, Kw, tau)
+        tau = np.array(moment_command(J, w, wr, wrd, Kw))
         direct = J @ wrd - skew(J @ w) @ wr - Kw * (w - wr)
         np.testing.assert_allclose(tau, direct, atol=1e-13)
         # with the paper's plant J w' = S(J w) w + tau, d/dt (w~^T J w~ / 2) = -w~^T K_omega w~

@@ -1,6 +1,6 @@
 """Compiled force-model kernels: the paper's force model, one function per equation.
 
-Everything here takes plain float64 arrays and scalars (see :mod:`vtoladapt.models` for the
+Everything here takes plain float64 arrays (or tuples) and scalars (see :mod:`vtoladapt.models` for the
 user-facing API that takes a :class:`~vtoladapt.vehicle.Vehicle` and throttle in percent).
 
 Kernel conventions
@@ -11,7 +11,9 @@ Kernel conventions
   *adaptation scaling* (throttle as a fraction, see :func:`vtoladapt.models.theta_to_scaled`),
   so ``CTz`` is the full-throttle lift acceleration in m/s^2.
 * ``model``: float64 array ``[aero_scale_per_m, k1, k2]`` where ``aero_scale_per_m = rho S / (2 m)``.
-* All forces are per unit mass (m/s^2), body FRD.
+* All forces are per unit mass (m/s^2), body FRD. The force kernels return them as tuples
+  (``regressor``: three rows of 8) and also write them into an ``out`` array when one is given:
+  tuples pass between compiled functions for free, arrays cost reference counting.
 
 Where the paper is silent or slips (see SPEC.md)
 ------------------------------------------------
@@ -107,21 +109,23 @@ def drag_coefficient(alpha_rad: float, CD0: float, CD1: float, CD2: float) -> fl
 
 
 @njit(cache=True)
-def thruster_force(v_i_B, u_x, u_z, theta, model, out) -> None:
-    """Estimated thruster force f_T-hat per unit mass into ``out`` (eq:fThat)."""
+def thruster_force(v_i_B, u_x, u_z, theta, model, out=None) -> tuple:
+    """Estimated thruster force f_T-hat per unit mass (eq:fThat): ``(f_x, f_y, f_z)``, also into ``out`` if given."""
     V = np.sqrt(v_i_B[0] ** 2 + v_i_B[1] ** 2 + v_i_B[2] ** 2)
     alpha_disk, cb, sb = rotor_flow_angles(v_i_B)
     FS = theta[I_CS] * side_force_basis(alpha_disk, V, u_z, model[M_K1], model[M_K2])
-    out[0] = thrust(u_x, theta[I_CTX]) - FS * cb
-    out[1] = -FS * sb
-    out[2] = -thrust(u_z, theta[I_CTZ])
+    f = (thrust(u_x, theta[I_CTX]) - FS * cb, -FS * sb, -thrust(u_z, theta[I_CTZ]))
+    if out is not None:
+        out[0], out[1], out[2] = f
+    return f
 
 
 @njit(cache=True)
-def aero_force(v_i_B, theta, model, out) -> None:
-    """Estimated wing force f_A-hat per unit mass into ``out`` (eq:fAhat, divided by mass).
+def aero_force(v_i_B, theta, model, out=None) -> tuple:
+    """Estimated wing force f_A-hat per unit mass (eq:fAhat, divided by mass): ``(f_x, f_y, f_z)``.
 
-    The side-force coefficient is the model's ``C_Y = 0`` (the controller keeps beta = 0).
+    Also written into ``out`` if given. The side-force coefficient is the model's ``C_Y = 0``
+    (the controller keeps beta = 0).
     """
     vx, vz = v_i_B[0], v_i_B[2]
     V2 = vx * vx + v_i_B[1] ** 2 + vz * vz
@@ -132,29 +136,33 @@ def aero_force(v_i_B, theta, model, out) -> None:
     CL = lift_coefficient(alpha, theta[I_CL0], theta[I_CL1])
     CD = drag_coefficient(alpha, theta[I_CD0], theta[I_CD1], theta[I_CD2])
     q = model[M_AERO_SCALE] * V2
-    out[0] = q * (CL * sa - CD * ca)
-    out[1] = 0.0
-    out[2] = q * (-CL * ca - CD * sa)
+    f = (q * (CL * sa - CD * ca), 0.0, q * (-CL * ca - CD * sa))
+    if out is not None:
+        out[0], out[1], out[2] = f
+    return f
 
 
 @njit(cache=True)
-def body_force(v_i_B, u_x, u_z, theta, model, out) -> None:
-    """Estimated body force ``f_b-hat = f_T-hat + f_A-hat`` per unit mass into ``out`` (eq:fb)."""
-    # write the wing part into out, keep it, then add the thrusters: no temporary array
-    aero_force(v_i_B, theta, model, out)
-    ax, ay, az = out[0], out[1], out[2]
-    thruster_force(v_i_B, u_x, u_z, theta, model, out)
-    out[0] += ax
-    out[1] += ay
-    out[2] += az
+def body_force(v_i_B, u_x, u_z, theta, model, out=None) -> tuple:
+    """Estimated body force ``f_b-hat = f_T-hat + f_A-hat`` per unit mass (eq:fb): ``(f_x, f_y, f_z)``.
+
+    Also written into ``out`` if given.
+    """
+    fa = aero_force(v_i_B, theta, model)
+    ft = thruster_force(v_i_B, u_x, u_z, theta, model)
+    f = (ft[0] + fa[0], ft[1] + fa[1], ft[2] + fa[2])
+    if out is not None:
+        out[0], out[1], out[2] = f
+    return f
 
 
 @njit(cache=True)
-def regressor(v_i_B, u_x, u_z, model, Phi) -> None:
-    """The regressor ``Phi(v_i, u_x, u_z)`` (3x8) with ``f_b-hat = Phi theta`` into ``Phi``.
+def regressor(v_i_B, u_x, u_z, model, Phi=None) -> tuple:
+    """The regressor ``Phi(v_i, u_x, u_z)`` (3x8) with ``f_b-hat = Phi theta``.
 
-    Columns follow ``theta = [CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1]`` (the paper's order).
-    This one function serves control, adaptation and fitting.
+    Returns the three rows (x, y, z) as tuples of 8, and writes them into the (3, 8) array ``Phi``
+    if given. Columns follow ``theta = [CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1]`` (the paper's
+    order). This one function serves control, adaptation and fitting.
     """
     vx, vy, vz = v_i_B[0], v_i_B[1], v_i_B[2]
     V2 = vx * vx + vy * vy + vz * vz
@@ -165,20 +173,17 @@ def regressor(v_i_B, u_x, u_z, model, Phi) -> None:
     alpha_disk, cb, sb = rotor_flow_angles(v_i_B)
     G = side_force_basis(alpha_disk, V, u_z, model[M_K1], model[M_K2])
     q = model[M_AERO_SCALE] * V2
-    for i in range(3):
-        for j in range(N_THETA):
-            Phi[i, j] = 0.0
-    Phi[0, I_CTX] = u_x * u_x
-    Phi[2, I_CTZ] = -u_z * u_z
-    Phi[0, I_CS] = -G * cb
-    Phi[1, I_CS] = -G * sb
-    # drag acts along -x_i = -(cos a, 0, sin a); lift along (sin a, 0, -cos a)
-    for k, a_pow in ((I_CD0, 1.0), (I_CD1, alpha), (I_CD2, alpha * alpha)):
-        Phi[0, k] = -q * a_pow * ca
-        Phi[2, k] = -q * a_pow * sa
-    for k, a_pow in ((I_CL0, 1.0), (I_CL1, alpha)):
-        Phi[0, k] = q * a_pow * sa
-        Phi[2, k] = -q * a_pow * ca
+    a2 = alpha * alpha
+    # drag acts along -x_i = -(cos a, 0, sin a) with C_D0, C_D1 alpha, C_D2 alpha^2;
+    # lift along (sin a, 0, -cos a) with C_L0, C_L1 alpha
+    rows = ((u_x * u_x, 0.0, -G * cb, -q * ca, -q * alpha * ca, -q * a2 * ca, q * sa, q * alpha * sa),
+            (0.0, 0.0, -G * sb, 0.0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, -u_z * u_z, 0.0, -q * sa, -q * alpha * sa, -q * a2 * sa, -q * ca, -q * alpha * ca))
+    if Phi is not None:
+        for i in range(3):
+            for j in range(N_THETA):
+                Phi[i, j] = rows[i][j]
+    return rows
 
 
 @njit(cache=True)

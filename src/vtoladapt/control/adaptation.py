@@ -63,12 +63,14 @@ theta-hat stays in the box ``[lower, upper]``. The step direction ``d = K tau`` 
 the K-metric onto the tangent cone of the box: minimise ``(d - K tau)^T K^-1 (d - K tau)`` subject to
 ``d_i <= 0`` at an upper bound and ``d_i >= 0`` at a lower bound. The solution is
 ``d = K tau - K[:, A] K[A, A]^-1 (K tau)[A]`` for the active set A, found by a primal-dual
-active-set iteration (start from every bound ``K tau`` points out of; then drop a bound whose
-multiplier has the wrong sign, or add the most outward-pointing bound, until neither exists):
-bounds whose law points inward are released, so theta-hat
-never sticks. The projection never increases ``theta~^T K^-1 d`` for any truth inside the box,
-which is what the Lyapunov argument needs. A component that reaches its bound within the step is
-clipped to it (the continuous trajectory would hit the bound mid-step and then slide).
+active-set iteration (drop a bound whose multiplier has the wrong sign, or add the most
+outward-pointing bound, until neither exists): bounds whose law points inward are released, so
+theta-hat never sticks. It starts from the previous tick's active set (parked on a bound, the
+answer is then found in one iteration; the answer does not depend on the start), or, when there
+is none, from every bound ``K tau`` points out of. The projection never increases
+``theta~^T K^-1 d`` for any truth inside the box, which is what the Lyapunov argument needs. A
+component that reaches its bound within the step is clipped to it (the continuous trajectory
+would hit the bound mid-step and then slide).
 """
 from __future__ import annotations
 
@@ -84,121 +86,180 @@ ADAPT_NONE = 3
 
 PROJECTION_MAX_ITER = 32
 
+# --- storage -------------------------------------------------------------------------------------
+# Vectors and matrices live in flat float64 arrays (in the controller, its state and parameter
+# vectors) and are addressed by an offset; an n x n matrix is row-major: entry (i, j) of the one
+# at offset o of x is x[o + n i + j]. The kernels take the whole array and the offset, not a
+# slice: every array view handed to a compiled function costs two atomic reference-count updates
+# (and a 2-D view a reshape call), about 30 ns on the 2-core machine, more than the arithmetic of
+# most of these 8x8 kernels. A kernel that calls no other slices its own views at entry: there
+# Numba drops their reference counting, and offset-free indices let LLVM unroll the loops.
 
-# --- small dense linear algebra (8x8, no allocation beyond small work arrays) -----------------
+# The adaptation's memory, one block: theta-hat, the information matrix Gamma = P^-1, the
+# filtered regressor W = [Phi]_f (3 x 8) and the filtered specific force a_m (body, m/s^2).
+MEM_THETA = 0
+MEM_GAMMA = MEM_THETA + N_THETA
+MEM_W = MEM_GAMMA + N_THETA * N_THETA
+MEM_A_M = MEM_W + 3 * N_THETA
+MEM_SIZE = MEM_A_M + 3
 
-@njit(cache=True)
-def cholesky_lower(A, n, L) -> bool:
-    """Cholesky factor ``L`` (lower) of the leading ``n x n`` block of SPD ``A``; False if not PD."""
+# The prior, one block: theta_0, the initial theta-hat, the bounds, Gamma_0 = P_0^-1 and P_0.
+PRIOR_THETA0 = 0
+PRIOR_THETA_INIT = PRIOR_THETA0 + N_THETA
+PRIOR_LOWER = PRIOR_THETA_INIT + N_THETA
+PRIOR_UPPER = PRIOR_LOWER + N_THETA
+PRIOR_GAMMA0 = PRIOR_UPPER + N_THETA
+PRIOR_P0 = PRIOR_GAMMA0 + N_THETA * N_THETA
+PRIOR_SIZE = PRIOR_P0 + N_THETA * N_THETA
+
+# The projection's scratch: its system (K[A, A] or K^-1[F, F], at most 4 x 4) and the system's
+# Cholesky factor, the right-hand side (the solution, in place) and the multipliers.
+PJ_SYSTEM = 0
+PJ_FACTOR = PJ_SYSTEM + (N_THETA // 2) ** 2
+PJ_RHS = PJ_FACTOR + (N_THETA // 2) ** 2
+PJ_MU = PJ_RHS + N_THETA
+PROJECTION_WORK_SIZE = PJ_MU + N_THETA
+
+# One step's scratch (meaningless between ticks); P_diag is the step's output.
+WK_WTW = 0                                  # W^T W, then (composite_pconst) the gain's inverse
+WK_M = WK_WTW + N_THETA * N_THETA           # L^-1 for the Cholesky factor L of the gain's inverse
+WK_L = WK_M + N_THETA * N_THETA             # L
+WK_K = WK_L + N_THETA * N_THETA             # the gain K, formed only to project
+WK_TAU = WK_K + N_THETA * N_THETA
+WK_D0 = WK_TAU + N_THETA                    # K tau
+WK_D = WK_D0 + N_THETA                      # its projection
+WK_P_DIAG = WK_D + N_THETA                  # diag(P) after the step
+WK_PROJECTION = WK_P_DIAG + N_THETA
+WORK_SIZE = WK_PROJECTION + PROJECTION_WORK_SIZE
+
+
+# --- small dense linear algebra (n x n, flat storage, no allocation) --------------------------
+# The kernels of this module never divide by zero (Cholesky pivots are > 0 once checked), so they
+# use NumPy's error model: a division cannot raise, which leaves them no exception path and lets
+# Numba drop their reference counting (otherwise kept on every call).
+
+@njit(cache=True, error_model="numpy")
+def cholesky_lower(A, a, L, l, n) -> bool:
+    """Cholesky factor (lower) of the SPD ``n x n`` matrix at ``A[a:]`` into ``L[l:]``; False if not PD."""
+    A = A[a:a + n * n]
+    L = L[l:l + n * n]
     for j in range(n):
-        s = A[j, j]
+        s = A[n * j + j]
         for k in range(j):
-            s -= L[j, k] * L[j, k]
+            s -= L[n * j + k] * L[n * j + k]
         if not s > 0.0:
             return False
         d = np.sqrt(s)
-        L[j, j] = d
+        L[n * j + j] = d
         r = 1.0 / d
         for i in range(j + 1, n):
-            t = A[i, j]
+            t = A[n * i + j]
             for k in range(j):
-                t -= L[i, k] * L[j, k]
-            L[i, j] = t * r
+                t -= L[n * i + k] * L[n * j + k]
+            L[n * i + j] = t * r
         for i in range(j):
-            L[i, j] = 0.0
+            L[n * i + j] = 0.0
     return True
 
 
-@njit(cache=True)
-def cholesky_solve(L, n, b, x) -> None:
-    """Solve ``L L^T x = b`` (leading ``n`` entries) given the Cholesky factor ``L``."""
+@njit(cache=True, error_model="numpy")
+def cholesky_solve(L, l, n, b, o) -> None:
+    """Solve ``L L^T x = b`` in place (``b[o:o+n]`` becomes x) given the Cholesky factor at ``L[l:]``."""
+    L = L[l:l + n * n]
+    b = b[o:o + n]
     for i in range(n):
         t = b[i]
         for k in range(i):
-            t -= L[i, k] * x[k]
-        x[i] = t / L[i, i]
+            t -= L[n * i + k] * b[k]
+        b[i] = t / L[n * i + i]
     for i in range(n - 1, -1, -1):
-        t = x[i]
+        t = b[i]
         for k in range(i + 1, n):
-            t -= L[k, i] * x[k]
-        x[i] = t / L[i, i]
+            t -= L[n * k + i] * b[k]
+        b[i] = t / L[n * i + i]
 
 
-@njit(cache=True)
-def inverse_factor(A, M, L) -> bool:
-    """``M = L^-1`` (lower triangular) for the Cholesky factor ``L`` of SPD ``A``, so ``A^-1 = M^T M``.
+@njit(cache=True, error_model="numpy")
+def inverse_factor(L, l, M, m) -> None:
+    """``M = L^-1`` (lower triangular) for a Cholesky factor ``L`` of ``A``, so ``A^-1 = M^T M``.
 
-    ``L`` is an ``n x n`` work array. Returns False (``M`` untouched) if ``A`` is not PD.
+    ``N_THETA x N_THETA``, ``L`` at ``L[l:]`` (from :func:`cholesky_lower`), ``M`` into ``M[m:]``.
     """
-    n = A.shape[0]
-    if not cholesky_lower(A, n, L):
-        return False
+    n = N_THETA
+    L = L[l:l + n * n]
+    M = M[m:m + n * n]
     for i in range(n):
-        M[i, i] = 1.0 / L[i, i]
+        M[n * i + i] = 1.0 / L[n * i + i]
     for j in range(n):
         for i in range(j + 1, n):
             t = 0.0
             for k in range(j, i):
-                t -= L[i, k] * M[k, j]
-            M[i, j] = t * M[i, i]
+                t -= L[n * i + k] * M[n * k + j]
+            M[n * i + j] = t * M[n * i + i]
         for i in range(j):
-            M[i, j] = 0.0
-    return True
+            M[n * i + j] = 0.0
 
 
-@njit(cache=True)
-def gram_of_factor(M, out) -> None:
+@njit(cache=True, error_model="numpy")
+def gram_of_factor(M, m, out, o) -> None:
     """``out = M^T M`` for lower-triangular ``M`` (exactly symmetric, PD if ``M`` is invertible)."""
-    n = M.shape[0]
+    n = N_THETA
+    M = M[m:m + n * n]
+    out = out[o:o + n * n]
     for i in range(n):
         for j in range(i, n):
             t = 0.0
             for k in range(j, n):
-                t += M[k, i] * M[k, j]
-            out[i, j] = t
-            out[j, i] = t
+                t += M[n * k + i] * M[n * k + j]
+            out[n * i + j] = t
+            out[n * j + i] = t
 
 
-@njit(cache=True)
-def factor_diag(M, out) -> None:
-    """``diag(M^T M)`` for lower-triangular ``M`` (the diagonal of ``A^-1``)."""
-    n = M.shape[0]
+@njit(cache=True, error_model="numpy")
+def factor_diag(M, m, out, o) -> None:
+    """``diag(M^T M)`` for lower-triangular ``M`` (the diagonal of ``A^-1``) into ``out[o:o+n]``."""
+    n = N_THETA
+    M = M[m:m + n * n]
+    out = out[o:o + n]
     for i in range(n):
         t = 0.0
         for k in range(i, n):
-            t += M[k, i] * M[k, i]
+            t += M[n * k + i] * M[n * k + i]
         out[i] = t
 
 
-@njit(cache=True)
-def factor_apply(M, x, out) -> None:
-    """``out = M^T (M x)`` for lower-triangular ``M`` (``A^-1 x``)."""
-    n = M.shape[0]
-    y = np.empty(n)
-    for i in range(n):
+@njit(cache=True, error_model="numpy")
+def factor_apply(M, m, x, o) -> None:
+    """``x <- M^T (M x)`` in place (``x[o:o+n]``) for lower-triangular ``M``: ``A^-1 x``."""
+    n = N_THETA
+    M = M[m:m + n * n]
+    x = x[o:o + n]
+    # y = M x from the last row up (row i reads x_0..x_i, which are not overwritten yet)
+    for i in range(n - 1, -1, -1):
         t = 0.0
         for k in range(i + 1):
-            t += M[i, k] * x[k]
-        y[i] = t
+            t += M[n * i + k] * x[k]
+        x[i] = t
+    # M^T y from the first row down (row i reads y_i..y_n-1)
     for i in range(n):
         t = 0.0
         for k in range(i, n):
-            t += M[k, i] * y[k]
-        out[i] = t
+            t += M[n * k + i] * x[k]
+        x[i] = t
 
 
-@njit(cache=True)
-def spd_inverse(A, Ainv, L) -> bool:
+@njit(cache=True, error_model="numpy")
+def spd_inverse(A, a, Ainv, ai, work, w) -> bool:
     """Inverse of SPD ``A`` via Cholesky, ``A^-1 = L^-T L^-1``: symmetric and PD by construction.
 
-    ``L`` is an ``n x n`` work array (overwritten). Returns False (``Ainv`` untouched) if ``A`` is
-    not PD.
+    ``N_THETA x N_THETA`` matrices at ``A[a:]`` and into ``Ainv[ai:]``; ``work[w:]`` holds two of
+    them (overwritten). Returns False (``Ainv`` untouched) if ``A`` is not PD.
     """
-    n = A.shape[0]
-    M = np.empty((n, n))
-    if not inverse_factor(A, M, L):
+    L = w + N_THETA * N_THETA
+    if not cholesky_lower(A, a, work, L, N_THETA):
         return False
-    gram_of_factor(M, Ainv)
+    inverse_factor(work, L, work, w)
+    gram_of_factor(work, w, Ainv, ai)
     return True
 
 
@@ -217,10 +278,9 @@ def flush_tiny(x: float) -> float:
 
 
 @njit(cache=True)
-def lowpass_update(y, x, c) -> None:
-    """``y <- y + c (x - y)`` element-wise for 1-D arrays, flushing tiny values to zero."""
-    for i in range(y.shape[0]):
-        y[i] = flush_tiny(y[i] + c * (x[i] - y[i]))
+def lowpass(y: float, x: float, c: float) -> float:
+    """One step of the low-pass, ``y + c (x - y)``, flushing tiny values to zero."""
+    return flush_tiny(y + c * (x - y))
 
 
 @njit(cache=True)
@@ -229,269 +289,355 @@ def lowpass_gain(cutoff_hz: float, dt: float) -> float:
     return 1.0 - np.exp(-2.0 * np.pi * cutoff_hz * dt)
 
 
-@njit(cache=True)
-def prediction_error(W, theta, a_m, e) -> None:
-    """Prediction error ``e = W theta-hat - a_m`` (eq:prediction_error), body axes, m/s^2."""
-    for i in range(3):
-        t = -a_m[i]
-        for j in range(W.shape[1]):
-            t += W[i, j] * theta[j]
-        e[i] = t
+@njit(cache=True, error_model="numpy")
+def prediction_error(W, w, theta, t, a_m, m) -> tuple:
+    """Prediction error ``e = W theta-hat - a_m`` (eq:prediction_error), body axes, m/s^2 (3-tuple).
+
+    ``W`` (3 x 8) at ``W[w:]``, theta-hat at ``theta[t:]``, ``a_m`` at ``a_m[m:]``.
+    """
+    n = N_THETA
+    W = W[w:w + 3 * n]
+    theta = theta[t:t + n]
+    e0 = -a_m[m]
+    e1 = -a_m[m + 1]
+    e2 = -a_m[m + 2]
+    for j in range(n):
+        e0 += W[j] * theta[j]
+        e1 += W[n + j] * theta[j]
+        e2 += W[2 * n + j] * theta[j]
+    return e0, e1, e2
 
 
-@njit(cache=True)
-def gram(W, G) -> None:
-    """``G = W^T W`` (n x n), exactly symmetric."""
-    n = W.shape[1]
+@njit(cache=True, error_model="numpy")
+def gram(W, w, G, g) -> None:
+    """``G = W^T W`` (8 x 8, exactly symmetric) for the 3 x 8 ``W`` at ``W[w:]``."""
+    n = N_THETA
+    W = W[w:w + 3 * n]
+    G = G[g:g + n * n]
     for i in range(n):
         for j in range(i, n):
             t = 0.0
-            for r in range(W.shape[0]):
-                t += W[r, i] * W[r, j]
-            G[i, j] = t
-            G[j, i] = t
+            for r in range(3):
+                t += W[n * r + i] * W[n * r + j]
+            G[n * i + j] = t
+            G[n * j + i] = t
 
 
 @njit(cache=True)
-def information_update(Gamma, Gamma0, WtW, lam, dt, out) -> None:
+def forgetting_weights(lam: float, dt: float) -> tuple:
+    """``(a, b)`` of the exact information step: ``a = exp(-lambda dt)``, ``b = (1 - a)/lambda`` (``dt`` at 0)."""
+    if lam > 0.0:
+        return np.exp(-lam * dt), -np.expm1(-lam * dt) / lam
+    return 1.0, dt
+
+
+@njit(cache=True, error_model="numpy")
+def information_update(Gamma, g, Gamma0, g0, WtW, h, a, b) -> None:
     """One exact step of ``Gamma' = W^T W - lambda (Gamma - Gamma_0)`` (eq:P_adapt, information form).
 
-    ``out = a Gamma + (1 - a) Gamma_0 + b W^T W``, ``a = exp(-lambda dt)``, ``b = (1 - a)/lambda``
-    (``b = dt`` at ``lambda = 0``). ``out`` may be ``Gamma``.
+    ``Gamma <- a Gamma + (1 - a) Gamma_0 + b W^T W`` in place, with ``(a, b)`` from
+    :func:`forgetting_weights` (8 x 8 matrices at ``Gamma[g:]``, ``Gamma0[g0:]``, ``WtW[h:]``).
     """
-    n = Gamma.shape[0]
-    if lam > 0.0:
-        a = np.exp(-lam * dt)
-        b = -np.expm1(-lam * dt) / lam
-    else:
-        a = 1.0
-        b = dt
+    n = N_THETA
+    Gamma = Gamma[g:g + n * n]
+    Gamma0 = Gamma0[g0:g0 + n * n]
+    WtW = WtW[h:h + n * n]
     for i in range(n):
         for j in range(i, n):
-            v = flush_tiny(a * Gamma[i, j] + (1.0 - a) * Gamma0[i, j] + b * WtW[i, j])
-            out[i, j] = v
-            out[j, i] = v
+            v = flush_tiny(a * Gamma[n * i + j] + (1.0 - a) * Gamma0[n * i + j] + b * WtW[n * i + j])
+            Gamma[n * i + j] = v
+            Gamma[n * j + i] = v
 
 
-@njit(cache=True)
-def cap_information(Gamma, Gamma0, trace_max) -> bool:
+@njit(cache=True, error_model="numpy")
+def cap_information(Gamma, g, Gamma0, g0, trace_max) -> bool:
     """Scale the data part ``Gamma - Gamma_0`` so its trace is at most ``trace_max``; True if capped."""
-    n = Gamma.shape[0]
+    n = N_THETA
+    Gamma = Gamma[g:g + n * n]
+    Gamma0 = Gamma0[g0:g0 + n * n]
     tr = 0.0
     for i in range(n):
-        tr += Gamma[i, i] - Gamma0[i, i]
+        tr += Gamma[n * i + i] - Gamma0[n * i + i]
     if tr <= trace_max:
         return False
     s = trace_max / tr
-    for i in range(n):
-        for j in range(n):
-            Gamma[i, j] = Gamma0[i, j] + s * (Gamma[i, j] - Gamma0[i, j])
+    for i in range(n * n):
+        Gamma[i] = Gamma0[i] + s * (Gamma[i] - Gamma0[i])
     return True
 
 
 # --- projection ----------------------------------------------------------------------------------
 
+@njit(cache=True, error_model="numpy")
+def bound_sides(theta, t, lower, lo, upper, up) -> tuple:
+    """Which components of theta-hat (at ``theta[t:]``) sit on a bound: ``(at_upper, at_lower)`` bit masks.
+
+    Bit ``i`` is set if component ``i`` is within ``1e-12 max(1, upper - lower)`` of that bound
+    (bounds at ``lower[lo:]``, ``upper[up:]``).
+    """
+    theta = theta[t:t + N_THETA]
+    lower = lower[lo:lo + N_THETA]
+    upper = upper[up:up + N_THETA]
+    at_upper = 0
+    at_lower = 0
+    for i in range(N_THETA):
+        tol = 1e-12 * max(1.0, upper[i] - lower[i])
+        if theta[i] >= upper[i] - tol:
+            at_upper |= 1 << i
+        elif theta[i] <= lower[i] + tol:
+            at_lower |= 1 << i
+    return at_upper, at_lower
+
+
 @njit(cache=True)
-def project_direction(K, d0, theta, lower, upper, d) -> int:
+def _side(at_upper, at_lower, i) -> float:
+    """+1 at the upper bound, -1 at the lower bound, 0 inside."""
+    if (at_upper >> i) & 1:
+        return 1.0
+    if (at_lower >> i) & 1:
+        return -1.0
+    return 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def project_direction(K, k, G, g, x, tau, d0, d, s, at_upper, at_lower, active_start) -> tuple:
     """Project the update direction ``d0 = K tau`` onto the box's tangent cone in the K-metric.
+
+    For an active set A (free set F) the projection holds ``d_A = 0`` and is either
+    ``d = d0 - K[:, A] mu`` with ``mu = K[A, A]^-1 d0[A]``, or, the same by the Schur complement
+    of ``G = K^-1``, ``d_F = G[F, F]^-1 tau[F]`` with ``mu = tau[A] - G[A, F] d_F`` (the
+    multipliers). Each iteration solves the smaller of the two systems (at most 4 x 4).
 
     Parameters
     ----------
-    K : (n, n) SPD gain (the metric is ``K^-1``).
-    d0 : (n,) unconstrained direction.
-    theta, lower, upper : (n,) current estimate and its bounds.
-    d : (n,) output direction.
+    K, k : the 8 x 8 SPD gain at ``K[k:]`` (the metric is ``K^-1``).
+    G, g : its inverse ``K^-1`` at ``G[g:]``.
+    x : array holding ``tau`` (at ``x[tau:]``), ``d0 = K tau`` (at ``x[d0:]``), the output ``d``
+        (at ``x[d:]``) and ``PROJECTION_WORK_SIZE`` of scratch at ``x[s:]``.
+    at_upper, at_lower : bit masks of the components at a bound (:func:`bound_sides`).
+    active_start : bit mask of the bounds to start the active-set iteration from (the previous
+        tick's answer); those not at a bound now are dropped, and if none is left the iteration
+        starts from every bound ``d0`` leaves. The answer does not depend on the start (the
+        problem is strictly convex), only the number of iterations does.
 
     Returns
     -------
-    int
-        Number of active bounds (0 if none); -1 if the iteration limit was reached (``d`` is then
-        the last iterate, and the caller's clip keeps theta-hat inside).
+    (n_active, active)
+        Number of active bounds (0 if none), or -1 if the iteration limit was reached (``d`` is
+        then the last iterate, and the caller's clip keeps theta-hat inside); and their bit mask.
     """
-    n = theta.shape[0]
-    any_side = False
+    n = N_THETA
     for i in range(n):
-        d[i] = d0[i]
-        tol = 1e-12 * max(1.0, upper[i] - lower[i])
-        if theta[i] >= upper[i] - tol or theta[i] <= lower[i] + tol:
-            any_side = True
-    if not any_side:
-        return 0
-    side = np.zeros(n)          # +1 at the upper bound, -1 at the lower bound, 0 inside
-    for i in range(n):
-        tol = 1e-12 * max(1.0, upper[i] - lower[i])
-        if theta[i] >= upper[i] - tol:
-            side[i] = 1.0
-        elif theta[i] <= lower[i] + tol:
-            side[i] = -1.0
-    active = np.zeros(n, dtype=np.bool_)
-    idx = np.empty(n, dtype=np.int64)
-    KA = np.empty((n, n))
-    LA = np.empty((n, n))
-    rhs = np.empty(n)
-    mu = np.empty(n)
-    # start from every bound the unconstrained direction leaves (usually already the answer)
-    for i in range(n):
-        d[i] = d0[i]
-        active[i] = side[i] * d0[i] > 0.0
+        x[d + i] = x[d0 + i]
+    if at_upper == 0 and at_lower == 0:
+        return 0, 0
+    sa = s + PJ_SYSTEM
+    sl = s + PJ_FACTOR
+    rhs = s + PJ_RHS
+    mu = s + PJ_MU       # multipliers of the active bounds, in index order
+    active = active_start & (at_upper | at_lower)
+    if active == 0:
+        # every bound the unconstrained direction leaves
+        for i in range(n):
+            if _side(at_upper, at_lower, i) * x[d0 + i] > 0.0:
+                active |= 1 << i
     for _ in range(PROJECTION_MAX_ITER):
         m = 0
         for i in range(n):
-            if active[i]:
-                idx[m] = i
+            x[d + i] = x[d0 + i]
+            if (active >> i) & 1:
                 m += 1
-        for i in range(n):
-            d[i] = d0[i]
         if m > 0:
-            for a in range(m):
-                rhs[a] = d0[idx[a]]
-                for b in range(m):
-                    KA[a, b] = K[idx[a], idx[b]]
-            if not cholesky_lower(KA, m, LA):
-                return -1
-            cholesky_solve(LA, m, rhs, mu)
+            # the system on the held set (K[A, A]) or on the free set (G[F, F]), whichever is smaller
+            on_free = m > n - m
+            ms = n - m if on_free else m
+            a = 0
             for i in range(n):
-                t = 0.0
+                if ((active >> i) & 1) != on_free:
+                    x[rhs + a] = x[tau + i] if on_free else x[d0 + i]
+                    b = 0
+                    for j in range(n):
+                        if ((active >> j) & 1) != on_free:
+                            x[sa + ms * a + b] = G[g + n * i + j] if on_free else K[k + n * i + j]
+                            b += 1
+                    a += 1
+            if not cholesky_lower(x, sa, x, sl, ms):
+                return -1, active
+            cholesky_solve(x, sl, ms, x, rhs)
+            if on_free:
+                # d_F = G[F, F]^-1 tau[F], d_A = 0; mu = tau[A] - G[A, F] d_F
+                a = 0
+                c = 0
+                for i in range(n):
+                    if (active >> i) & 1:
+                        t = x[tau + i]
+                        b = 0
+                        for j in range(n):
+                            if not (active >> j) & 1:
+                                t -= G[g + n * i + j] * x[rhs + b]
+                                b += 1
+                        x[mu + c] = t
+                        x[d + i] = 0.0
+                        c += 1
+                    else:
+                        x[d + i] = x[rhs + a]
+                        a += 1
+            else:
+                # mu = K[A, A]^-1 d0[A]; d = d0 - K[:, A] mu, d_A = 0
                 for a in range(m):
-                    t += K[i, idx[a]] * mu[a]
-                d[i] -= t
-            for a in range(m):
-                d[idx[a]] = 0.0
+                    x[mu + a] = x[rhs + a]
+                for i in range(n):
+                    t = 0.0
+                    a = 0
+                    for j in range(n):
+                        if (active >> j) & 1:
+                            t += K[k + n * i + j] * x[mu + a]
+                            a += 1
+                    x[d + i] -= t
+                for i in range(n):
+                    if (active >> i) & 1:
+                        x[d + i] = 0.0
             # dual feasibility: the multiplier side * mu must be >= 0
             worst = -1
             worst_val = 0.0
-            for a in range(m):
-                v = side[idx[a]] * mu[a]
-                if v < worst_val:
-                    worst_val = v
-                    worst = idx[a]
+            a = 0
+            for i in range(n):
+                if (active >> i) & 1:
+                    v = _side(at_upper, at_lower, i) * x[mu + a]
+                    if v < worst_val:
+                        worst_val = v
+                        worst = i
+                    a += 1
             if worst >= 0:
-                active[worst] = False
+                active &= ~(1 << worst)
                 continue
         # primal feasibility: no inactive bound may point outward
         worst = -1
         worst_val = 0.0
         for i in range(n):
-            if side[i] != 0.0 and not active[i]:
-                v = side[i] * d[i]
+            if not (active >> i) & 1:
+                v = _side(at_upper, at_lower, i) * x[d + i]
                 if v > worst_val:
                     worst_val = v
                     worst = i
         if worst >= 0:
-            active[worst] = True
+            active |= 1 << worst
             continue
-        return m
-    return -1
+        return m, active
+    return -1, active
 
 
 # --- the adaptation step ----------------------------------------------------------------------
 
-@njit(cache=True)
-def _at_a_bound(theta, lower, upper) -> bool:
-    for i in range(theta.shape[0]):
-        tol = 1e-12 * max(1.0, upper[i] - lower[i])
-        if theta[i] >= upper[i] - tol or theta[i] <= lower[i] + tol:
-            return True
-    return False
-
-
-@njit(cache=True)
-def adaptation_step(mode, theta, Gamma, W, a_m, Phi, R, v_tilde_W, dt, theta0, Gamma0, P0, lower, upper,
-                    lam, sigma, trace_max, e, P_diag, mats) -> int:
+@njit(cache=True, error_model="numpy")
+def adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, forget_b, sigma,
+                    trace_max, active_set) -> tuple:
     """One tick of eq:th_adapt and eq:P_adapt (see the module notes), in place.
 
     Parameters
     ----------
     mode : ADAPT_COMPOSITE, ADAPT_PCONST, ADAPT_TRACKING or ADAPT_NONE.
-    theta : (8,) theta-hat, updated in place.
-    Gamma : (8, 8) information matrix ``P^-1``, updated in place (composite only).
-    W : (3, 8) filtered regressor ``[Phi]_f``.
-    a_m : (3,) filtered specific force, body (m/s^2).
-    Phi : (3, 8) unfiltered regressor at the current airflow and the last command.
-    R : (3, 3) attitude ``R_WB``.
+    x : array holding the adaptation's memory at ``x[m:]`` (``MEM_*`` layout: theta-hat and
+        Gamma = P^-1 are updated, W = [Phi]_f and a_m read) and ``WORK_SIZE`` of scratch at
+        ``x[w:]``; on return ``x[w + WK_P_DIAG:]`` holds the diagonal of P after the update
+        (of ``P0`` for the constant-P modes).
+    prior, p : the prior at ``prior[p:]`` (``PRIOR_*`` layout: theta_0, bounds, Gamma_0, P_0).
+    Phi : the unfiltered regressor (three rows of 8) at the current airflow and the last command.
+    R : attitude ``R_WB`` (three rows of 3).
     v_tilde_W : (3,) velocity error ``v - v_r`` (m/s, NED).
     dt : float, tick (s).
-    theta0, Gamma0, P0 : prior mean, prior information ``P0^-1`` and ``P0``.
-    lower, upper : bounds of theta-hat.
-    lam, sigma, trace_max : forgetting (1/s), sigma-modification, information-trace cap.
-    e : (3,) output: prediction error before the update (eq:prediction_error).
-    P_diag : (8,) output: diagonal of P after the update (of ``P0`` for the constant-P modes).
-    mats : (3, 8, 8) work arrays.
+    forget_a, forget_b : :func:`forgetting_weights` of the forgetting rate (1/s) and ``dt``.
+    sigma, trace_max : sigma-modification, information-trace cap.
+    active_set : bit mask of the bounds the previous step's projection held (0 if none): where
+        this step's projection starts (:func:`project_direction`).
 
     Returns
     -------
-    int
+    (n_active, active_set, e)
         Number of active bounds, or -1 if the projection hit its iteration limit, or -2 if the
-        gain could not be formed (the update is then skipped; cannot happen for finite inputs).
+        gain could not be formed (the update is then skipped; cannot happen for finite inputs);
+        the bit mask of the active bounds; and the prediction error before the update
+        (eq:prediction_error, 3-tuple).
     """
-    n = theta.shape[0]
-    prediction_error(W, theta, a_m, e)
+    n = N_THETA
+    th = m + MEM_THETA
+    gam = m + MEM_GAMMA
+    wf = m + MEM_W
+    e = prediction_error(x, wf, x, th, x, m + MEM_A_M)
     if mode == ADAPT_NONE:
-        return 0
-    work = mats[0]
-    M = mats[1]
-    K = mats[2]
+        return 0, 0, e
+    tau = w + WK_TAU
+    d0 = w + WK_D0
+    p_diag = w + WK_P_DIAG
     # tau = Phi^T R^T v~ - W^T e - sigma (theta - theta0)
-    rv0 = R[0, 0] * v_tilde_W[0] + R[1, 0] * v_tilde_W[1] + R[2, 0] * v_tilde_W[2]
-    rv1 = R[0, 1] * v_tilde_W[0] + R[1, 1] * v_tilde_W[1] + R[2, 1] * v_tilde_W[2]
-    rv2 = R[0, 2] * v_tilde_W[0] + R[1, 2] * v_tilde_W[1] + R[2, 2] * v_tilde_W[2]
-    tau = np.empty(n)
+    rv0 = R[0][0] * v_tilde_W[0] + R[1][0] * v_tilde_W[1] + R[2][0] * v_tilde_W[2]
+    rv1 = R[0][1] * v_tilde_W[0] + R[1][1] * v_tilde_W[1] + R[2][1] * v_tilde_W[2]
+    rv2 = R[0][2] * v_tilde_W[0] + R[1][2] * v_tilde_W[1] + R[2][2] * v_tilde_W[2]
     for k in range(n):
-        t = Phi[0, k] * rv0 + Phi[1, k] * rv1 + Phi[2, k] * rv2 - sigma * (theta[k] - theta0[k])
+        t = Phi[0][k] * rv0 + Phi[1][k] * rv1 + Phi[2][k] * rv2 - sigma * (x[th + k] - prior[p + PRIOR_THETA0 + k])
         if mode != ADAPT_TRACKING:
-            t -= W[0, k] * e[0] + W[1, k] * e[1] + W[2, k] * e[2]
-        tau[k] = t
-    d0 = np.empty(n)
-    bounded = _at_a_bound(theta, lower, upper)
+            t -= x[wf + k] * e[0] + x[wf + n + k] * e[1] + x[wf + 2 * n + k] * e[2]
+        x[tau + k] = t
+    at_upper, at_lower = bound_sides(x, th, prior, p + PRIOR_LOWER, prior, p + PRIOR_UPPER)
+    bounded = at_upper != 0 or at_lower != 0
+    n_active = 0
+    active = 0
     if mode == ADAPT_TRACKING:
         # K = P0
+        p0 = p + PRIOR_P0
         for i in range(n):
-            P_diag[i] = P0[i, i]
+            x[p_diag + i] = prior[p0 + n * i + i]
             t = 0.0
             for j in range(n):
-                K[i, j] = P0[i, j]
-                t += P0[i, j] * tau[j]
-            d0[i] = t
+                t += prior[p0 + n * i + j] * x[tau + j]
+            x[d0 + i] = t
+        if bounded:
+            n_active, active = project_direction(prior, p0, prior, p + PRIOR_GAMMA0, x, tau, d0, w + WK_D,
+                                                 w + WK_PROJECTION, at_upper, at_lower, active_set)
     else:
-        gram(W, work)
+        G = w + WK_WTW
+        gram(x, wf, x, G)
         if mode == ADAPT_COMPOSITE:
             # Gamma_k+1 = a Gamma_k + (1 - a) Gamma_0 + b W^T W; K = Gamma_k+1^-1 (before the cap)
-            information_update(Gamma, Gamma0, work, lam, dt, Gamma)
-            G = Gamma
+            information_update(x, gam, prior, p + PRIOR_GAMMA0, x, G, forget_a, forget_b)
+            G = gam
         else:
             # backward Euler in the prediction term: K = (P0^-1 + dt W^T W)^-1
+            g0 = p + PRIOR_GAMMA0
             for i in range(n):
-                P_diag[i] = P0[i, i]
+                x[p_diag + i] = prior[p + PRIOR_P0 + n * i + i]
                 for j in range(n):
-                    work[i, j] = Gamma0[i, j] + dt * work[i, j]
-            G = work
-        if not inverse_factor(G, M, K):
+                    x[G + n * i + j] = prior[g0 + n * i + j] + dt * x[G + n * i + j]
+        M = w + WK_M
+        if not cholesky_lower(x, G, x, w + WK_L, n):
             if mode == ADAPT_COMPOSITE:
-                for i in range(n):
-                    for j in range(n):
-                        Gamma[i, j] = Gamma0[i, j]
-            return -2
-        factor_apply(M, tau, d0)
-        if mode == ADAPT_COMPOSITE:
-            factor_diag(M, P_diag)
-            if cap_information(Gamma, Gamma0, trace_max):
-                if inverse_factor(Gamma, K, work):
-                    factor_diag(K, P_diag)
-        if bounded:
-            gram_of_factor(M, K)
-    d = np.empty(n)
-    n_active = 0
-    if bounded:
-        n_active = project_direction(K, d0, theta, lower, upper, d)
-    else:
+                for i in range(n * n):
+                    x[gam + i] = prior[p + PRIOR_GAMMA0 + i]
+            return -2, active_set, e
+        inverse_factor(x, w + WK_L, x, M)
         for i in range(n):
-            d[i] = d0[i]
+            x[d0 + i] = x[tau + i]
+        factor_apply(x, M, x, d0)
+        if bounded:
+            # K = M^T M and K^-1 = G (Gamma before the cap below)
+            gram_of_factor(x, M, x, w + WK_K)
+            n_active, active = project_direction(x, w + WK_K, x, G, x, tau, d0, w + WK_D, w + WK_PROJECTION,
+                                                 at_upper, at_lower, active_set)
+        if mode == ADAPT_COMPOSITE:
+            factor_diag(x, M, x, p_diag)
+            if cap_information(x, gam, prior, p + PRIOR_GAMMA0, trace_max):
+                if cholesky_lower(x, gam, x, w + WK_L, n):
+                    inverse_factor(x, w + WK_L, x, M)
+                    factor_diag(x, M, x, p_diag)
+    step = w + WK_D if bounded else d0
     for i in range(n):
-        x = flush_tiny(theta[i] + dt * d[i])
-        if not np.isfinite(x):
-            x = theta[i]
-        theta[i] = min(max(x, lower[i]), upper[i])
-    return n_active
+        lo = prior[p + PRIOR_LOWER + i]
+        hi = prior[p + PRIOR_UPPER + i]
+        v = flush_tiny(x[th + i] + dt * x[step + i])
+        if not np.isfinite(v):
+            v = x[th + i]
+        x[th + i] = min(max(v, lo), hi)
+    return n_active, active, e
 
 
 @njit(cache=True)
@@ -511,7 +657,10 @@ def lyapunov_function(v_tilde, q0_tilde, theta_hat, P_inv, theta_true, gamma) ->
     return V + 0.5 * q
 
 
-__all__ = ["ADAPT_COMPOSITE", "TINY", "factor_apply", "factor_diag", "flush_tiny", "gram_of_factor",
-           "inverse_factor", "lowpass_update", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "adaptation_step",
-           "cap_information", "cholesky_lower", "cholesky_solve", "gram", "information_update",
-           "lowpass_gain", "lyapunov_function", "prediction_error", "project_direction", "spd_inverse"]
+__all__ = ["ADAPT_COMPOSITE", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "MEM_A_M", "MEM_GAMMA",
+           "MEM_SIZE", "MEM_THETA", "MEM_W", "PRIOR_GAMMA0", "PRIOR_LOWER", "PRIOR_P0", "PRIOR_SIZE",
+           "PRIOR_THETA0", "PRIOR_THETA_INIT", "PRIOR_UPPER", "PROJECTION_WORK_SIZE", "TINY", "WK_P_DIAG",
+           "WORK_SIZE", "adaptation_step", "bound_sides", "cap_information", "cholesky_lower",
+           "cholesky_solve", "factor_apply", "factor_diag", "flush_tiny", "forgetting_weights", "gram",
+           "gram_of_factor", "information_update", "inverse_factor", "lowpass", "lowpass_gain",
+           "lyapunov_function", "prediction_error", "project_direction", "spd_inverse"]

@@ -58,8 +58,8 @@ def _refine_lift_throttle(bx, bz, cs_cb, ctz, G0, u0, k1, u_max) -> float:
 
 
 @njit(cache=True)
-def allocate_thrusters(f_rb_B, v_i_B, theta, model, u_max, u_out, residual_B) -> tuple:
-    """Throttles ``u_out = [u_x, u_z]`` (fractions) realising ``f_rb`` at the current attitude (eq:f_proj).
+def allocate_thrusters(f_rb_B, v_i_B, theta, model, u_max) -> tuple:
+    """Throttles ``[u_x, u_z]`` (fractions) realising ``f_rb`` at the current attitude (eq:f_proj).
 
     Parameters
     ----------
@@ -68,17 +68,15 @@ def allocate_thrusters(f_rb_B, v_i_B, theta, model, u_max, u_out, residual_B) ->
     theta : (8,) model parameters (adaptation scaling).
     model : (3,) ``[rho S/(2m), k1, k2]``.
     u_max : float, throttle limit (fraction).
-    u_out : (2,) output ``[u_x, u_z]``.
-    residual_B : (3,) output ``f_rb - f_b-hat(v_i, u_x, u_z)`` (m/s^2, body).
 
     Returns
     -------
-    (sat_x, sat_z)
-        -1 if the throttle is at 0 because the row asks for the opposite sign (by more than
+    (u_x, u_z, residual_B, sat_x, sat_z)
+        The throttles; ``f_rb - f_b-hat(v_i, u_x, u_z)`` (m/s^2, body, 3-tuple); and per throttle
+        -1 if it is at 0 because the row asks for the opposite sign (by more than
         ``SAT_TOL_MPS2``), +1 if clipped at ``u_max``, 0 otherwise.
     """
-    fa = np.empty(3)
-    forces.aero_force(v_i_B, theta, model, fa)
+    fa = forces.aero_force(v_i_B, theta, model)
     ctx = max(theta[forces.I_CTX], 1e-9)
     ctz = max(theta[forces.I_CTZ], 1e-9)
     u2_max = u_max * u_max
@@ -114,13 +112,9 @@ def allocate_thrusters(f_rb_B, v_i_B, theta, model, u_max, u_out, residual_B) ->
         # x is saturated: trade lift against rotor drag, minimising |r_x|^2 + |r_z|^2 over u_z
         u_z = _refine_lift_throttle(f_rb_B[0] - fa[0] - ctx * u2, f_rb_B[2] - fa[2], theta[forces.I_CS] * cb,
                                     ctz, G, u_z, model[forces.M_K1], u_max)
-    u_out[0] = u_x
-    u_out[1] = u_z
-    ft = np.empty(3)
-    forces.thruster_force(v_i_B, u_x, u_z, theta, model, ft)
-    for i in range(3):
-        residual_B[i] = f_rb_B[i] - fa[i] - ft[i]
-    return sat_x, sat_z
+    ft = forces.thruster_force(v_i_B, u_x, u_z, theta, model)
+    residual_B = (f_rb_B[0] - fa[0] - ft[0], f_rb_B[1] - fa[1] - ft[1], f_rb_B[2] - fa[2] - ft[2])
+    return u_x, u_z, residual_B, sat_x, sat_z
 
 
 __all__ = ["SAT_HIGH", "SAT_LOW", "SAT_NONE", "allocate_thrusters"]

@@ -63,11 +63,12 @@ def hover_blend_weight(V: float, V_lo: float, V_hi: float) -> float:
 
 
 @njit(cache=True)
-def multirotor_attitude(f_r_W, yaw_rad, tilt_max_rad, min_lift_mps2, R_d) -> None:
-    """Multirotor desired attitude: body ``-z`` along ``f_r``, heading from ``yaw_rad``, into ``R_d``.
+def multirotor_attitude(f_r_W, yaw_rad, tilt_max_rad, min_lift_mps2) -> tuple:
+    """Multirotor desired attitude ``R_d``: body ``-z`` along ``f_r``, heading from ``yaw_rad``.
 
     The upward part of ``f_r`` is at least ``min_lift_mps2`` and the tilt at most ``tilt_max_rad``
-    (both continuous clamps), so the thrust axis is always well defined and upright.
+    (both continuous clamps), so the thrust axis is always well defined and upright. Returns
+    ``R_d`` as three row 3-tuples.
     """
     up = max(-f_r_W[2], min_lift_mps2)
     hx = f_r_W[0]
@@ -89,48 +90,40 @@ def multirotor_attitude(f_r_W, yaw_rad, tilt_max_rad, min_lift_mps2, R_d) -> Non
     b2x /= m
     b2y /= m
     b2z /= m
-    R_d[0, 0] = b2y * b3z - b2z * b3y
-    R_d[1, 0] = b2z * b3x - b2x * b3z
-    R_d[2, 0] = b2x * b3y - b2y * b3x
-    R_d[0, 1] = b2x
-    R_d[1, 1] = b2y
-    R_d[2, 1] = b2z
-    R_d[0, 2] = b3x
-    R_d[1, 2] = b3y
-    R_d[2, 2] = b3z
+    return ((b2y * b3z - b2z * b3y, b2x, b3x),
+            (b2z * b3x - b2x * b3z, b2y, b3y),
+            (b2x * b3y - b2y * b3x, b2z, b3z))
 
 
 @njit(cache=True)
-def _unit_normal_to(x, c0, c1, c2, out) -> float:
-    """``out`` = unit part of ``c`` normal to unit ``x``; returns the norm before normalising."""
+def _unit_normal_to(x, c0, c1, c2) -> tuple:
+    """``(u, n)``: the part of ``c`` normal to unit ``x``, normalised if ``n`` (its norm) is > 0."""
     d = c0 * x[0] + c1 * x[1] + c2 * x[2]
-    out[0] = c0 - d * x[0]
-    out[1] = c1 - d * x[1]
-    out[2] = c2 - d * x[2]
-    n = np.sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2])
+    u0 = c0 - d * x[0]
+    u1 = c1 - d * x[1]
+    u2 = c2 - d * x[2]
+    n = np.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
     if n > 0.0:
-        out[0] /= n
-        out[1] /= n
-        out[2] /= n
-    return n
+        return (u0 / n, u1 / n, u2 / n), n
+    return (u0, u1, u2), n
 
 
 @njit(cache=True)
-def incident_frame_W(x_i_W, f_r_W, y_prev_W, have_y_prev, yaw_rad, R_i_W) -> None:
-    """World-frame incident-wind axes ``R R_i = [x_i, y_i, z_i]`` (eq:Rd) into ``R_i_W``.
+def incident_frame_W(x_i_W, f_r_W, y_prev_W, have_y_prev, yaw_rad) -> tuple:
+    """World-frame incident-wind axes, the columns of ``R R_i`` (eq:Rd): ``(x_i, y_i, z_i)`` 3-tuples.
 
     ``x_i_W`` is the unit air-relative velocity in NED. ``y_i`` follows the paper
     (``v_i x f_rb`` normalised) with the regularisation of the module notes.
     """
-    y_fb = np.empty(3)
+    y_fb = (0.0, 0.0, 0.0)
     n = 0.0
     if have_y_prev:
-        n = _unit_normal_to(x_i_W, y_prev_W[0], y_prev_W[1], y_prev_W[2], y_fb)
+        y_fb, n = _unit_normal_to(x_i_W, y_prev_W[0], y_prev_W[1], y_prev_W[2])
     if not n > 1e-3:
         # e_D x x_i: the right wing of an upright aircraft flying along x_i
-        n = _unit_normal_to(x_i_W, -x_i_W[1], x_i_W[0], 0.0, y_fb)
+        y_fb, n = _unit_normal_to(x_i_W, -x_i_W[1], x_i_W[0], 0.0)
     if not n > 1e-3:
-        _unit_normal_to(x_i_W, -np.sin(yaw_rad), np.cos(yaw_rad), 0.0, y_fb)
+        y_fb, n = _unit_normal_to(x_i_W, -np.sin(yaw_rad), np.cos(yaw_rad), 0.0)
     # x_i x f_r (= R (v_i x f_rb) / V); |x_i x f_r| is the force normal to the flow
     yx = x_i_W[1] * f_r_W[2] - x_i_W[2] * f_r_W[1]
     yy = x_i_W[2] * f_r_W[0] - x_i_W[0] * f_r_W[2]
@@ -148,15 +141,9 @@ def incident_frame_W(x_i_W, f_r_W, y_prev_W, have_y_prev, yaw_rad, R_i_W) -> Non
         yz /= m
     else:
         yx, yy, yz = y_fb[0], y_fb[1], y_fb[2]
-    R_i_W[0, 0] = x_i_W[0]
-    R_i_W[1, 0] = x_i_W[1]
-    R_i_W[2, 0] = x_i_W[2]
-    R_i_W[0, 1] = yx
-    R_i_W[1, 1] = yy
-    R_i_W[2, 1] = yz
-    R_i_W[0, 2] = x_i_W[1] * yz - x_i_W[2] * yy
-    R_i_W[1, 2] = x_i_W[2] * yx - x_i_W[0] * yz
-    R_i_W[2, 2] = x_i_W[0] * yy - x_i_W[1] * yx
+    x_i = (x_i_W[0], x_i_W[1], x_i_W[2])
+    z_i = (x_i_W[1] * yz - x_i_W[2] * yy, x_i_W[2] * yx - x_i_W[0] * yz, x_i_W[0] * yy - x_i_W[1] * yx)
+    return x_i, (yx, yy, yz), z_i
 
 
 @njit(cache=True)
@@ -181,8 +168,8 @@ def desired_angle_of_attack(lift_required_mps2, V, CL0, CL1, aero_scale_per_m, a
 
 @njit(cache=True)
 def wing_attitude(v_i_W, f_r_W, CL0, CL1, aero_scale_per_m, alpha_min_rad, alpha_max_rad,
-                  y_prev_W, have_y_prev, yaw_rad, R_d) -> tuple:
-    """Wing desired attitude ``R_d = R R_i R_alpha`` (eq:Rd, eq:alphad) into ``R_d``.
+                  y_prev_W, have_y_prev, yaw_rad) -> tuple:
+    """Wing desired attitude ``R_d = R R_i R_alpha`` (eq:Rd, eq:alphad).
 
     Parameters
     ----------
@@ -196,28 +183,25 @@ def wing_attitude(v_i_W, f_r_W, CL0, CL1, aero_scale_per_m, alpha_min_rad, alpha
 
     Returns
     -------
-    (alpha_d_rad, lift_required_mps2)
+    (R_d, alpha_d_rad, lift_required_mps2)
+        ``R_d`` as three row 3-tuples.
     """
     V = np.sqrt(v_i_W[0] ** 2 + v_i_W[1] ** 2 + v_i_W[2] ** 2)
-    x = np.empty(3)
-    for i in range(3):
-        x[i] = v_i_W[i] / V
-    Ri = np.empty((3, 3))
-    incident_frame_W(x, f_r_W, y_prev_W, have_y_prev, yaw_rad, Ri)
-    lift = -(f_r_W[0] * Ri[0, 2] + f_r_W[1] * Ri[1, 2] + f_r_W[2] * Ri[2, 2])
+    x = (v_i_W[0] / V, v_i_W[1] / V, v_i_W[2] / V)
+    x_i, y_i, z_i = incident_frame_W(x, f_r_W, y_prev_W, have_y_prev, yaw_rad)
+    lift = -(f_r_W[0] * z_i[0] + f_r_W[1] * z_i[1] + f_r_W[2] * z_i[2])
     alpha_d = desired_angle_of_attack(lift, V, CL0, CL1, aero_scale_per_m, alpha_min_rad, alpha_max_rad)
     ca, sa = np.cos(alpha_d), np.sin(alpha_d)
     # R_alpha = R_y(alpha_d): columns (ca, 0, -sa), (0, 1, 0), (sa, 0, ca)
-    for r in range(3):
-        R_d[r, 0] = ca * Ri[r, 0] - sa * Ri[r, 2]
-        R_d[r, 1] = Ri[r, 1]
-        R_d[r, 2] = sa * Ri[r, 0] + ca * Ri[r, 2]
-    return alpha_d, lift
+    R_d = ((ca * x_i[0] - sa * z_i[0], y_i[0], sa * x_i[0] + ca * z_i[0]),
+           (ca * x_i[1] - sa * z_i[1], y_i[1], sa * x_i[1] + ca * z_i[1]),
+           (ca * x_i[2] - sa * z_i[2], y_i[2], sa * x_i[2] + ca * z_i[2]))
+    return R_d, alpha_d, lift
 
 
 @njit(cache=True)
-def quat_slerp(qa, qb, w, out) -> None:
-    """Spherical interpolation from unit ``qa`` (w = 0) to ``qb`` (w = 1), the short way, into ``out``."""
+def quat_slerp(qa, qb, w) -> tuple:
+    """Spherical interpolation from unit ``qa`` (w = 0) to ``qb`` (w = 1), the short way (4-tuple)."""
     d = qa[0] * qb[0] + qa[1] * qb[1] + qa[2] * qb[2] + qa[3] * qb[3]
     sgn = 1.0
     if d < 0.0:
@@ -232,63 +216,65 @@ def quat_slerp(qa, qb, w, out) -> None:
         s = np.sin(th)
         ka = np.sin((1.0 - w) * th) / s
         kb = sgn * np.sin(w * th) / s
-    n = 0.0
-    for i in range(4):
-        out[i] = ka * qa[i] + kb * qb[i]
-        n += out[i] * out[i]
-    n = np.sqrt(n)
-    for i in range(4):
-        out[i] /= n
-    if out[0] < 0.0:
-        for i in range(4):
-            out[i] = -out[i]
+    o0 = ka * qa[0] + kb * qb[0]
+    o1 = ka * qa[1] + kb * qb[1]
+    o2 = ka * qa[2] + kb * qb[2]
+    o3 = ka * qa[3] + kb * qb[3]
+    n = np.sqrt(o0 * o0 + o1 * o1 + o2 * o2 + o3 * o3)
+    o0, o1, o2, o3 = o0 / n, o1 / n, o2 / n, o3 / n
+    if o0 < 0.0:
+        return (-o0, -o1, -o2, -o3)
+    return (o0, o1, o2, o3)
+
+
+@njit(cache=True)
+def _quat_from_rows(R_rows) -> tuple:
+    """Quaternion (4-tuple) of a rotation given as three row 3-tuples (:func:`vtoladapt.frames.rotmat_to_quat`)."""
+    R = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            R[i, j] = R_rows[i][j]
+    q = rotmat_to_quat(R)
+    return (q[0], q[1], q[2], q[3])
 
 
 @njit(cache=True)
 def desired_attitude(f_r_W, v_i_W, yaw_rad, CL0, CL1, aero_scale_per_m, alpha_min_rad, alpha_max_rad,
-                     V_lo, V_hi, tilt_max_rad, min_lift_mps2, y_prev_W, have_y_prev, q_d, y_i_W) -> tuple:
+                     V_lo, V_hi, tilt_max_rad, min_lift_mps2, y_prev_W, have_y_prev) -> tuple:
     """Desired attitude ``q_d`` (scalar first) blending the multirotor and the wing solutions.
 
-    See the module notes. ``y_i_W`` receives the wing solution's ``y_i`` (NED) when it was
-    formed (to be passed back as ``y_prev_W`` next tick).
+    See the module notes.
 
     Returns
     -------
-    (alpha_d_rad, blend_weight, wing_formed)
-        ``alpha_d`` of the wing solution (0 if not formed), the wing weight in [0, 1], and whether
-        the wing solution was formed (``V > 1e-6 m/s``).
+    (q_d, y_i_W, alpha_d_rad, blend_weight, wing_formed)
+        ``q_d`` (4-tuple); the wing solution's ``y_i`` (NED 3-tuple, to be passed back as
+        ``y_prev_W`` next tick; zeros if not formed); ``alpha_d`` of the wing solution (0 if not
+        formed); the wing weight in [0, 1]; and whether the wing solution was formed
+        (``V > 1e-6 m/s``).
     """
     V = np.sqrt(v_i_W[0] ** 2 + v_i_W[1] ** 2 + v_i_W[2] ** 2)
     w = hover_blend_weight(V, V_lo, V_hi)
-    R_mc = np.empty((3, 3))
     alpha_d = 0.0
-    formed = False
-    q_w = np.empty(4)
-    if V > V_WING_MIN_MPS:
-        R_w = np.empty((3, 3))
-        alpha_d, _ = wing_attitude(v_i_W, f_r_W, CL0, CL1, aero_scale_per_m, alpha_min_rad,
-                                   alpha_max_rad, y_prev_W, have_y_prev, yaw_rad, R_w)
-        for i in range(3):
-            y_i_W[i] = R_w[i, 1]
-        formed = True
-        q_w = rotmat_to_quat(R_w)
+    formed = V > V_WING_MIN_MPS
+    q_w = (1.0, 0.0, 0.0, 0.0)
+    y_i = (0.0, 0.0, 0.0)
+    if formed:
+        R_w, alpha_d, _ = wing_attitude(v_i_W, f_r_W, CL0, CL1, aero_scale_per_m, alpha_min_rad,
+                                        alpha_max_rad, y_prev_W, have_y_prev, yaw_rad)
+        y_i = (R_w[0][1], R_w[1][1], R_w[2][1])
+        q_w = _quat_from_rows(R_w)
     if w >= 1.0:
-        for i in range(4):
-            q_d[i] = q_w[i]
-        return alpha_d, w, formed
-    multirotor_attitude(f_r_W, yaw_rad, tilt_max_rad, min_lift_mps2, R_mc)
-    q_mc = rotmat_to_quat(R_mc)
+        return q_w, y_i, alpha_d, w, formed
+    q_mc = _quat_from_rows(multirotor_attitude(f_r_W, yaw_rad, tilt_max_rad, min_lift_mps2))
     if w <= 0.0:
-        for i in range(4):
-            q_d[i] = q_mc[i]
-        return alpha_d, w, formed
-    quat_slerp(q_mc, q_w, w, q_d)
-    return alpha_d, w, formed
+        return q_mc, y_i, alpha_d, w, formed
+    return quat_slerp(q_mc, q_w, w), y_i, alpha_d, w, formed
 
 
 @njit(cache=True)
-def desired_frame_rate(q_prev, q_now, dt) -> np.ndarray:
-    """Mean rate of the desired frame over a tick, in the desired frame: ``log(R_prev^T R_now) / dt``."""
+def desired_frame_rate(q_prev, q_now, dt) -> tuple:
+    """Mean rate of the desired frame over a tick, in the desired frame: ``log(R_prev^T R_now) / dt`` (3-tuple)."""
     # q_e = q_prev^* q_now
     a0, a1, a2, a3 = q_prev[0], -q_prev[1], -q_prev[2], -q_prev[3]
     b0, b1, b2, b3 = q_now[0], q_now[1], q_now[2], q_now[3]
@@ -299,15 +285,11 @@ def desired_frame_rate(q_prev, q_now, dt) -> np.ndarray:
     if e0 < 0.0:
         e0, e1, e2, e3 = -e0, -e1, -e2, -e3
     s = np.sqrt(e1 * e1 + e2 * e2 + e3 * e3)
-    out = np.zeros(3)
     if s < 1e-12:
         k = 2.0 / dt
     else:
         k = 2.0 * np.arctan2(s, e0) / s / dt
-    out[0] = k * e1
-    out[1] = k * e2
-    out[2] = k * e3
-    return out
+    return (k * e1, k * e2, k * e3)
 
 
 __all__ = ["desired_angle_of_attack", "desired_attitude", "desired_frame_rate", "hover_blend_weight",

@@ -128,12 +128,13 @@ P_K_D = _p.take(3)
 P_INT_LIMIT = _p.take(3)
 P_J = _p.take(9)
 P_MODEL = _p.take(3)
-P_THETA0 = _p.take(N_THETA)
-P_THETA_INIT = _p.take(N_THETA)
-P_LOWER = _p.take(N_THETA)
-P_UPPER = _p.take(N_THETA)
-P_GAMMA0 = _p.take(N_THETA * N_THETA)
-P_P0 = _p.take(N_THETA * N_THETA)
+P_PRIOR = _p.take(ad.PRIOR_SIZE)        # the adaptation's prior (adaptation.PRIOR_* layout):
+P_THETA0 = P_PRIOR + ad.PRIOR_THETA0    #   theta_0
+P_THETA_INIT = P_PRIOR + ad.PRIOR_THETA_INIT
+P_LOWER = P_PRIOR + ad.PRIOR_LOWER      #   bounds of theta-hat
+P_UPPER = P_PRIOR + ad.PRIOR_UPPER
+P_GAMMA0 = P_PRIOR + ad.PRIOR_GAMMA0    #   P0^-1, row-major
+P_P0 = P_PRIOR + ad.PRIOR_P0            #   P0, row-major
 P_LAMBDA = _p.take(1)
 P_SIGMA = _p.take(1)
 P_LOWPASS_HZ = _p.take(1)
@@ -166,10 +167,11 @@ P_SIZE = _p.n
 
 # --- state layout --------------------------------------------------------------------------------
 _s = _Offsets()
-S_THETA = _s.take(N_THETA)
-S_GAMMA = _s.take(N_THETA * N_THETA)     # information matrix P^-1, row-major
-S_W_F = _s.take(3 * N_THETA)            # filtered regressor W = [Phi]_f, row-major
-S_AM_F = _s.take(3)                     # filtered specific force a_m, body
+S_ADAPT = _s.take(ad.MEM_SIZE)          # the adaptation's memory (adaptation.MEM_* layout):
+S_THETA = S_ADAPT + ad.MEM_THETA        #   theta-hat
+S_GAMMA = S_ADAPT + ad.MEM_GAMMA        #   information matrix P^-1, row-major
+S_W_F = S_ADAPT + ad.MEM_W              #   filtered regressor W = [Phi]_f, row-major
+S_AM_F = S_ADAPT + ad.MEM_A_M           #   filtered specific force a_m, body
 S_FILT_INIT = _s.take(1)
 S_INT = _s.take(3)                      # PID integral term, m/s^2 NED
 S_V_PREV = _s.take(3)
@@ -198,33 +200,15 @@ S_RES_PREV_W = _s.take(3)
 S_TIME = _s.take(1)
 S_STEPS = _s.take(1)
 S_U_EST = _s.take(2)                    # throttles the motors are estimated to deliver (nominal lag)
+# The filter and lag gains depend only on dt and the parameters: they are computed when dt changes
+# (every tick of the Python API, whose dt jitters by rounding; once per run in the simulator).
+GAIN_LOWPASS, GAIN_WIND, GAIN_FADE, GAIN_MOTOR_X, GAIN_MOTOR_Z, GAIN_OMEGA_D, GAIN_DERIV, GAIN_FORGET_A, \
+    GAIN_FORGET_B = range(9)
+S_GAINS_DT = _s.take(1)                 # the dt (s) the gains were computed for; 0: not yet
+S_GAINS = _s.take(9)                    # the gains, GAIN_* order
+S_ACTIVE_SET = _s.take(1)               # bit mask of the bounds the last projection held
+S_WORK = _s.take(ad.WORK_SIZE)          # the adaptation's scratch (no meaning between ticks)
 S_SIZE = _s.n
-
-# --- per-tick work array (views of one allocation) ---------------------------------------------
-_w = _Offsets()
-W_ACCEL = _w.take(3)
-W_V_I = _w.take(3)
-W_V_I_W = _w.take(3)
-W_P_TILDE = _w.take(3)
-W_V_R = _w.take(3)
-W_V_R_DOT = _w.take(3)
-W_V_TILDE_RAW = _w.take(3)
-W_V_TILDE = _w.take(3)
-W_PHI = _w.take(24)
-W_E = _w.take(3)
-W_P_DIAG = _w.take(8)
-W_F_R = _w.take(3)
-W_Q_D = _w.take(4)
-W_Y_I = _w.take(3)
-W_OMEGA_D = _w.take(3)
-W_OMEGA_D_DOT = _w.take(3)
-W_OMEGA_R = _w.take(3)
-W_OMEGA_R_DOT = _w.take(3)
-W_TAU = _w.take(3)
-W_F_RB = _w.take(3)
-W_U = _w.take(2)
-W_RES = _w.take(3)
-W_SIZE = _w.n
 
 # --- diagnostics layout --------------------------------------------------------------------------
 _DIAG_SPEC = (
@@ -507,11 +491,10 @@ def state_P_inv(state) -> np.ndarray:
 @njit(cache=True)
 def state_P(state) -> np.ndarray:
     """The adaptation gain ``P`` (8, 8), from the information matrix by Cholesky (a new array)."""
-    P = np.empty((N_THETA, N_THETA))
-    work = np.empty((N_THETA, N_THETA))
-    if not ad.spd_inverse(state_P_inv(state), P, work):
-        P[:, :] = np.nan
-    return P
+    P = np.empty(N_THETA * N_THETA)
+    if not ad.spd_inverse(state, S_GAMMA, P, 0, np.empty(2 * N_THETA * N_THETA), 0):
+        P[:] = np.nan
+    return P.reshape((N_THETA, N_THETA))
 
 
 @njit(cache=True)
@@ -545,22 +528,74 @@ def state_last_command(state) -> np.ndarray:
 
 
 # --- the step --------------------------------------------------------------------------------------
+# The step reads its arrays by offset into scalars and tuples and calls kernels that take and
+# return those: an array view handed to a compiled function costs two atomic reference-count
+# updates (about 30 ns here); the only arrays it passes on are params and state, to the adaptation.
 
 @njit(cache=True)
-def _accept(src, off, n, bound, state, s_off) -> bool:
-    """Copy ``src[off:off+n]`` into ``state[s_off:]`` if finite and within ``+-bound``; else keep the old."""
-    for i in range(n):
-        x = src[off + i]
-        if not (np.isfinite(x) and abs(x) <= bound):
-            return False
-    for i in range(n):
-        state[s_off + i] = src[off + i]
-    return True
+def _vec3(a, o) -> tuple:
+    return (a[o], a[o + 1], a[o + 2])
+
+
+@njit(cache=True)
+def _plausible(x, bound) -> bool:
+    """Every entry of the tuple ``x`` finite and within ``+-bound`` (``bound = inf``: finite)."""
+    ok = True
+    for i in range(len(x)):
+        ok = ok and np.isfinite(x[i]) and abs(x[i]) <= bound
+    return ok
+
+
+@njit(cache=True)
+def _rotation_rows(q) -> tuple:
+    """``R(q)`` (:func:`vtoladapt.frames.quat_to_rotmat`) as three row 3-tuples."""
+    R = quat_to_rotmat(q)
+    return ((R[0, 0], R[0, 1], R[0, 2]), (R[1, 0], R[1, 1], R[1, 2]), (R[2, 0], R[2, 1], R[2, 2]))
 
 
 @njit(cache=True)
 def _wrap_angle(a) -> float:
+    """``a`` in (-pi, pi] (unchanged if already there)."""
+    if -np.pi < a <= np.pi:
+        return a
     return np.arctan2(np.sin(a), np.cos(a))
+
+
+@njit(cache=True)
+def _update_gains(params, state, dt) -> None:
+    """Store the gains of the filters and lags for a tick of ``dt`` (``GAIN_*``) in ``state``."""
+    g = S_GAINS
+    state[g + GAIN_LOWPASS] = ad.lowpass_gain(params[P_LOWPASS_HZ], dt)
+    state[g + GAIN_WIND] = 1.0 - np.exp(-dt / params[P_WIND_TAU])
+    state[g + GAIN_FADE] = np.exp(-dt / params[P_WIND_FADE])
+    state[g + GAIN_MOTOR_X] = np.exp(-dt / params[P_MOTOR_TAU])
+    state[g + GAIN_MOTOR_Z] = np.exp(-dt / params[P_MOTOR_TAU + 1])
+    state[g + GAIN_OMEGA_D] = ad.lowpass_gain(params[P_WD_HZ], dt)
+    state[g + GAIN_DERIV] = ad.lowpass_gain(params[P_DERIV_HZ], dt)
+    state[g + GAIN_FORGET_A], state[g + GAIN_FORGET_B] = ad.forgetting_weights(params[P_LAMBDA], dt)
+    state[S_GAINS_DT] = dt
+
+
+@njit(cache=True)
+def _pid_force(params, state, kind, v_W, v_tilde, a_d, dt) -> tuple:
+    """The baselines' force command ``f_r`` (PX4 velocity control, see the module notes), m/s^2 NED."""
+    if state[S_VDOT_INIT] > 0.0:
+        c_d = state[S_GAINS + GAIN_DERIV]
+        for i in range(3):
+            state[S_VDOT_F + i] = ad.lowpass(state[S_VDOT_F + i], (v_W[i] - state[S_V_PREV + i]) / dt, c_d)
+    state[S_VDOT_INIT] = 1.0
+    saturated = state[S_SAT_PREV] != 0.0 or state[S_SAT_PREV + 1] != 0.0
+    v_err = (-v_tilde[0], -v_tilde[1], -v_tilde[2])
+    if kind == KIND_PID:
+        for i in range(3):
+            frozen = saturated and v_err[i] * state[S_RES_PREV_W + i] > 0.0
+            if not frozen:
+                lim = params[P_INT_LIMIT + i]
+                state[S_INT + i] = min(max(state[S_INT + i] + params[P_K_I + i] * v_err[i] * dt, -lim), lim)
+    return (a_d[0] + params[P_K_V] * v_err[0] + state[S_INT] - params[P_K_D] * state[S_VDOT_F],
+            a_d[1] + params[P_K_V + 1] * v_err[1] + state[S_INT + 1] - params[P_K_D + 1] * state[S_VDOT_F + 1],
+            a_d[2] + params[P_K_V + 2] * v_err[2] + state[S_INT + 2] - params[P_K_D + 2] * state[S_VDOT_F + 2]
+            - GRAVITY_MPS2)
 
 
 @njit(cache=True)
@@ -571,172 +606,148 @@ def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
     (:data:`CONTROLLER_DIAG_COLUMNS`), updates ``state`` in place. ``dt`` (s) outside ``(0, 0.1]``
     or not finite is replaced (nominal rate, or 0.1 s) and flagged.
     """
-    ws = np.empty(W_SIZE)  # one work array per tick; the named vectors below are views of it
     kind = int(params[P_KIND])
     mode = int(params[P_ADAPT_MODE])
     faults = 0
     if not (dt > 0.0 and dt <= 0.1):
         faults |= FAULT_DT
         dt = params[P_DT_NOMINAL] if not dt > 0.1 else 0.1
+    if not state[S_GAINS_DT] == dt:
+        _update_gains(params, state, dt)
     u_max = params[P_U_MAX]
 
     # 1. sanitise the measurement: every group falls back to its last good value
-    if not _accept(meas, L.MEAS_P_W, 3, POSITION_PLAUSIBLE_M, state, S_P_LAST):
+    x = _vec3(meas, L.MEAS_P_W)
+    if _plausible(x, POSITION_PLAUSIBLE_M):
+        state[S_P_LAST], state[S_P_LAST + 1], state[S_P_LAST + 2] = x
+    else:
         faults |= FAULT_POSITION
-    if not _accept(meas, L.MEAS_V_W, 3, VELOCITY_PLAUSIBLE_MPS, state, S_V_LAST):
+    x = _vec3(meas, L.MEAS_V_W)
+    if _plausible(x, VELOCITY_PLAUSIBLE_MPS):
+        state[S_V_LAST], state[S_V_LAST + 1], state[S_V_LAST + 2] = x
+    else:
         faults |= FAULT_VELOCITY
-    qn = 0.0
-    q_ok = True
-    for i in range(4):
-        x = meas[L.MEAS_Q_WB + i]
-        if not np.isfinite(x):
-            q_ok = False
-        else:
-            qn += x * x
-    qn = np.sqrt(qn) if q_ok else 0.0
-    if q_ok and 0.5 < qn < 1.5:
+    q = (meas[L.MEAS_Q_WB], meas[L.MEAS_Q_WB + 1], meas[L.MEAS_Q_WB + 2], meas[L.MEAS_Q_WB + 3])
+    qn = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]) if _plausible(q, np.inf) else 0.0
+    if 0.5 < qn < 1.5:
         for i in range(4):
-            state[S_Q_LAST + i] = meas[L.MEAS_Q_WB + i] / qn
+            state[S_Q_LAST + i] = q[i] / qn
     else:
         faults |= FAULT_ATTITUDE
-    g_ok = True
-    for i in range(3):
-        if not np.isfinite(meas[L.MEAS_OMEGA_B + i]):
-            g_ok = False
-    if g_ok:
+    x = _vec3(meas, L.MEAS_OMEGA_B)
+    if _plausible(x, np.inf):
         for i in range(3):
-            state[S_OMEGA_LAST + i] = min(max(meas[L.MEAS_OMEGA_B + i], -GYRO_RANGE_RADPS), GYRO_RANGE_RADPS)
+            state[S_OMEGA_LAST + i] = min(max(x[i], -GYRO_RANGE_RADPS), GYRO_RANGE_RADPS)
     else:
         faults |= FAULT_GYRO
-    accel = ws[W_ACCEL:W_ACCEL + 3]
-    accel_ok = True
-    for i in range(3):
-        accel[i] = meas[L.MEAS_ACCEL_B + i]
-        if not (np.isfinite(accel[i]) and abs(accel[i]) <= ACCEL_PLAUSIBLE_MPS2):
-            accel_ok = False
+    accel = _vec3(meas, L.MEAS_ACCEL_B)
+    accel_ok = _plausible(accel, ACCEL_PLAUSIBLE_MPS2)
     if not accel_ok:
         faults |= FAULT_ACCEL
-    p_W = state[S_P_LAST:S_P_LAST + 3]
-    v_W = state[S_V_LAST:S_V_LAST + 3]
-    q_WB = state[S_Q_LAST:S_Q_LAST + 4]
-    omega = state[S_OMEGA_LAST:S_OMEGA_LAST + 3]
-    R = quat_to_rotmat(q_WB)
+    p_W = _vec3(state, S_P_LAST)
+    v_W = _vec3(state, S_V_LAST)
+    q_WB = (state[S_Q_LAST], state[S_Q_LAST + 1], state[S_Q_LAST + 2], state[S_Q_LAST + 3])
+    omega = _vec3(state, S_OMEGA_LAST)
+    R = _rotation_rows(q_WB)
 
     # sanitise the reference (groups: position, velocity, acceleration, yaw)
     have_ref = state[S_HAVE_REF] > 0.0
-    ok_p = _accept(ref, L.REF_P_W, 3, POSITION_PLAUSIBLE_M, state, S_REF_LAST + L.REF_P_W)
-    ok_v = _accept(ref, L.REF_V_W, 3, VELOCITY_PLAUSIBLE_MPS, state, S_REF_LAST + L.REF_V_W)
-    ok_a = _accept(ref, L.REF_A_W, 3, ACCEL_PLAUSIBLE_MPS2, state, S_REF_LAST + L.REF_A_W)
-    ok_y = np.isfinite(ref[L.REF_YAW])
-    if ok_y:
+    ok_ref = True
+    for off, bound in ((L.REF_P_W, POSITION_PLAUSIBLE_M), (L.REF_V_W, VELOCITY_PLAUSIBLE_MPS),
+                       (L.REF_A_W, ACCEL_PLAUSIBLE_MPS2)):
+        x = _vec3(ref, off)
+        if _plausible(x, bound):
+            state[S_REF_LAST + off], state[S_REF_LAST + off + 1], state[S_REF_LAST + off + 2] = x
+        else:
+            ok_ref = False
+            if off == L.REF_P_W and not have_ref:
+                # no good reference yet: hold where we are
+                state[S_REF_LAST + off], state[S_REF_LAST + off + 1], state[S_REF_LAST + off + 2] = p_W
+    if np.isfinite(ref[L.REF_YAW]):
         state[S_REF_LAST + L.REF_YAW] = _wrap_angle(ref[L.REF_YAW])
-    if not (ok_p and ok_v and ok_a and ok_y):
-        faults |= FAULT_REFERENCE
+    else:
+        ok_ref = False
         if not have_ref:
-            # no good reference yet: hold where we are, facing where we face
-            if not ok_p:
-                for i in range(3):
-                    state[S_REF_LAST + L.REF_P_W + i] = p_W[i]
-            if not ok_y:
-                state[S_REF_LAST + L.REF_YAW] = euler_from_quat(q_WB)[0]
+            # no good reference yet: face where we face
+            state[S_REF_LAST + L.REF_YAW] = euler_from_quat(q_WB)[0]
+    if not ok_ref:
+        faults |= FAULT_REFERENCE
     state[S_HAVE_REF] = 1.0
-    p_d = state[S_REF_LAST + L.REF_P_W:S_REF_LAST + L.REF_P_W + 3]
-    v_d = state[S_REF_LAST + L.REF_V_W:S_REF_LAST + L.REF_V_W + 3]
-    a_d = state[S_REF_LAST + L.REF_A_W:S_REF_LAST + L.REF_A_W + 3]
+    p_d = _vec3(state, S_REF_LAST + L.REF_P_W)
+    v_d = _vec3(state, S_REF_LAST + L.REF_V_W)
+    a_d = _vec3(state, S_REF_LAST + L.REF_A_W)
     yaw_d = state[S_REF_LAST + L.REF_YAW]
 
     # 2. incident velocity: probe, or the fallback from the wind estimate
-    v_i = ws[W_V_I:W_V_I + 3]
-    probe_ok = meas[L.MEAS_V_I_VALID] == 1.0
-    vi2 = 0.0
-    for i in range(3):
-        v_i[i] = meas[L.MEAS_V_I_B + i]
-        if not np.isfinite(v_i[i]):
-            probe_ok = False
-        else:
-            vi2 += v_i[i] * v_i[i]
-    if probe_ok and not np.sqrt(vi2) <= params[P_VPROBE_MAX]:
-        probe_ok = False
+    v_i = _vec3(meas, L.MEAS_V_I_B)
+    all_finite = _plausible(v_i, np.inf)
+    V_probe = np.sqrt(v_i[0] * v_i[0] + v_i[1] * v_i[1] + v_i[2] * v_i[2])
+    probe_ok = meas[L.MEAS_V_I_VALID] == 1.0 and all_finite and V_probe <= params[P_VPROBE_MAX]
     # A finite reading flagged invalid only because the airspeed is low (the pressure probe's
     # q_inf floor, the probe's minimum airspeed) still says "the air is nearly still": use it.
     # Below the hover-blend airspeed the aerodynamic columns of Phi are ~V^2 ~ 0, so C_Tz keeps
     # adapting in hover instead of pausing whenever the fan is off.
-    all_finite = (np.isfinite(v_i[0]) and np.isfinite(v_i[1]) and np.isfinite(v_i[2]))
-    if not probe_ok and meas[L.MEAS_V_I_VALID] == 0.0 and all_finite and np.sqrt(vi2) < params[P_V_LO]:
+    if not probe_ok and meas[L.MEAS_V_I_VALID] == 0.0 and all_finite and V_probe < params[P_V_LO]:
         probe_ok = True
     if meas[L.MEAS_V_I_VALID] != 1.0:
         faults |= FAULT_PROBE  # the sensor's own flag is always reported, even when the reading is used
-    wind = state[S_WIND_EST:S_WIND_EST + 3]
     if probe_ok:
-        cw = 1.0 - np.exp(-dt / params[P_WIND_TAU])
+        cw = state[S_GAINS + GAIN_WIND]
         for i in range(3):
-            w_i = v_W[i] - (R[i, 0] * v_i[0] + R[i, 1] * v_i[1] + R[i, 2] * v_i[2])
+            w_i = v_W[i] - (R[i][0] * v_i[0] + R[i][1] * v_i[1] + R[i][2] * v_i[2])
             if state[S_HAVE_WIND] > 0.0:
-                wind[i] = ad.flush_tiny(wind[i] + cw * (w_i - wind[i]))
+                state[S_WIND_EST + i] = ad.lowpass(state[S_WIND_EST + i], w_i, cw)
             else:
-                wind[i] = w_i
+                state[S_WIND_EST + i] = w_i
         state[S_HAVE_WIND] = 1.0
     else:
         faults |= FAULT_PROBE
         # a stale estimate must not outlive the wind: fade toward still air while the probe is out
-        fade = np.exp(-dt / params[P_WIND_FADE])
+        fade = state[S_GAINS + GAIN_FADE]
         for i in range(3):
-            wind[i] = ad.flush_tiny(wind[i] * fade)
-        for j in range(3):
-            v_i[j] = (R[0, j] * (v_W[0] - wind[0]) + R[1, j] * (v_W[1] - wind[1])
-                      + R[2, j] * (v_W[2] - wind[2]))
-    v_i_W = ws[W_V_I_W:W_V_I_W + 3]
-    for i in range(3):
-        v_i_W[i] = R[i, 0] * v_i[0] + R[i, 1] * v_i[1] + R[i, 2] * v_i[2]
+            state[S_WIND_EST + i] = ad.flush_tiny(state[S_WIND_EST + i] * fade)
+        d = (v_W[0] - state[S_WIND_EST], v_W[1] - state[S_WIND_EST + 1], v_W[2] - state[S_WIND_EST + 2])
+        v_i = (R[0][0] * d[0] + R[1][0] * d[1] + R[2][0] * d[2],
+               R[0][1] * d[0] + R[1][1] * d[1] + R[2][1] * d[2],
+               R[0][2] * d[0] + R[1][2] * d[1] + R[2][2] * d[2])
+    v_i_W = (R[0][0] * v_i[0] + R[0][1] * v_i[1] + R[0][2] * v_i[2],
+             R[1][0] * v_i[0] + R[1][1] * v_i[1] + R[1][2] * v_i[2],
+             R[2][0] * v_i[0] + R[2][1] * v_i[1] + R[2][2] * v_i[2])
     airspeed = np.sqrt(v_i[0] ** 2 + v_i[1] ** 2 + v_i[2] ** 2)
 
     # 3. tracking errors (eq:wr)
-    p_tilde = ws[W_P_TILDE:W_P_TILDE + 3]
-    for i in range(3):
-        p_tilde[i] = p_W[i] - p_d[i]
-    v_r = ws[W_V_R:W_V_R + 3]
-    v_r_dot = ws[W_V_R_DOT:W_V_R_DOT + 3]
-    reference_velocity(p_tilde, v_d, a_d, v_W, params[P_LAMBDA_P:P_LAMBDA_P + 3], params[P_VCORR_MAX],
-                       v_r, v_r_dot)
-    v_tilde_raw = ws[W_V_TILDE_RAW:W_V_TILDE_RAW + 3]
-    v_tilde = ws[W_V_TILDE:W_V_TILDE + 3]
-    for i in range(3):
-        v_tilde_raw[i] = v_W[i] - v_r[i]
-        v_tilde[i] = v_tilde_raw[i]
-    limit_norm(v_tilde, params[P_VERR_MAX])
+    p_tilde = (p_W[0] - p_d[0], p_W[1] - p_d[1], p_W[2] - p_d[2])
+    v_r, v_r_dot, _ = reference_velocity(p_tilde, v_d, a_d, v_W, _vec3(params, P_LAMBDA_P), params[P_VCORR_MAX])
+    v_tilde_raw = (v_W[0] - v_r[0], v_W[1] - v_r[1], v_W[2] - v_r[2])
+    v_tilde, _ = limit_norm(v_tilde_raw, params[P_VERR_MAX])
 
     # 4. adaptation: filters, prediction error, theta-hat and P
-    theta = state[S_THETA:S_THETA + N_THETA]
-    Gamma = state[S_GAMMA:S_GAMMA + N_THETA * N_THETA].reshape((N_THETA, N_THETA))
-    Wf = state[S_W_F:S_W_F + 3 * N_THETA].reshape((3, N_THETA))
-    a_m = state[S_AM_F:S_AM_F + 3]
-    model = params[P_MODEL:P_MODEL + 3]
-    Phi = ws[W_PHI:W_PHI + 3 * N_THETA].reshape((3, N_THETA))
     # The accelerometer feels the thrust of motors that lag their commands (30-40 ms): pass the
     # command held over the last interval through the vehicle's nominal lag, so that Phi uses the
     # throttles that produced the measured specific force (not the plant's true lag).
-    u_est = state[S_U_EST:S_U_EST + 2]
     if params[P_MOTOR_LAG_ON] > 0.0 and state[S_STEPS] >= 2.0:
         for j in range(2):
-            a_lag = np.exp(-dt / params[P_MOTOR_TAU + j])
-            u_est[j] = state[S_U_PREV + j] + (u_est[j] - state[S_U_PREV + j]) * a_lag
+            a_lag = state[S_GAINS + GAIN_MOTOR_X + j]
+            state[S_U_EST + j] = state[S_U_PREV + j] + (state[S_U_EST + j] - state[S_U_PREV + j]) * a_lag
     else:
-        u_est[0] = state[S_U_PREV]
-        u_est[1] = state[S_U_PREV + 1]
-    regressor(v_i, u_est[0], u_est[1], model, Phi)
-    c_f = ad.lowpass_gain(params[P_LOWPASS_HZ], dt)
+        state[S_U_EST] = state[S_U_PREV]
+        state[S_U_EST + 1] = state[S_U_PREV + 1]
+    model = _vec3(params, P_MODEL)
+    Phi = regressor(v_i, state[S_U_EST], state[S_U_EST + 1], model)
+    c_f = state[S_GAINS + GAIN_LOWPASS]
     if state[S_FILT_INIT] > 0.0:
         for r in range(3):
             for k in range(N_THETA):
-                Wf[r, k] = ad.flush_tiny(Wf[r, k] + c_f * (Phi[r, k] - Wf[r, k]))
+                state[S_W_F + N_THETA * r + k] = ad.lowpass(state[S_W_F + N_THETA * r + k], Phi[r][k], c_f)
         if accel_ok:
-            ad.lowpass_update(a_m, accel, c_f)
+            for r in range(3):
+                state[S_AM_F + r] = ad.lowpass(state[S_AM_F + r], accel[r], c_f)
     elif accel_ok and state[S_STEPS] >= 1.0:
         # start the filters from a sample whose regressor uses a command this controller issued
         for r in range(3):
-            a_m[r] = accel[r]
+            state[S_AM_F + r] = accel[r]
             for k in range(N_THETA):
-                Wf[r, k] = Phi[r, k]
+                state[S_W_F + N_THETA * r + k] = Phi[r][k]
         state[S_FILT_INIT] = 1.0
     if probe_ok and accel_ok:
         state[S_VALID_TIME] += dt
@@ -744,133 +755,109 @@ def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
         state[S_VALID_TIME] = 0.0
     adapt_active = (mode != ad.ADAPT_NONE and state[S_FILT_INIT] > 0.0 and probe_ok and accel_ok
                     and state[S_VALID_TIME] >= params[P_HOLDOFF_S] - 1e-12)
-    e = ws[W_E:W_E + 3]
-    P_diag = ws[W_P_DIAG:W_P_DIAG + 8]
-    mats = np.empty((3, N_THETA, N_THETA))
-    P0 = params[P_P0:P_P0 + N_THETA * N_THETA].reshape((N_THETA, N_THETA))
     n_active = 0
+    p_diag = S_WORK + ad.WK_P_DIAG
     if adapt_active:
-        n_active = ad.adaptation_step(
-            mode, theta, Gamma, Wf, a_m, Phi, R, v_tilde, dt,
-            params[P_THETA0:P_THETA0 + N_THETA],
-            params[P_GAMMA0:P_GAMMA0 + N_THETA * N_THETA].reshape((N_THETA, N_THETA)), P0,
-            params[P_LOWER:P_LOWER + N_THETA], params[P_UPPER:P_UPPER + N_THETA],
-            params[P_LAMBDA], params[P_SIGMA], params[P_TRACE_MAX], e, P_diag, mats)
+        n_active, active_set, e = ad.adaptation_step(
+            mode, state, S_ADAPT, S_WORK, params, P_PRIOR, Phi, R, v_tilde, dt,
+            state[S_GAINS + GAIN_FORGET_A], state[S_GAINS + GAIN_FORGET_B], params[P_SIGMA], params[P_TRACE_MAX],
+            int(state[S_ACTIVE_SET]))
+        state[S_ACTIVE_SET] = active_set
         if n_active < 0:
             faults |= FAULT_ADAPTATION
     else:
-        ad.prediction_error(Wf, theta, a_m, e)
-        if mode == ad.ADAPT_COMPOSITE:
-            if ad.inverse_factor(Gamma, mats[1], mats[0]):
-                ad.factor_diag(mats[1], P_diag)
-            else:
+        e = ad.prediction_error(state, S_W_F, state, S_THETA, state, S_AM_F)
+        if not (mode == ad.ADAPT_COMPOSITE
+                and ad.cholesky_lower(state, S_GAMMA, state, S_WORK + ad.WK_L, N_THETA)):
+            if mode == ad.ADAPT_COMPOSITE:
                 faults |= FAULT_ADAPTATION
-                for i in range(N_THETA):
-                    P_diag[i] = P0[i, i]
-        else:
             for i in range(N_THETA):
-                P_diag[i] = P0[i, i]
+                state[p_diag + i] = params[P_P0 + N_THETA * i + i]
+        else:
+            ad.inverse_factor(state, S_WORK + ad.WK_L, state, S_WORK + ad.WK_M)
+            ad.factor_diag(state, S_WORK + ad.WK_M, state, p_diag)
+    theta = (state[S_THETA], state[S_THETA + 1], state[S_THETA + 2], state[S_THETA + 3], state[S_THETA + 4],
+             state[S_THETA + 5], state[S_THETA + 6], state[S_THETA + 7])
 
     # 5. force command
-    f_r = ws[W_F_R:W_F_R + 3]
-    integ = state[S_INT:S_INT + 3]
     if kind == KIND_PID or kind == KIND_PD:
-        vdot = state[S_VDOT_F:S_VDOT_F + 3]
-        if state[S_VDOT_INIT] > 0.0:
-            c_d = ad.lowpass_gain(params[P_DERIV_HZ], dt)
-            for i in range(3):
-                vdot[i] = ad.flush_tiny(vdot[i] + c_d * ((v_W[i] - state[S_V_PREV + i]) / dt - vdot[i]))
-        state[S_VDOT_INIT] = 1.0
-        saturated = state[S_SAT_PREV] != 0.0 or state[S_SAT_PREV + 1] != 0.0
-        for i in range(3):
-            v_err = -v_tilde[i]
-            if kind == KIND_PID:
-                frozen = saturated and v_err * state[S_RES_PREV_W + i] > 0.0
-                if not frozen:
-                    lim = params[P_INT_LIMIT + i]
-                    integ[i] = min(max(integ[i] + params[P_K_I + i] * v_err * dt, -lim), lim)
-            f_r[i] = (a_d[i] + params[P_K_V + i] * v_err + integ[i] - params[P_K_D + i] * vdot[i])
-        f_r[2] -= GRAVITY_MPS2
+        f_r = _pid_force(params, state, kind, v_W, v_tilde, a_d, dt)
     else:
-        force_command(v_r_dot, v_tilde, params[P_K_V:P_K_V + 3], f_r)
+        f_r = force_command(v_r_dot, v_tilde, _vec3(params, P_K_V))
     for i in range(3):
         state[S_V_PREV + i] = v_W[i]
-    f_r[2] += GRAVITY_MPS2
-    limit_norm(f_r, params[P_ACC_MAX])
-    f_r[2] -= GRAVITY_MPS2
+    f_r, _ = limit_norm((f_r[0], f_r[1], f_r[2] + GRAVITY_MPS2), params[P_ACC_MAX])
+    f_r = (f_r[0], f_r[1], f_r[2] - GRAVITY_MPS2)
 
     # 6. desired attitude and the desired frame's rate
-    q_d = ws[W_Q_D:W_Q_D + 4]
-    y_i = ws[W_Y_I:W_Y_I + 3]
-    alpha_d, w_blend, formed = desired_attitude(
+    q_d, y_i, alpha_d, w_blend, formed = desired_attitude(
         f_r, v_i_W, yaw_d, theta[I_CL0], theta[I_CL1], model[0], params[P_ALPHA_MIN],
         params[P_ALPHA_MAX], params[P_V_LO], params[P_V_HI], params[P_TILT_MAX], params[P_MIN_LIFT],
-        state[S_Y_I_PREV:S_Y_I_PREV + 3], state[S_HAVE_Y_I] > 0.0, q_d, y_i)
+        _vec3(state, S_Y_I_PREV), state[S_HAVE_Y_I] > 0.0)
     if formed:
-        for i in range(3):
-            state[S_Y_I_PREV + i] = y_i[i]
+        state[S_Y_I_PREV], state[S_Y_I_PREV + 1], state[S_Y_I_PREV + 2] = y_i
         state[S_HAVE_Y_I] = 1.0
-    x1 = state[S_WD_X1:S_WD_X1 + 3]
-    x2 = state[S_WD_X2:S_WD_X2 + 3]
     if state[S_HAVE_QD] > 0.0 and params[P_WD_ON] > 0.0:
-        raw = desired_frame_rate(state[S_Q_D_PREV:S_Q_D_PREV + 4], q_d, dt)
-        limit_norm(raw, params[P_WD_MAX])
-        c_w = ad.lowpass_gain(params[P_WD_HZ], dt)
-        ad.lowpass_update(x1, raw, c_w)
-        ad.lowpass_update(x2, x1, c_w)
+        q_d_prev = (state[S_Q_D_PREV], state[S_Q_D_PREV + 1], state[S_Q_D_PREV + 2], state[S_Q_D_PREV + 3])
+        raw, _ = limit_norm(desired_frame_rate(q_d_prev, q_d, dt), params[P_WD_MAX])
+        c_w = state[S_GAINS + GAIN_OMEGA_D]
+        for i in range(3):
+            state[S_WD_X1 + i] = ad.lowpass(state[S_WD_X1 + i], raw[i], c_w)
+            state[S_WD_X2 + i] = ad.lowpass(state[S_WD_X2 + i], state[S_WD_X1 + i], c_w)
     state[S_HAVE_QD] = 1.0
     for i in range(4):
         state[S_Q_D_PREV + i] = q_d[i]
-    omega_d = ws[W_OMEGA_D:W_OMEGA_D + 3]
-    omega_d_dot = ws[W_OMEGA_D_DOT:W_OMEGA_D_DOT + 3]
+    x1 = _vec3(state, S_WD_X1)
+    omega_d = _vec3(state, S_WD_X2)
     k_wd = 2.0 * np.pi * params[P_WD_HZ]
-    for i in range(3):
-        omega_d[i] = x2[i]
-        omega_d_dot[i] = k_wd * (x1[i] - x2[i])
-    limit_norm(omega_d_dot, params[P_WD_DOT_MAX])
+    omega_d_dot, _ = limit_norm((k_wd * (x1[0] - omega_d[0]), k_wd * (x1[1] - omega_d[1]),
+                                 k_wd * (x1[2] - omega_d[2])), params[P_WD_DOT_MAX])
 
     # 7. moment command (eq:wr, eq:m_ctrl)
     q_tilde = quat_error_from_quats(q_d, q_WB)
-    R_tilde = quat_to_rotmat(q_tilde)
-    omega_r = ws[W_OMEGA_R:W_OMEGA_R + 3]
-    omega_r_dot = ws[W_OMEGA_R_DOT:W_OMEGA_R_DOT + 3]
-    Lq = params[P_LAMBDA_Q:P_LAMBDA_Q + 3]
-    reference_angular_rate(R_tilde, q_tilde, omega_d, Lq, omega_r)
-    reference_angular_acceleration(R_tilde, q_tilde, omega, omega_d, omega_d_dot, Lq, omega_r_dot)
-    tau = ws[W_TAU:W_TAU + 3]
-    moment_command(params[P_J:P_J + 9].reshape((3, 3)), omega, omega_r, omega_r_dot,
-                   params[P_K_OMEGA:P_K_OMEGA + 3], tau)
-    for i in range(3):
-        tm = params[P_TAU_MAX + i]
-        tau[i] = min(max(tau[i], -tm), tm)
+    if params[P_WD_ON] > 0.0:
+        # omega_d and its rate in body axes: R~^T omega_d, R~ = R_d^T R
+        Rt = _rotation_rows(q_tilde)
+        omega_d_B = (Rt[0][0] * omega_d[0] + Rt[1][0] * omega_d[1] + Rt[2][0] * omega_d[2],
+                     Rt[0][1] * omega_d[0] + Rt[1][1] * omega_d[1] + Rt[2][1] * omega_d[2],
+                     Rt[0][2] * omega_d[0] + Rt[1][2] * omega_d[1] + Rt[2][2] * omega_d[2])
+        omega_d_dot_B = (Rt[0][0] * omega_d_dot[0] + Rt[1][0] * omega_d_dot[1] + Rt[2][0] * omega_d_dot[2],
+                         Rt[0][1] * omega_d_dot[0] + Rt[1][1] * omega_d_dot[1] + Rt[2][1] * omega_d_dot[2],
+                         Rt[0][2] * omega_d_dot[0] + Rt[1][2] * omega_d_dot[1] + Rt[2][2] * omega_d_dot[2])
+    else:
+        # without the feed-forward omega_d = omega_d' = 0 in every frame
+        omega_d_B = (0.0, 0.0, 0.0)
+        omega_d_dot_B = (0.0, 0.0, 0.0)
+    Lq = _vec3(params, P_LAMBDA_Q)
+    omega_r = reference_angular_rate(omega_d_B, q_tilde, Lq)
+    omega_r_dot = reference_angular_acceleration(q_tilde, omega, omega_d_B, omega_d_dot_B, Lq)
+    J = (_vec3(params, P_J), _vec3(params, P_J + 3), _vec3(params, P_J + 6))
+    tau = moment_command(J, omega, omega_r, omega_r_dot, _vec3(params, P_K_OMEGA))
+    tau = (min(max(tau[0], -params[P_TAU_MAX]), params[P_TAU_MAX]),
+           min(max(tau[1], -params[P_TAU_MAX + 1]), params[P_TAU_MAX + 1]),
+           min(max(tau[2], -params[P_TAU_MAX + 2]), params[P_TAU_MAX + 2]))
 
     # 8. thruster allocation at the current attitude (eq:f_proj)
-    f_rb = ws[W_F_RB:W_F_RB + 3]
-    for j in range(3):
-        f_rb[j] = R[0, j] * f_r[0] + R[1, j] * f_r[1] + R[2, j] * f_r[2]
-    u = ws[W_U:W_U + 2]
-    res = ws[W_RES:W_RES + 3]
-    sat_x, sat_z = allocate_thrusters(f_rb, v_i, theta, model, u_max, u, res)
+    f_rb = (R[0][0] * f_r[0] + R[1][0] * f_r[1] + R[2][0] * f_r[2],
+            R[0][1] * f_r[0] + R[1][1] * f_r[1] + R[2][1] * f_r[2],
+            R[0][2] * f_r[0] + R[1][2] * f_r[1] + R[2][2] * f_r[2])
+    u_x, u_z, res, sat_x, sat_z = allocate_thrusters(f_rb, v_i, theta, model, u_max)
 
     # 9. output, with a last guard against non-finite values
-    ok = np.isfinite(u[0]) and np.isfinite(u[1])
-    for i in range(3):
-        ok = ok and np.isfinite(tau[i])
-    if not ok:
+    if not (np.isfinite(u_x) and np.isfinite(u_z) and _plausible(tau, np.inf)):
         faults |= FAULT_COMMAND
-        u[0] = state[S_U_PREV]
-        u[1] = state[S_U_PREV + 1]
-        for i in range(3):
-            tau[i] = state[S_TAU_PREV + i]
-    cmd[L.CMD_U_X] = min(max(u[0], 0.0), u_max)
-    cmd[L.CMD_U_Z] = min(max(u[1], 0.0), u_max)
+        u_x = state[S_U_PREV]
+        u_z = state[S_U_PREV + 1]
+        tau = _vec3(state, S_TAU_PREV)
+    cmd[L.CMD_U_X] = min(max(u_x, 0.0), u_max)
+    cmd[L.CMD_U_Z] = min(max(u_z, 0.0), u_max)
     for i in range(3):
         cmd[L.CMD_TAU_B + i] = tau[i]
     state[S_U_PREV] = cmd[L.CMD_U_X]
     state[S_U_PREV + 1] = cmd[L.CMD_U_Z]
     for i in range(3):
         state[S_TAU_PREV + i] = tau[i]
-        state[S_RES_PREV_W + i] = R[i, 0] * res[0] + R[i, 1] * res[1] + R[i, 2] * res[2]
+        state[S_RES_PREV_W + i] = R[i][0] * res[0] + R[i][1] * res[1] + R[i][2] * res[2]
     state[S_SAT_PREV] = sat_x
     state[S_SAT_PREV + 1] = sat_z
     state[S_TIME] += dt
@@ -886,12 +873,12 @@ def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
         diag[DIAG_OMEGA_D + i] = omega_d[i]
         diag[DIAG_OMEGA_R + i] = omega_r[i]
         diag[DIAG_V_I_USED + i] = v_i[i]
-        diag[DIAG_WIND_EST + i] = wind[i]
+        diag[DIAG_WIND_EST + i] = state[S_WIND_EST + i]
         diag[DIAG_PRED_ERR + i] = e[i]
-        diag[DIAG_A_M + i] = a_m[i]
-        diag[DIAG_W_THETA + i] = e[i] + a_m[i]
+        diag[DIAG_A_M + i] = state[S_AM_F + i]
+        diag[DIAG_W_THETA + i] = e[i] + state[S_AM_F + i]
         diag[DIAG_ALLOC_RES + i] = res[i]
-        diag[DIAG_INTEGRATOR + i] = integ[i]
+        diag[DIAG_INTEGRATOR + i] = state[S_INT + i]
     for i in range(4):
         diag[DIAG_Q_TILDE + i] = q_tilde[i]
         diag[DIAG_Q_D + i] = q_d[i]
@@ -899,7 +886,7 @@ def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
     diag[DIAG_AIRSPEED] = airspeed
     diag[DIAG_BLEND] = w_blend
     for i in range(N_THETA):
-        diag[DIAG_P_DIAG + i] = P_diag[i]
+        diag[DIAG_P_DIAG + i] = state[p_diag + i]
         diag[DIAG_THETA_HAT + i] = theta[i]
     diag[DIAG_SAT_X] = sat_x
     diag[DIAG_SAT_Z] = sat_z
