@@ -21,7 +21,7 @@ from vtoladapt.probe import (
 from vtoladapt.probe.calibration import fit_single_k, fit_spline_calibration
 
 
-@njit(cache=True)
+@njit
 def _loop_estimate(q, rho, calibration, n_calls):
     out = np.empty(3)
     acc = 0.0
@@ -32,7 +32,7 @@ def _loop_estimate(q, rho, calibration, n_calls):
     return acc
 
 
-@njit(cache=True)
+@njit
 def _loop_forward(v, rho, tip, n_calls):
     out = np.empty(3)
     acc = 0.0
