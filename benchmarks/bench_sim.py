@@ -1,7 +1,8 @@
 """Closed-loop simulation speed, and start-up time of ``vtoladapt run``.
 
 * in-process: 60 s simulated with the composite controller, every sensor on (pressure probe), Dryden
-  turbulence on, fan at 70 %, after a warm-up run (no start-up, no compilation): wall time and the
+  turbulence on; hover, then the fan ramps to 70 % (10-20 s), holds, and ramps off (45-50 s);
+  after a warm-up run (no start-up, no compilation): wall time and the
   real-time factor, with the plant at 1 kHz (the default) and at 250 Hz (one RK4 step per tick);
 * runs side by side (:func:`vtoladapt.simulate.simulate_many`, one thread per core): simulated
   seconds per wall-clock second over 8 runs;
@@ -25,7 +26,7 @@ import numpy as np
 
 SCENARIO = {
     "name": "bench", "vehicle": "caltech_vtol", "duration_s": 60.0, "seed": 1,
-    "wind": {"fan_array": {"schedule": [[0, 70], [60, 70]]},
+    "wind": {"fan_array": {"schedule": [[0, 0], [10, 0], [20, 70], [45, 70], [50, 0], [60, 0]]},
              "turbulence": {"enabled": True, "mean_wind_fraction": [0.05, 0.05, 0.03]}},
     "sensors": {"probe": {"model": "pressure"}},
     "controller": {"kind": "composite"},
