@@ -93,3 +93,27 @@ def test_shipped_scenarios_load(name):
     sc = load_scenario(name)
     assert sc.vehicle == "caltech_vtol" and sc.dt_control_s == 0.004
     assert sc.experiment.kind in ("comparison", "convergence")
+
+
+@pytest.mark.slow
+def test_cold_start_compiles_in_two_processes_and_fills_the_cache(tmp_path):
+    """A first run on an empty kernel cache compiles (the controller in a helper process) and
+    leaves every kernel cached: a second process then starts in seconds."""
+    import os
+    import subprocess
+    import sys
+
+    scen = tmp_path / "s.toml"
+    scen.write_text('name = "cold"\nvehicle = "caltech_vtol"\nduration_s = 0.5\n')
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba_cache"))
+    cmd = [sys.executable, "-m", "vtoladapt.cli", "run", str(scen), "--out", str(tmp_path / "out")]
+    first = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    assert first.returncode == 0, first.stderr
+    assert "Loading compiled kernels" in first.stderr
+    cache = tmp_path / "numba_cache"
+    assert list(cache.rglob("kernel.controller_step-*.nbi"))
+    before = {p: p.stat().st_mtime_ns for p in cache.rglob("*.nb*")}
+    second = subprocess.run(cmd + ["--quiet"], env=env, capture_output=True, text=True)
+    assert second.returncode == 0, second.stderr
+    after = {p: p.stat().st_mtime_ns for p in cache.rglob("*.nb*")}
+    assert after == before  # everything loaded from the cache: nothing compiled or rewritten

@@ -89,12 +89,12 @@ def _note(msg: str, show: bool) -> None:
 
 
 def _warm_up(scenario: Scenario, show: bool) -> None:
-    """Compile (or load from the on-disk cache) the kernels on a 0.1 s run, telling the user."""
-    from .simulate import simulate
+    """Compile (or load from the on-disk cache) the kernels, telling the user."""
+    from .simulate import load_kernels
 
     t0 = time.perf_counter()
-    _note("Loading compiled kernels (the first run on a machine compiles them: about a minute)...", show)
-    simulate(replace(scenario, duration_s=0.1, experiment=replace(scenario.experiment, kind="single")))
+    _note("Loading compiled kernels (the first run on a machine compiles them: under a minute)...", show)
+    load_kernels(replace(scenario, experiment=replace(scenario.experiment, kind="single")))
     _note(f"  kernels ready in {time.perf_counter() - t0:.1f} s", show)
 
 

@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -172,3 +174,71 @@ def simulate_many(scenarios: Sequence[Scenario], workers: Optional[int] = None,
 
     with ThreadPoolExecutor(max_workers=min(workers, max(1, len(scenarios)))) as pool:
         return list(pool.map(run, range(len(scenarios))))
+
+
+def _has_disk_cache(dispatcher) -> bool:
+    """Whether Numba's on-disk cache holds an index for ``dispatcher`` (a cache hit is then likely)."""
+    try:
+        fn = dispatcher.py_func
+        stem = Path(fn.__code__.co_filename).stem
+        return any(Path(dispatcher._cache.cache_path).glob(f"{stem}.{fn.__qualname__}-*.nbi"))
+    except (AttributeError, OSError):
+        return True  # unknown: behave as if cached (compile in this process only)
+
+
+def _controller_step_compiled() -> None:
+    """Compile (or load) the controller step for the simulator loop's argument types."""
+    from .control.kernel import DIAG_SIZE, controller_step
+    from .scenario import scenario_from_mapping
+
+    run = prepare(scenario_from_mapping({"name": "warm-up", "vehicle": "caltech_vtol", "duration_s": 0.004},
+                                        "<warm-up>"))
+    meas = np.zeros(layout.MEAS_SIZE)
+    meas[layout.MEAS_Q_WB] = 1.0
+    controller_step(run.controller_params, run.controller_state, meas, run.reference_table[0], 0.004,
+                    np.zeros(layout.CMD_SIZE), np.zeros(DIAG_SIZE))
+
+
+def _plant_wind_sensors_compiled(run: PreparedRun) -> None:
+    """Compile (or load) the plant, wind and sensor kernels for the simulator loop's argument types."""
+    from .plant import RK4_WORK_SIZE, plant_advance, plant_first_stage
+    from .sensors import sensors_step
+    from .wind import wind_step
+
+    x = run.x0.copy()
+    v_wind = np.zeros(3)
+    f_B = np.zeros(3)
+    v_i = np.zeros(3)
+    work = np.zeros(RK4_WORK_SIZE)
+    wind_step(run.wind_params, run.wind_state.copy(), 0.0, 0.004, x[layout.X_P_W:layout.X_P_W + 3],
+              np.random.default_rng(0), v_wind)
+    plant_first_stage(x, v_wind, run.plant_params, f_B, v_i, work)
+    plant_advance(x, np.zeros(layout.N_MOTORS), v_wind, run.plant_params, 0.001, 1, True, work)
+    sensors_step(run.sensor_params, run.sensor_state.copy(), 0.0, 0.004, x, f_B, v_i,
+                 np.random.default_rng(0), np.zeros(layout.MEAS_SIZE))
+
+
+def load_kernels(scenario: Scenario) -> None:
+    """Load the simulator's compiled kernels from Numba's on-disk cache, compiling what is missing.
+
+    A first run compiles for about a minute. Then the controller step (a third of that) compiles
+    in a second process while this one compiles the plant, wind and sensors; the loop, compiled
+    last, loads the controller from the cache the other process wrote. On a warm cache nothing
+    is started and this takes a fraction of a second.
+    """
+    from .control.kernel import controller_step
+    from .sim import run_closed_loop
+
+    helper = None
+    if not _has_disk_cache(run_closed_loop) and not _has_disk_cache(controller_step):
+        try:
+            helper = subprocess.Popen([sys.executable, "-c",
+                                       "from vtoladapt.simulate import _controller_step_compiled as c; c()"],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        except OSError:
+            helper = None  # no second process: compile everything here
+    short = scenario.replace(duration_s=min(scenario.duration_s, 0.1))
+    _plant_wind_sensors_compiled(prepare(short))
+    if helper is not None:
+        helper.wait()
+    simulate(short)
