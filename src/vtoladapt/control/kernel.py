@@ -554,6 +554,22 @@ def _rotation_rows(q) -> tuple:
 
 
 @njit(cache=True)
+def _rows_times(R, v) -> tuple:
+    """``R v`` for ``R`` as three row 3-tuples (body to world for ``R_WB``)."""
+    return (R[0][0] * v[0] + R[0][1] * v[1] + R[0][2] * v[2],
+            R[1][0] * v[0] + R[1][1] * v[1] + R[1][2] * v[2],
+            R[2][0] * v[0] + R[2][1] * v[1] + R[2][2] * v[2])
+
+
+@njit(cache=True)
+def _rows_transpose_times(R, v) -> tuple:
+    """``R^T v`` for ``R`` as three row 3-tuples (world to body for ``R_WB``)."""
+    return (R[0][0] * v[0] + R[1][0] * v[1] + R[2][0] * v[2],
+            R[0][1] * v[0] + R[1][1] * v[1] + R[2][1] * v[2],
+            R[0][2] * v[0] + R[1][2] * v[1] + R[2][2] * v[2])
+
+
+@njit(cache=True)
 def _wrap_angle(a) -> float:
     """``a`` in (-pi, pi] (unchanged if already there)."""
     if -np.pi < a <= np.pi:
@@ -693,8 +709,9 @@ def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
         faults |= FAULT_PROBE  # the sensor's own flag is always reported, even when the reading is used
     if probe_ok:
         cw = state[S_GAINS + GAIN_WIND]
+        v_i_probe_W = _rows_times(R, v_i)
         for i in range(3):
-            w_i = v_W[i] - (R[i][0] * v_i[0] + R[i][1] * v_i[1] + R[i][2] * v_i[2])
+            w_i = v_W[i] - v_i_probe_W[i]
             if state[S_HAVE_WIND] > 0.0:
                 state[S_WIND_EST + i] = ad.lowpass(state[S_WIND_EST + i], w_i, cw)
             else:
@@ -707,12 +724,8 @@ def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
         for i in range(3):
             state[S_WIND_EST + i] = ad.flush_tiny(state[S_WIND_EST + i] * fade)
         d = (v_W[0] - state[S_WIND_EST], v_W[1] - state[S_WIND_EST + 1], v_W[2] - state[S_WIND_EST + 2])
-        v_i = (R[0][0] * d[0] + R[1][0] * d[1] + R[2][0] * d[2],
-               R[0][1] * d[0] + R[1][1] * d[1] + R[2][1] * d[2],
-               R[0][2] * d[0] + R[1][2] * d[1] + R[2][2] * d[2])
-    v_i_W = (R[0][0] * v_i[0] + R[0][1] * v_i[1] + R[0][2] * v_i[2],
-             R[1][0] * v_i[0] + R[1][1] * v_i[1] + R[1][2] * v_i[2],
-             R[2][0] * v_i[0] + R[2][1] * v_i[1] + R[2][2] * v_i[2])
+        v_i = _rows_transpose_times(R, d)
+    v_i_W = _rows_times(R, v_i)
     airspeed = np.sqrt(v_i[0] ** 2 + v_i[1] ** 2 + v_i[2] ** 2)
 
     # 3. tracking errors (eq:wr)
@@ -818,12 +831,8 @@ def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
     if params[P_WD_ON] > 0.0:
         # omega_d and its rate in body axes: R~^T omega_d, R~ = R_d^T R
         Rt = _rotation_rows(q_tilde)
-        omega_d_B = (Rt[0][0] * omega_d[0] + Rt[1][0] * omega_d[1] + Rt[2][0] * omega_d[2],
-                     Rt[0][1] * omega_d[0] + Rt[1][1] * omega_d[1] + Rt[2][1] * omega_d[2],
-                     Rt[0][2] * omega_d[0] + Rt[1][2] * omega_d[1] + Rt[2][2] * omega_d[2])
-        omega_d_dot_B = (Rt[0][0] * omega_d_dot[0] + Rt[1][0] * omega_d_dot[1] + Rt[2][0] * omega_d_dot[2],
-                         Rt[0][1] * omega_d_dot[0] + Rt[1][1] * omega_d_dot[1] + Rt[2][1] * omega_d_dot[2],
-                         Rt[0][2] * omega_d_dot[0] + Rt[1][2] * omega_d_dot[1] + Rt[2][2] * omega_d_dot[2])
+        omega_d_B = _rows_transpose_times(Rt, omega_d)
+        omega_d_dot_B = _rows_transpose_times(Rt, omega_d_dot)
     else:
         # without the feed-forward omega_d = omega_d' = 0 in every frame
         omega_d_B = (0.0, 0.0, 0.0)
@@ -838,9 +847,7 @@ def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
            min(max(tau[2], -params[P_TAU_MAX + 2]), params[P_TAU_MAX + 2]))
 
     # 8. thruster allocation at the current attitude (eq:f_proj)
-    f_rb = (R[0][0] * f_r[0] + R[1][0] * f_r[1] + R[2][0] * f_r[2],
-            R[0][1] * f_r[0] + R[1][1] * f_r[1] + R[2][1] * f_r[2],
-            R[0][2] * f_r[0] + R[1][2] * f_r[1] + R[2][2] * f_r[2])
+    f_rb = _rows_transpose_times(R, f_r)
     u_x, u_z, res, sat_x, sat_z = allocate_thrusters(f_rb, v_i, theta, model, u_max)
 
     # 9. output, with a last guard against non-finite values
@@ -855,9 +862,10 @@ def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
         cmd[L.CMD_TAU_B + i] = tau[i]
     state[S_U_PREV] = cmd[L.CMD_U_X]
     state[S_U_PREV + 1] = cmd[L.CMD_U_Z]
+    res_W = _rows_times(R, res)
     for i in range(3):
         state[S_TAU_PREV + i] = tau[i]
-        state[S_RES_PREV_W + i] = R[i][0] * res[0] + R[i][1] * res[1] + R[i][2] * res[2]
+        state[S_RES_PREV_W + i] = res_W[i]
     state[S_SAT_PREV] = sat_x
     state[S_SAT_PREV + 1] = sat_z
     state[S_TIME] += dt
