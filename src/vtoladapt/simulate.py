@@ -238,7 +238,7 @@ def load_kernels(scenario: Scenario) -> None:
         except OSError:
             helper = None  # no second process: compile everything here
     short = scenario.replace(duration_s=min(scenario.duration_s, 0.1))
-    _plant_wind_sensors_compiled(prepare(short))
     if helper is not None:
+        _plant_wind_sensors_compiled(prepare(short))
         helper.wait()
-    simulate(short)
+    simulate(short)  # warm: loads the loop alone (its callees are linked into its cached code)
