@@ -117,6 +117,8 @@ def run_campaign(specs: list[RunSpec], out: Path, scheduler: Optional[str] = "lo
     ``"none"`` (in this process, ``n_workers`` threads, default one per core), or a scheduler
     address.
     """
+    if n_workers is not None and n_workers < 1:
+        raise ConfigError(f"--workers = {n_workers}: must be >= 1 (or left out: one per core)")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     bar = None
@@ -129,7 +131,7 @@ def run_campaign(specs: list[RunSpec], out: Path, scheduler: Optional[str] = "lo
         # the compiled loop releases the GIL: threads give every core a run without new processes
         from concurrent.futures import ThreadPoolExecutor
 
-        with ThreadPoolExecutor(max_workers=n_workers or os.cpu_count() or 1) as pool:
+        with ThreadPoolExecutor(max_workers=n_workers if n_workers is not None else os.cpu_count() or 1) as pool:
             for row in pool.map(run_one, specs):
                 rows.append(row)
                 if bar is not None:

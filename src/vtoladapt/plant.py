@@ -488,12 +488,10 @@ def plant_advance(x, motor_cmd, v_wind_W, p, h, n_steps, first_stage_done, work)
         decay_push = 0.0
         for i in range(N_MOTORS):
             x[X_MOTOR + i] = min(max(motor_cmd[i], 0.0), 1.0)
-    if first_stage_done and lag:
-        rotors = _load_rotor_terms(work)
-    else:
-        rotors = rotor_terms(x, X_MOTOR, p)
+    reuse_first_stage = first_stage_done and lag
+    rotors = _load_rotor_terms(work) if reuse_first_stage else rotor_terms(x, X_MOTOR, p)
     for step in range(n_steps):
-        if step > 0 or not (first_stage_done and lag):
+        if step > 0 or not reuse_first_stage:
             rigid_body_derivative(x, 0, rotors, v_wind_W, p, work, _W_K1)
         for i in range(N_MOTORS):
             c = min(max(motor_cmd[i], 0.0), 1.0)
