@@ -221,10 +221,10 @@ def _plant_wind_sensors_compiled(run: PreparedRun) -> None:
 def load_kernels(scenario: Scenario) -> None:
     """Load the simulator's compiled kernels from Numba's on-disk cache, compiling what is missing.
 
-    A first run compiles for about a minute. Then the controller step (a third of that) compiles
-    in a second process while this one compiles the plant, wind and sensors; the loop, compiled
-    last, loads the controller from the cache the other process wrote. On a warm cache nothing
-    is started and this takes a fraction of a second.
+    Compiling everything in one process takes about a minute, so on a cold cache the controller
+    step (a third of that) compiles in a second process while this one compiles the plant, wind
+    and sensors; the loop, compiled last, loads the controller from the cache the other process
+    wrote. On a warm cache nothing is started and only the loop's cached code is loaded.
     """
     from .control.kernel import controller_step
     from .sim import run_closed_loop
