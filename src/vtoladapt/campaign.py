@@ -142,7 +142,7 @@ def run_campaign(specs: list[RunSpec], out: Path, scheduler: Optional[str] = "lo
         cluster = None
         if scheduler == "local":
             cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=None)
+                                   dashboard_address=":0")  # any free port: two campaigns may run at once
             client = Client(cluster)
         else:
             client = Client(scheduler)
