@@ -1,4 +1,4 @@
-"""Shared test fixtures: shipped vehicles, a seeded generator, the read-only real-data folder.
+"""Shared test fixtures: shipped vehicles, a seeded generator, the repository's vendored real data.
 
 Hypothesis runs without a per-example deadline because the first call of a Numba kernel in a
 fresh process may compile it (seconds). Choose another profile with ``HYPOTHESIS_PROFILE``.
@@ -18,8 +18,8 @@ settings.register_profile("vtoladapt", deadline=None)
 settings.register_profile("thorough", deadline=None, max_examples=2000)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "vtoladapt"))
 
-SHARED_DATA_DIR = Path(__file__).resolve().parents[2] / "shared" / "data"
-"""Real data (read-only, never copied into the repo); each folder has a SOURCE.md."""
+REPO_DATA_DIR = Path(__file__).resolve().parents[1] / "data"
+"""The real data vendored in the repository (small subsets); each folder has a SOURCE.md."""
 
 SHIPPED_VEHICLES = ("caltech_vtol", "px4_standard_vtol")
 
@@ -46,11 +46,3 @@ def any_vehicle(request):
 def rng() -> np.random.Generator:
     """A fixed-seed generator, fresh for every test."""
     return np.random.default_rng(20200531)
-
-
-@pytest.fixture(scope="session")
-def shared_data_dir() -> Path:
-    """``/work/shared/data`` (next to the repository); skips the test if it is absent."""
-    if not SHARED_DATA_DIR.is_dir():
-        pytest.skip(f"real data folder {SHARED_DATA_DIR} not present")
-    return SHARED_DATA_DIR

@@ -10,7 +10,7 @@ import vtoladapt
 from vtoladapt.fitting.cli import register_cli
 from vtoladapt.fitting.posterior import controller_prior, load_posterior
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = REPO_DATA_DIR
 
 
 def run(argv) -> int:
@@ -65,8 +65,6 @@ def test_tunnel_rejects_unknown_vehicle(tmp_path, capsys):
     assert "unknown name" in capsys.readouterr().err
 
 
-@pytest.mark.skipif(not (DATA / "uiuc-propdb").is_dir() or not (DATA / "tudelft-v3-kite-windtunnel").is_dir(),
-                    reason=f"real data not found under {DATA}")
 def test_fit_realdata_command(tmp_path):
     out = tmp_path / "real"
     assert run(["fit-realdata", "--out", out, "--data-dir", DATA]) == 0

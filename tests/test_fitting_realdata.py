@@ -1,22 +1,18 @@
 """Fits to real data: UIUC propeller database (Brandt & Selig) and TU Delft V3 kite (MIT).
 
-Skipped with a reason when the shared data folder is absent.
+Both vendored in the repository's ``data/`` (the UIUC 7x4 rows and the TU Delft polars, each with
+its SOURCE.md).
 """
-from pathlib import Path
+from conftest import REPO_DATA_DIR
 
 import numpy as np
 import pytest
 
 from vtoladapt.fitting import realdata
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
-needs_uiuc = pytest.mark.skipif(not (DATA / "uiuc-propdb").is_dir(),
-                                reason=f"UIUC propeller data not found under {DATA}")
-needs_tud = pytest.mark.skipif(not (DATA / "tudelft-v3-kite-windtunnel").is_dir(),
-                               reason=f"TU Delft kite data not found under {DATA}")
+DATA = REPO_DATA_DIR
 
 
-@needs_uiuc
 def test_uiuc_static_ct_matches_the_datas_own_column():
     """The fitted C_T of T = C_T rho n^2 D^4 equals the mean of the database's C_T column at J = 0
     within 0.5 % (with a relative noise model the estimate is that mean: this checks the unit
@@ -32,7 +28,6 @@ def test_uiuc_static_ct_matches_the_datas_own_column():
     assert r["CT_trend_per_1000rpm"] > 0         # Reynolds effect: C_T rises with rpm
 
 
-@needs_uiuc
 def test_thrust_ratio_constants_are_the_fit():
     """The stored pusher thrust-ratio model is what fit_uiuc_ct_of_j gives (1e-6), it is 1 at
     J = 0 and 0 at J_zero, and the quadratic follows the data within 0.01 in C_T."""
@@ -52,7 +47,6 @@ def test_thrust_ratio_constants_are_the_fit():
         assert abs(c["mean"] - r["coefficients_map"][k]) < 4 * c["mcse"]
 
 
-@needs_uiuc
 def test_unknown_propeller_is_named():
     with pytest.raises(realdata.FitDataError, match="no propeller named 'apc 7.0x4.0'"):
         realdata.read_uiuc_propeller("apc 7.0x4.0", DATA)
@@ -75,7 +69,6 @@ def test_linear_range_rule_on_a_synthetic_stall():
     assert exact >= 24
 
 
-@needs_tud
 def test_tudelft_polar_fit_and_range():
     """Range chosen from the data by the 95 % prediction-interval rule: -6.1 to 9.4 deg (the
     points at -11.6 and 11.5 deg leave the line: negative stall and stall); the Bayesian fit

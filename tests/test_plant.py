@@ -1,4 +1,5 @@
 """The plant against closed forms, conservation laws and scipy's integrator."""
+from conftest import REPO_DATA_DIR
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -192,11 +193,8 @@ def test_uiuc_coefficients_match_the_data_fit():
     """The plant's default C_T(J) is the fitting module's fit of the UIUC 7x4 data, and C_T(0) its static mean."""
     from vtoladapt.fitting import fit_uiuc_static_ct, pusher_thrust_ratio_model
 
-    try:
-        model = pusher_thrust_ratio_model()
-        static = fit_uiuc_static_ct()
-    except FileNotFoundError as exc:
-        pytest.skip(f"UIUC data not found: {exc}")
+    model = pusher_thrust_ratio_model(data_dir=REPO_DATA_DIR)
+    static = fit_uiuc_static_ct(data_dir=REPO_DATA_DIR)
     np.testing.assert_allclose(model.coefficients[1:], plant.UIUC_7X4_CT_RATIO_COEFFS, rtol=1e-4)
     ct0 = static["CT"]["mean"]
     assert ct0 == pytest.approx(plant.UIUC_7X4_STATIC_CT, rel=1e-3)

@@ -1,6 +1,8 @@
 """``vtoladapt probe calibrate`` / ``evaluate`` end to end, through a small argparse parser."""
 from __future__ import annotations
 
+from conftest import REPO_DATA_DIR
+
 import argparse
 import json
 from pathlib import Path
@@ -11,9 +13,7 @@ import pytest
 from vtoladapt.probe import ProbeTip, simulate_calibration_sweep, write_probe_csv
 from vtoladapt.probe.cli import register_cli
 
-NASA = Path(__file__).resolve().parents[2] / "shared" / "data" / "nasa-multihole-probe"
-needs_nasa = pytest.mark.skipif(not (NASA / "16328-1_M050.csv").is_file(),
-                                reason=f"NASA multihole-probe data not found under {NASA}")
+NASA = REPO_DATA_DIR / "nasa-multihole-probe"
 
 
 def run_cli(argv: list[str]) -> int:
@@ -42,7 +42,6 @@ def _check_png(path: Path) -> None:
     assert float(np.std(img[..., :3])) > 0.05  # not blank
 
 
-@needs_nasa
 def test_cli_calibrate_and_evaluate_on_nasa(tmp_path, capsys):
     out = tmp_path / "cal"
     assert run_cli(["probe", "calibrate", str(NASA / "16328-1_M050.csv"), "--out", str(out)]) == 0

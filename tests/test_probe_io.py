@@ -1,6 +1,8 @@
 """Calibration JSON round trip; CSV format; clear errors on bad input."""
 from __future__ import annotations
 
+from conftest import REPO_DATA_DIR
+
 import json
 from pathlib import Path
 
@@ -20,9 +22,7 @@ from vtoladapt.probe import (
 )
 from vtoladapt.probe.data import read_probe_data
 
-NASA = Path(__file__).resolve().parents[2] / "shared" / "data" / "nasa-multihole-probe"
-needs_nasa = pytest.mark.skipif(not (NASA / "16328-1_M050.csv").is_file(),
-                                reason=f"NASA multihole-probe data not found under {NASA}")
+NASA = REPO_DATA_DIR / "nasa-multihole-probe"
 
 
 @pytest.fixture(scope="module")
@@ -150,7 +150,6 @@ def test_read_probe_data_rejects_unknown_format(tmp_path):
         read_probe_csv(tmp_path / "nope.csv")
 
 
-@needs_nasa
 def test_nasa_reader_errors_name_file_line_value(tmp_path):
     """A corrupted copy (in tmp_path only) gives errors naming the file, line and value."""
     lines = (NASA / "16328-1_M050.csv").read_text().splitlines()

@@ -1,21 +1,16 @@
 """Real data: NASA five-hole probe calibrations (github.com/nasa/multihole-probe-calibration,
-NOSA 1.3; Mirhashemi, Juangphanich & Miki, ASME Turbo Expo 2024), read from the shared data
-folder, never copied into the repository."""
+NOSA 1.3; Mirhashemi, Juangphanich & Miki, ASME Turbo Expo 2024), vendored in the
+repository's ``data/nasa-multihole-probe/`` (see its SOURCE.md)."""
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import REPO_DATA_DIR
 
 from vtoladapt.probe import calibrate, evaluate_calibration, read_nasa_pcf
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "nasa-multihole-probe"
+DATA = REPO_DATA_DIR / "nasa-multihole-probe"
 FILES = ("16328-1_M050.csv", "16328-1_M100.csv", "16328-2_M050.csv")
-
-pytestmark = pytest.mark.skipif(
-    not all((DATA / f).is_file() for f in FILES),
-    reason=f"NASA multihole-probe data not found under {DATA} (shared data folder absent)")
 
 
 @pytest.fixture(scope="module")

@@ -1,8 +1,8 @@
 """The shipped vehicles: the paper's numbers exactly, and the PX4 conversion re-derived.
 
 * caltech_vtol: Table I (force model, mean and std), Table II (airframe), Table III (P0) of
-  Shi et al., ICRA 2020, typed in here from the paper and, where the LaTeX source is present,
-  also parsed from it (/work/shared/paper).
+  Shi et al., ICRA 2020, typed in here from the paper and also parsed from the paper's LaTeX
+  tables, vendored in ``data/paper/shi2020_tables.tex`` (see its SOURCE.md).
 * px4_standard_vtol: every force-model number equals conversions.px4_standard_vtol_force_model()
   to 4 significant figures (rel 5e-4), and the conversion is checked by independent physics
   (hover thrust of four Gazebo rotors, a continuous least-squares fit of the rotor drag).
@@ -22,7 +22,7 @@ from vtoladapt import PARAMETER_NAMES, load_vehicle, models
 from vtoladapt.conversions import PX4_STANDARD_VTOL, px4_standard_vtol_force_model
 from vtoladapt.frames import GRAVITY_MPS2
 
-PAPER = Path(__file__).resolve().parents[2] / "shared" / "paper" / "000_fc8dbb014b8b4759.txt"
+PAPER = Path(__file__).resolve().parents[1] / "data" / "paper" / "shi2020_tables.tex"
 
 # Table I of the paper: mean, std (throttle in percent, forces per unit mass)
 TABLE_I = {
@@ -66,8 +66,6 @@ def test_caltech_vtol_is_the_papers_aircraft(caltech):
 
 
 def _paper_text() -> str:
-    if not PAPER.is_file():
-        pytest.skip(f"paper source {PAPER} not present")
     return PAPER.read_text()
 
 

@@ -113,7 +113,7 @@ def controller_prior(scenario: Scenario, vehicle: Vehicle):
 
 def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) -> SimulationResult:
     """Run ``scenario`` and return its :class:`SimulationResult` (log and metadata)."""
-    from .sim import LOG_COLUMNS, N_LOG, run_closed_loop
+    from .compiled_loop import LOG_COLUMNS, N_LOG, run_closed_loop
 
     run = prepare(scenario)
     n = scenario.n_ticks
@@ -227,7 +227,7 @@ def load_kernels(scenario: Scenario) -> None:
     wrote. On a warm cache nothing is started and only the loop's cached code is loaded.
     """
     from .control.kernel import controller_step
-    from .sim import run_closed_loop
+    from .compiled_loop import run_closed_loop
 
     helper = None
     if not _has_disk_cache(run_closed_loop) and not _has_disk_cache(controller_step):

@@ -106,9 +106,9 @@ def register_cli(subparsers) -> dict[str, argparse.ArgumentParser]:
                     "realdata.md and figures into DIR.")
     real.add_argument("--out", metavar="DIR", type=Path, required=True, help="output folder")
     real.add_argument("--data-dir", dest="data_dir", type=Path, default=None,
-                      help="the shared data folder holding uiuc-propdb/ and "
-                           "tudelft-v3-kite-windtunnel/ (default $VTOLADAPT_DATA_DIR or "
-                           "<repo>/../shared/data)")
+                      help="the data folder holding uiuc-propdb/ and "
+                           "tudelft-v3-kite-windtunnel/ (default $VTOLADAPT_DATA_DIR, else the "
+                           "repository's vendored data/)")
     real.add_argument("--prop", default=None, help="UIUC BladeName (default 'magf 7.0x4.0')")
     real.add_argument("--vehicle", default="caltech_vtol",
                       help="vehicle for the implied pusher speed at full throttle")

@@ -1,7 +1,7 @@
 """Fits to real wind-tunnel data with the same Bayesian machinery as Table I.
 
-Sources (read-only, under the shared data folder; see each folder's SOURCE.md)
-------------------------------------------------------------------------------
+Sources (the repository's ``data/`` folder or ``$VTOLADAPT_DATA_DIR``; see each folder's SOURCE.md)
+----------------------------------------------------------------------------------------------------
 * UIUC Propeller Data Site, volumes 1-3: J. B. Brandt, R. W. Deters, G. K. Ananda,
   O. D. Dantsker and M. S. Selig, *UIUC Propeller Database*, University of Illinois at
   Urbana-Champaign, m-selig.ae.illinois.edu/props/propDB.html (merged CSV mirror, folder
@@ -49,11 +49,16 @@ TUDELFT_ALPHA_FILE = "WindTunnel_Re5e5_alpha_sweep_beta_0_Poland2025.csv"
 
 
 def default_data_dir() -> Path:
-    """The shared data folder: ``$VTOLADAPT_DATA_DIR`` if set, else ``<repo>/../shared/data``."""
+    """The data folder: ``$VTOLADAPT_DATA_DIR`` if set, else the repository's vendored ``data/``.
+
+    The repository ships the small subsets the fits need (the UIUC 7x4 rows, the TU Delft polars),
+    each with its SOURCE.md; point ``VTOLADAPT_DATA_DIR`` at a folder with the full data sets (for
+    example every propeller of ``uiuc-propdb/volume*_exp.csv``) to fit anything else.
+    """
     env = os.environ.get("VTOLADAPT_DATA_DIR")
     if env:
         return Path(env)
-    return Path(__file__).resolve().parents[4] / "shared" / "data"
+    return Path(__file__).resolve().parents[3] / "data"
 
 
 def _folder(data_dir, name: str) -> Path:
@@ -93,7 +98,7 @@ def read_uiuc_propeller(prop_name: str = DEFAULT_PROP, data_dir=None) -> Propell
     folder = _folder(data_dir, "uiuc-propdb")
     J, N, CT, CP = [], [], [], []
     meta = None
-    for vol in sorted(folder.glob("volume*_exp.csv")):
+    for vol in sorted(folder.glob("*_exp.csv")):
         with vol.open(newline="", encoding="utf-8") as fh:
             for k, row in enumerate(csv.DictReader(fh), start=2):
                 if row["BladeName"].strip() != prop_name:
@@ -109,7 +114,8 @@ def read_uiuc_propeller(prop_name: str = DEFAULT_PROP, data_dir=None) -> Propell
                     raise FitDataError(f"{vol}: line {k}: bad value ({exc})") from None
     if meta is None:
         raise FitDataError(f"{folder}: no propeller named {prop_name!r} (BladeName column), "
-                           "e.g. 'magf 7.0x4.0'")
+                           "e.g. 'magf 7.0x4.0'; the repository ships only that one: set "
+                           "VTOLADAPT_DATA_DIR to a folder with the full uiuc-propdb/volume*_exp.csv")
     fam, B, D_in, P_in, src = meta
     return PropellerData(name=prop_name, family=fam, blades=B, diameter_m=D_in * INCH_M, pitch_in=P_in,
                          J=np.array(J), rpm=np.array(N), CT=np.array(CT), CP=np.array(CP),

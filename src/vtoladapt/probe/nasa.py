@@ -5,9 +5,8 @@ Source
 NASA multihole-probe-calibration repository, https://github.com/nasa/multihole-probe-calibration
 (``dataset/5Hole-Probe2 Aeroprobe/From Aaron-Set1/``), NASA Open Source Agreement 1.3.
 Reference: Mirhashemi, Juangphanich & Miki, "Application of Machine Learning Techniques in
-Calibration and Data Reduction of Multi-Hole Probes", ASME Turbo Expo 2024. Copies of three files
-are described in ``data/nasa-multihole-probe/SOURCE.md`` of the project's shared data; they are
-read from there, never copied.
+Calibration and Data Reduction of Multi-Hole Probes", ASME Turbo Expo 2024. Three files are vendored
+in the repository's ``data/nasa-multihole-probe/`` with their SOURCE.md (origin, commit, licence).
 
 Format
 ------
