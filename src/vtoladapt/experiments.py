@@ -27,23 +27,15 @@ from typing import Optional
 
 import numpy as np
 
+from .control.registry import ADAPTIVE_IDS, COMPOSITE_IDS, CONTROLLERS
 from .frames import GRAVITY_MPS2
 from .metrics import run_metrics
 from .results import SimulationResult
 from .scenario import SCENARIO_DIR, Scenario, load_scenario
 from .vehicle import PARAMETER_NAMES
 
-CONTROLLER_LABELS = {
-    "composite": "C. Adapt",
-    "composite_pconst": "C. Adapt, P const",
-    "tracking_only": "Tracking-error adapt",
-    "pid": "PID",
-    "pd": "PD",
-}
-CONTROLLER_COLORS = {"composite": "C0", "composite_pconst": "C2", "tracking_only": "C4", "pid": "C1",
-                     "pd": "C3"}
-COMPOSITE_IDS = ("composite", "composite_pconst")
-ADAPTIVE_IDS = ("composite", "composite_pconst", "tracking_only")
+CONTROLLER_LABELS = {k: c.label for k, c in CONTROLLERS.items()}
+CONTROLLER_COLORS = {k: c.colour for k, c in CONTROLLERS.items()}
 PRED_ERR_COLUMNS = ("pred_err_x_mps2", "pred_err_y_mps2", "pred_err_z_mps2")
 PLOT_FILTER_HZ = 1.0
 """Prediction errors are low-passed at this cutoff for the figures only (as the paper's are)."""

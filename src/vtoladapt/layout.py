@@ -1,14 +1,135 @@
-"""Layouts of the flat arrays the compiled kernels exchange: the one module that packs and unpacks them.
+"""Layouts of the flat arrays the compiled kernels exchange, and the one way to declare them.
 
 The simulator, the sensors and the controller meet in four small float64 arrays. Everywhere
 else state has names; these index constants are the only place the positions are written down,
 and the ``*_COLUMNS`` tuples give every slot a name and unit for logs.
 
+Every other flat array of a kernel (a component's parameters, state, scratch and diagnostics) is
+declared with :class:`BlockLayout`: named fields with sizes and units, in order. Offsets are
+derived from the declaration, never typed, and a diagnostics block's column names come from the
+same declaration. Numba freezes module-level integers into the compiled code, so a module binds
+the offsets it uses once, at import::
+
+    PARAMS = BlockLayout("plant parameters", [
+        Field("MASS", 1, "kg", "vehicle mass"),
+        Field("J", 9, "kg m^2", "inertia, row-major"),
+    ])
+    P_MASS, P_J = PARAMS.offsets("MASS", "J")
+    P_SIZE = PARAMS.size
+
 Frames: world NED, body FRD (see :mod:`vtoladapt.frames`). Quaternions scalar first.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Iterable, Optional, Sequence
+
 import numpy as np
+
+
+@dataclass(frozen=True)
+class Field:
+    """One named field of a flat array: ``size`` float64 slots, their unit and meaning.
+
+    ``columns`` names each slot (units in the names) where the block is logged; by default
+    ``name.lower()`` for a scalar and ``name.lower()_0 .. _{size-1}`` otherwise.
+    """
+
+    name: str
+    size: int
+    unit: str = "-"
+    doc: str = ""
+    columns: Optional[tuple[str, ...]] = None
+
+    def __post_init__(self):
+        if not self.name.isidentifier() or self.size < 0:
+            raise ValueError(f"field {self.name!r}: a Python identifier and a size >= 0 are required")
+        if self.columns is not None and len(self.columns) != self.size:
+            raise ValueError(f"field {self.name!r}: {len(self.columns)} column names for size {self.size}")
+
+    @property
+    def column_names(self) -> tuple[str, ...]:
+        if self.columns is not None:
+            return tuple(self.columns)
+        base = self.name.lower()
+        return (base,) if self.size == 1 else tuple(f"{base}_{i}" for i in range(self.size))
+
+
+class BlockLayout:
+    """Named fields laid out one after another in a flat float64 array.
+
+    Offsets follow from the order and sizes of the fields; :meth:`offset`/:meth:`offsets` give
+    them, :meth:`view` names a slice of an array, :attr:`columns` names every slot.
+    A field may nest another layout (``Field`` of size ``sub.size``): :meth:`nested` gives the
+    absolute offsets of the sub-layout's fields inside this one.
+    """
+
+    def __init__(self, title: str, fields: Iterable[Field]):
+        self.title = title
+        self.fields: tuple[Field, ...] = tuple(fields)
+        self._offset: dict[str, int] = {}
+        n = 0
+        for f in self.fields:
+            if f.name in self._offset:
+                raise ValueError(f"{title}: field {f.name!r} declared twice")
+            self._offset[f.name] = n
+            n += f.size
+        self.size: int = n
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._offset
+
+    def field(self, name: str) -> Field:
+        for f in self.fields:
+            if f.name == name:
+                return f
+        raise KeyError(f"{self.title}: no field {name!r}; fields: {', '.join(self._offset)}")
+
+    def offset(self, name: str) -> int:
+        """First slot of field ``name``."""
+        try:
+            return self._offset[name]
+        except KeyError:
+            raise KeyError(f"{self.title}: no field {name!r}; fields: {', '.join(self._offset)}") from None
+
+    def offsets(self, *names: str) -> tuple[int, ...]:
+        """First slots of several fields, in the order asked (for binding module constants)."""
+        return tuple(self.offset(n) for n in names)
+
+    def nested(self, name: str, sub: "BlockLayout", *sub_names: str) -> tuple[int, ...]:
+        """Absolute offsets of ``sub``'s fields, ``sub`` being laid out in field ``name``."""
+        f = self.field(name)
+        if f.size != sub.size:
+            raise ValueError(f"{self.title}: field {name!r} has size {f.size}, {sub.title} needs {sub.size}")
+        base = self.offset(name)
+        return tuple(base + sub.offset(n) for n in sub_names)
+
+    def slice(self, name: str) -> slice:
+        o = self.offset(name)
+        return slice(o, o + self.field(name).size)
+
+    def view(self, array: np.ndarray, name: str) -> np.ndarray:
+        """The slots of field ``name`` in ``array`` (last axis), as a view."""
+        return array[..., self.slice(name)]
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """One name per slot, in order (units in the names)."""
+        return tuple(c for f in self.fields for c in f.column_names)
+
+    def describe(self) -> list[tuple[str, int, int, str, str]]:
+        """``(name, offset, size, unit, doc)`` per field, for documentation and tests."""
+        return [(f.name, self._offset[f.name], f.size, f.unit, f.doc) for f in self.fields]
+
+    def pack(self, **values) -> np.ndarray:
+        """A zero array of :attr:`size` with the named fields filled (scalars or sequences)."""
+        out = np.zeros(self.size)
+        for name, value in values.items():
+            out[self.slice(name)] = value
+        return out
+
+    def __repr__(self) -> str:
+        return f"BlockLayout({self.title!r}, {len(self.fields)} fields, size {self.size})"
 
 # --- plant state x ---------------------------------------------------------------------------
 X_P_W = 0          # position, NED, m (3)

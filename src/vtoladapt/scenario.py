@@ -17,6 +17,7 @@ from typing import Optional
 
 from .config import ConfigError, build, read_toml, setting
 from .control.config import ControllerConfig
+from .control.registry import CONTROLLER_IDS
 from .plant import PlantConfig
 from .sensors import SensorsConfig
 from .vehicle import Vehicle, load_vehicle
@@ -93,8 +94,8 @@ class ExperimentConfig:
     runs: int = setting("-", "number of random-start runs (kind = convergence)", default=7, ge=2, le=1000)
     controllers: tuple[str, ...] = setting(
         "-", "controllers compared (kind = comparison)",
-        default=("composite", "composite_pconst", "tracking_only", "pid", "pd"),
-        choices=("composite", "composite_pconst", "tracking_only", "pid", "pd"))
+        default=CONTROLLER_IDS,
+        choices=CONTROLLER_IDS)
 
     def _check(self, source: str) -> None:
         if len(set(self.controllers)) != len(self.controllers) or not self.controllers:

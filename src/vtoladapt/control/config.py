@@ -50,8 +50,9 @@ from dataclasses import dataclass
 from typing import Any, Mapping, Optional
 
 from ..config import build, read_toml, setting
+from .registry import CONTROLLER_IDS
 
-CONTROLLER_KINDS = ("composite", "composite_pconst", "tracking_only", "pid", "pd")
+CONTROLLER_KINDS = CONTROLLER_IDS
 """The five controllers of the paper's comparison, (I) to (V)."""
 
 
