@@ -9,6 +9,7 @@ import pytest
 import vtoladapt
 from vtoladapt.fitting.cli import register_cli
 from vtoladapt.fitting.posterior import controller_prior, load_posterior
+from conftest import REPO_DATA_DIR
 
 DATA = REPO_DATA_DIR
 
