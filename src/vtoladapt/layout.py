@@ -24,7 +24,7 @@ Frames: world NED, body FRD (see :mod:`vtoladapt.frames`). Quaternions scalar fi
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterable, Optional, Sequence
+from typing import Iterable, Optional
 
 import numpy as np
 

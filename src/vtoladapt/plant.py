@@ -43,7 +43,7 @@ from .config import ConfigError, build, setting
 from .frames import GRAVITY_MPS2
 from .layout import (MOTOR_PUSHER, N_LIFT, N_MOTORS, X_MOTOR, X_OMEGA_B, X_P_W, X_Q_WB, X_SIZE, X_V_W,
                      BlockLayout, Field)
-from .models import theta_to_scaled
+from .scaling import theta_to_scaled
 from .vehicle import PARAMETER_NAMES, Vehicle
 
 #: UIUC magf 7x4 static thrust coefficient (mean of the 16 static points, 3069-7203 RPM).

@@ -39,7 +39,7 @@ from typing import Mapping
 
 import numpy as np
 
-from vtoladapt.probe.data import ProbeCalibrationData
+from vtoladapt.probe.points import ProbeCalibrationData
 from vtoladapt.probe.errors import ProbeError, require_number
 from vtoladapt.probe.estimation import (
     KIND_CALIBRATED,
