@@ -46,6 +46,40 @@ this fixed order: gyro noise xyz, accelerometer noise xyz, gyro bias walk xyz, a
 walk xyz, mocap position NED, mocap velocity NED, attitude rotation xyz, probe xyz, probe dropout
 (uniform). Every channel draws whether it is ideal or not, so making one sensor ideal never
 changes the noise of the others: a run differs from another only where its settings differ.
+
+Layouts
+-------
+The parameter array is one block per sensor (:data:`IMU_PARAMS`, :data:`MOCAP_PARAMS`,
+:data:`ATTITUDE_PARAMS`, :data:`PROBE_PARAMS`, composed in :data:`SENSOR_PARAMS`; the pressure
+probe appends :data:`PRESSURE_PROBE_PARAMS`), the state array is :data:`SENSOR_STATE`, all
+declared with :class:`vtoladapt.layout.BlockLayout`; the kernels' offsets are derived from them.
+
+The sensor interface
+--------------------
+A sensor suite is three things; the simulator and the tools here use nothing else:
+
+1. **Settings**: a frozen dataclass whose fields are declared with
+   :func:`vtoladapt.config.setting` (unit, meaning, allowed values), built from a TOML table with
+   :func:`vtoladapt.config.build`, with a ``to_kernel()`` that returns the suite's float64
+   parameter array, laid out with a :class:`~vtoladapt.layout.BlockLayout` whose offsets the
+   kernels bind at import.
+2. ``initial_state(params, rng) -> state``: a fresh state array; it may draw from ``rng`` (a
+   fixed number of draws), e.g. the run's constant biases.
+3. A compiled ``step(params, state, t, dt, x_true, specific_force_B, v_i_B_true, rng, meas_out)``
+   (``numba.njit``) that writes every slot of ``meas_out`` (layout
+   :data:`vtoladapt.layout.MEASUREMENT`: position, velocity, attitude, body rate, specific force,
+   incident velocity and its validity flag) from the truth it is given, and advances ``state`` in
+   place. Randomness only from ``rng``, a fixed number of draws per call whatever the settings,
+   so a setting changes nothing but what it is about.
+
+:func:`run_sensor_model` drives any such suite over a recorded truth;
+``tests/test_sensor_interface.py`` writes a suite of its own (a GNSS-class receiver instead of
+motion capture) and holds it and :func:`sensors_step` to the same contract. The closed loop
+(:mod:`vtoladapt.compiled_loop`) calls :func:`sensors_step`. A new model of one channel goes
+into it the way the pressure probe did: its settings in that channel's config class, its block
+in the layouts above, a compiled function called from :func:`sensors_step` (for the probe, a
+``_probe_<model>`` function selected by ``PROBE_MODELS``) that draws a fixed number of random
+numbers after the existing channels' draws, so existing runs stay bit-identical.
 """
 from __future__ import annotations
 
@@ -53,7 +87,7 @@ import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping, Optional
+from typing import Any, Callable, Mapping, Optional
 
 import numpy as np
 from numba import njit
@@ -645,3 +679,52 @@ def sensors_step(params: np.ndarray, state: np.ndarray, t: float, dt: float, x_t
     _mocap_step(params, state, dt, x_true, rng, meas_out)
     _attitude_step(params, x_true, rng, meas_out)
     _probe_step(params, state, dt, v_i_B_true, rng, meas_out)
+
+
+@njit(cache=True)
+def _run_sensor_model(step, params, state, t0, dt, X, F, VI, rng, out):
+    for k in range(X.shape[0]):
+        row = out[k]
+        row[:] = np.nan  # a slot the model does not write stays NaN
+        step(params, state, t0 + k * dt, dt, X[k], F[k], VI[k], rng, row)
+
+
+def run_sensor_model(step: Callable, params: np.ndarray, state: np.ndarray, dt_s: float,
+                     x_true: np.ndarray, specific_force_B: np.ndarray, v_i_B_true: np.ndarray,
+                     rng: np.random.Generator, t0_s: float = 0.0) -> np.ndarray:
+    """Drive any sensor suite (the interface in this module's docstring) over a recorded truth.
+
+    Parameters
+    ----------
+    step : compiled function
+        ``step(params, state, t, dt, x_true, specific_force_B, v_i_B_true, rng, meas_out)``,
+        e.g. :func:`sensors_step`.
+    params, state : numpy.ndarray
+        The suite's parameter array and its state (advanced in place).
+    dt_s : float
+        Control tick (s), > 0.
+    x_true : numpy.ndarray, shape (T, layout.X_SIZE)
+        True plant state at each tick.
+    specific_force_B, v_i_B_true : numpy.ndarray, shape (T, 3)
+        True specific force (m/s^2) and incident velocity (m/s), body axes.
+    rng : numpy.random.Generator
+        Source of the suite's draws.
+    t0_s : float
+        Time of the first tick (s).
+
+    Returns
+    -------
+    numpy.ndarray, shape (T, layout.MEAS_SIZE)
+        The measurements; a slot the suite did not write is NaN.
+    """
+    if not dt_s > 0.0:
+        raise ValueError(f"dt_s = {dt_s!r}: must be > 0")
+    X = np.ascontiguousarray(x_true, dtype=float)
+    F = np.ascontiguousarray(specific_force_B, dtype=float)
+    VI = np.ascontiguousarray(v_i_B_true, dtype=float)
+    if X.ndim != 2 or X.shape[1] != layout.X_SIZE or F.shape != (X.shape[0], 3) or VI.shape != F.shape:
+        raise ValueError(f"x_true {X.shape}, specific_force_B {F.shape}, v_i_B_true {VI.shape}: expected "
+                         f"(T, {layout.X_SIZE}), (T, 3), (T, 3)")
+    out = np.empty((X.shape[0], layout.MEAS_SIZE))
+    _run_sensor_model(step, np.asarray(params, dtype=float), state, float(t0_s), float(dt_s), X, F, VI, rng, out)
+    return out
