@@ -31,6 +31,7 @@ SHEAR_PARAMS = BlockLayout("shear wind parameters", [
 _SPEED, _DIR, _SHEAR, _GUST_STD = SHEAR_PARAMS.offsets("SPEED", "DIR", "SHEAR", "GUST_STD")
 SHEAR_STATE = BlockLayout("shear wind state", [Field("STEPS", 1, "-", "steps taken")])
 (_STEPS,) = SHEAR_STATE.offsets("STEPS")
+SHEAR_STATE_SIZE = SHEAR_STATE.size  # kernels see plain ints, bound at import
 SHEAR_DRAWS_PER_STEP = 3
 
 
@@ -53,7 +54,7 @@ class ShearWindConfig:
 
 @njit
 def shear_initial_state(params):
-    return np.zeros(SHEAR_STATE.size)
+    return np.zeros(SHEAR_STATE_SIZE)
 
 
 @njit
