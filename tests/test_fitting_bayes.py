@@ -11,7 +11,7 @@ from scipy import stats
 
 import vtoladapt
 from vtoladapt import forces
-from vtoladapt.fitting import bayes, tunnel
+from vtoladapt.fitting import bayes, linear_gaussian, tunnel
 from vtoladapt.vehicle import PARAMETER_NAMES
 
 NAMES10 = PARAMETER_NAMES + ("k1", "k2")
@@ -52,7 +52,7 @@ def test_marginal_likelihood_and_conditional_match_scipy():
     S0 = np.diag(sd0**2)
     stats_fn = bayes.stats_from_design(lambda phi: (X[None], sigma[None]), y)
     XtWX, XtWy, yWy, slog = stats_fn(np.zeros((1, 0)))
-    lml, mu, L = bayes._marginal_from_stats(XtWX, XtWy, yWy, slog, y.size, m0, 1 / sd0**2,
+    lml, mu, L = linear_gaussian._marginal_from_stats(XtWX, XtWy, yWy, slog, y.size, m0, 1 / sd0**2,
                                             float(np.sum(np.log(sd0**2))), need_L=True)
     ref = stats.multivariate_normal(X @ m0, np.diag(sigma**2) + X @ S0 @ X.T).logpdf(y)
     assert lml[0] == pytest.approx(ref, rel=1e-10)

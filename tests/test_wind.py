@@ -289,7 +289,7 @@ def test_dryden_psd_integrates_to_variance():
 
 def test_two_pole_noise_covariance_against_quadrature():
     for x in [1e-6, 1e-4, 0.01, 0.0999999, 0.1, 0.5, 3.0, 40.0]:
-        q11, q12, q22 = wind._two_pole_noise_cov(x)
+        q11, q12, q22 = wind.dryden._two_pole_noise_cov(x)
         r11 = 4.0 * integrate.quad(lambda s: s * s * np.exp(-2 * s), 0, x, epsabs=0, epsrel=1e-13)[0]
         r12 = 4.0 * integrate.quad(lambda s: s * np.exp(-2 * s), 0, x, epsabs=0, epsrel=1e-13)[0]
         r22 = 4.0 * integrate.quad(lambda s: np.exp(-2 * s), 0, x, epsabs=0, epsrel=1e-13)[0]

@@ -8,7 +8,7 @@ Kernel conventions
 * ``v_i_B``: incident velocity (vehicle relative to the air) in body FRD axes, m/s (eq:vi).
 * ``u_x``, ``u_z``: pusher and lift-rotor throttle as fractions in ``[0, 1]``.
 * ``theta``: the adapted parameters ``[CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1]`` in the
-  *adaptation scaling* (throttle as a fraction, see :func:`vtoladapt.models.theta_to_scaled`),
+  *adaptation scaling* (throttle as a fraction, see :func:`vtoladapt.scaling.theta_to_scaled`),
   so ``CTz`` is the full-throttle lift acceleration in m/s^2.
 * ``model``: float64 array ``[aero_scale_per_m, k1, k2]`` where ``aero_scale_per_m = rho S / (2 m)``.
 * All forces are per unit mass (m/s^2), body FRD. The force kernels return them as tuples

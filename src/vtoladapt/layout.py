@@ -1,8 +1,10 @@
 """Layouts of the flat arrays the compiled kernels exchange, and the one way to declare them.
 
-The simulator, the sensors and the controller meet in four small float64 arrays. Everywhere
-else state has names; these index constants are the only place the positions are written down,
-and the ``*_COLUMNS`` tuples give every slot a name and unit for logs.
+The simulator, the sensors and the controller meet in four small float64 arrays: the plant
+state, the measurement, the reference and the command. Each is declared here once as a
+:class:`BlockLayout` (:data:`STATE`, :data:`MEASUREMENT`, :data:`REFERENCE`, :data:`COMMAND`);
+the index constants (``X_*``, ``MEAS_*``, ``REF_*``, ``CMD_*``) and the ``*_COLUMNS`` tuples that
+name every slot, with its unit, in the logs are derived from those declarations.
 
 Every other flat array of a kernel (a component's parameters, state, scratch and diagnostics) is
 declared with :class:`BlockLayout`: named fields with sizes and units, in order. Offsets are
@@ -22,7 +24,7 @@ Frames: world NED, body FRD (see :mod:`vtoladapt.frames`). Quaternions scalar fi
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterable, Optional, Sequence
+from typing import Iterable, Optional
 
 import numpy as np
 
@@ -49,6 +51,7 @@ class Field:
 
     @property
     def column_names(self) -> tuple[str, ...]:
+        """One name per slot of this field (``columns``, or derived from the field's name)."""
         if self.columns is not None:
             return tuple(self.columns)
         base = self.name.lower()
@@ -80,6 +83,7 @@ class BlockLayout:
         return name in self._offset
 
     def field(self, name: str) -> Field:
+        """The declaration of field ``name``."""
         for f in self.fields:
             if f.name == name:
                 return f
@@ -105,6 +109,7 @@ class BlockLayout:
         return tuple(base + sub.offset(n) for n in sub_names)
 
     def slice(self, name: str) -> slice:
+        """The slots of field ``name`` as a slice of the flat array."""
         o = self.offset(name)
         return slice(o, o + self.field(name).size)
 
@@ -132,57 +137,65 @@ class BlockLayout:
         return f"BlockLayout({self.title!r}, {len(self.fields)} fields, size {self.size})"
 
 # --- plant state x ---------------------------------------------------------------------------
-X_P_W = 0          # position, NED, m (3)
-X_V_W = 3          # velocity, NED, m/s (3)
-X_Q_WB = 6         # attitude quaternion q_WB, scalar first (4)
-X_OMEGA_B = 10     # body rate, FRD, rad/s (3)
-X_MOTOR = 13       # motor outputs after lag, fraction of full throttle: 4 lift rotors then pusher (5)
-X_SIZE = 18
 N_MOTORS = 5
 N_LIFT = 4
 MOTOR_PUSHER = 4
 
-STATE_COLUMNS = (
-    ("p_N_m", "p_E_m", "p_D_m", "v_N_mps", "v_E_mps", "v_D_mps", "q_w", "q_x", "q_y", "q_z",
-     "omega_x_radps", "omega_y_radps", "omega_z_radps",
-     "motor1_frac", "motor2_frac", "motor3_frac", "motor4_frac", "pusher_frac"))
+STATE = BlockLayout("plant state", [
+    Field("P_W", 3, "m", "position, NED", columns=("p_N_m", "p_E_m", "p_D_m")),
+    Field("V_W", 3, "m/s", "velocity, NED", columns=("v_N_mps", "v_E_mps", "v_D_mps")),
+    Field("Q_WB", 4, "-", "attitude quaternion q_WB, scalar first", columns=("q_w", "q_x", "q_y", "q_z")),
+    Field("OMEGA_B", 3, "rad/s", "body rate, FRD",
+          columns=("omega_x_radps", "omega_y_radps", "omega_z_radps")),
+    Field("MOTOR", N_MOTORS, "-", "motor outputs after lag, fraction of full throttle: 4 lift rotors "
+          "then pusher", columns=("motor1_frac", "motor2_frac", "motor3_frac", "motor4_frac", "pusher_frac")),
+])
+X_P_W, X_V_W, X_Q_WB, X_OMEGA_B, X_MOTOR = STATE.offsets("P_W", "V_W", "Q_WB", "OMEGA_B", "MOTOR")
+X_SIZE = STATE.size
+STATE_COLUMNS = STATE.columns
 
 # --- measurement (what the controller sees) ---------------------------------------------------
-MEAS_P_W = 0        # motion-capture position, NED, m (3)
-MEAS_V_W = 3        # motion-capture velocity, NED, m/s (3)
-MEAS_Q_WB = 6       # attitude estimate q_WB (4)
-MEAS_OMEGA_B = 10   # gyro, rad/s (3)
-MEAS_ACCEL_B = 13   # accelerometer specific force a - g in body axes, m/s^2 (3)
-MEAS_V_I_B = 16     # incident velocity from the airflow probe, body, m/s (3)
-MEAS_V_I_VALID = 19 # 1.0 if the probe reading is valid, else 0.0
-MEAS_SIZE = 20
-
-MEASUREMENT_COLUMNS = (
-    "meas_p_N_m", "meas_p_E_m", "meas_p_D_m", "meas_v_N_mps", "meas_v_E_mps", "meas_v_D_mps",
-    "meas_q_w", "meas_q_x", "meas_q_y", "meas_q_z",
-    "meas_omega_x_radps", "meas_omega_y_radps", "meas_omega_z_radps",
-    "meas_accel_x_mps2", "meas_accel_y_mps2", "meas_accel_z_mps2",
-    "meas_v_i_x_mps", "meas_v_i_y_mps", "meas_v_i_z_mps", "meas_v_i_valid")
+MEASUREMENT = BlockLayout("measurement", [
+    Field("P_W", 3, "m", "motion-capture position, NED", columns=("meas_p_N_m", "meas_p_E_m", "meas_p_D_m")),
+    Field("V_W", 3, "m/s", "motion-capture velocity, NED",
+          columns=("meas_v_N_mps", "meas_v_E_mps", "meas_v_D_mps")),
+    Field("Q_WB", 4, "-", "attitude estimate q_WB", columns=("meas_q_w", "meas_q_x", "meas_q_y", "meas_q_z")),
+    Field("OMEGA_B", 3, "rad/s", "gyro, FRD",
+          columns=("meas_omega_x_radps", "meas_omega_y_radps", "meas_omega_z_radps")),
+    Field("ACCEL_B", 3, "m/s^2", "accelerometer: specific force a - g in body axes",
+          columns=("meas_accel_x_mps2", "meas_accel_y_mps2", "meas_accel_z_mps2")),
+    Field("V_I_B", 3, "m/s", "incident velocity from the airflow probe, body",
+          columns=("meas_v_i_x_mps", "meas_v_i_y_mps", "meas_v_i_z_mps")),
+    Field("V_I_VALID", 1, "-", "1.0 if the probe reading is valid, else 0.0", columns=("meas_v_i_valid",)),
+])
+MEAS_P_W, MEAS_V_W, MEAS_Q_WB, MEAS_OMEGA_B, MEAS_ACCEL_B, MEAS_V_I_B, MEAS_V_I_VALID = MEASUREMENT.offsets(
+    "P_W", "V_W", "Q_WB", "OMEGA_B", "ACCEL_B", "V_I_B", "V_I_VALID")
+MEAS_SIZE = MEASUREMENT.size
+MEASUREMENT_COLUMNS = MEASUREMENT.columns
 
 # --- reference (what the controller is asked to do) -------------------------------------------
-REF_P_W = 0         # desired position, NED, m (3)
-REF_V_W = 3         # desired velocity, NED, m/s (3)
-REF_A_W = 6         # desired acceleration, NED, m/s^2 (3)
-REF_YAW = 9         # desired heading, rad
-REF_YAW_RATE = 10   # desired heading rate, rad/s
-REF_SIZE = 11
-
-REFERENCE_COLUMNS = ("ref_p_N_m", "ref_p_E_m", "ref_p_D_m", "ref_v_N_mps", "ref_v_E_mps",
-                     "ref_v_D_mps", "ref_a_N_mps2", "ref_a_E_mps2", "ref_a_D_mps2",
-                     "ref_yaw_rad", "ref_yaw_rate_radps")
+REFERENCE = BlockLayout("reference", [
+    Field("P_W", 3, "m", "desired position, NED", columns=("ref_p_N_m", "ref_p_E_m", "ref_p_D_m")),
+    Field("V_W", 3, "m/s", "desired velocity, NED", columns=("ref_v_N_mps", "ref_v_E_mps", "ref_v_D_mps")),
+    Field("A_W", 3, "m/s^2", "desired acceleration, NED",
+          columns=("ref_a_N_mps2", "ref_a_E_mps2", "ref_a_D_mps2")),
+    Field("YAW", 1, "rad", "desired heading", columns=("ref_yaw_rad",)),
+    Field("YAW_RATE", 1, "rad/s", "desired heading rate", columns=("ref_yaw_rate_radps",)),
+])
+REF_P_W, REF_V_W, REF_A_W, REF_YAW, REF_YAW_RATE = REFERENCE.offsets("P_W", "V_W", "A_W", "YAW", "YAW_RATE")
+REF_SIZE = REFERENCE.size
+REFERENCE_COLUMNS = REFERENCE.columns
 
 # --- command (what the controller outputs, held between ticks) --------------------------------
-CMD_U_X = 0         # pusher throttle, fraction [0, 1]
-CMD_U_Z = 1         # collective lift throttle, fraction [0, 1] (total lift = CTz_s u_z^2 per unit mass)
-CMD_TAU_B = 2       # body moment command, FRD, N m (3)
-CMD_SIZE = 5
-
-COMMAND_COLUMNS = ("cmd_u_x_frac", "cmd_u_z_frac", "cmd_tau_x_Nm", "cmd_tau_y_Nm", "cmd_tau_z_Nm")
+COMMAND = BlockLayout("command", [
+    Field("U_X", 1, "-", "pusher throttle, fraction [0, 1]", columns=("cmd_u_x_frac",)),
+    Field("U_Z", 1, "-", "collective lift throttle, fraction [0, 1] (total lift = CTz_s u_z^2 per "
+          "unit mass)", columns=("cmd_u_z_frac",)),
+    Field("TAU_B", 3, "N m", "body moment command, FRD", columns=("cmd_tau_x_Nm", "cmd_tau_y_Nm", "cmd_tau_z_Nm")),
+])
+CMD_U_X, CMD_U_Z, CMD_TAU_B = COMMAND.offsets("U_X", "U_Z", "TAU_B")
+CMD_SIZE = COMMAND.size
+COMMAND_COLUMNS = COMMAND.columns
 
 # --- wind --------------------------------------------------------------------------------------
 WIND_COLUMNS = ("wind_N_mps", "wind_E_mps", "wind_D_mps")

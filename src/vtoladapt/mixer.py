@@ -16,14 +16,18 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .layout import CMD_TAU_B, CMD_U_X, CMD_U_Z, MOTOR_PUSHER, N_LIFT
+from .layout import CMD_TAU_B, CMD_U_X, CMD_U_Z, MOTOR_PUSHER, N_LIFT, BlockLayout, Field
 from .vehicle import Vehicle
 
-MX_INV = 0          # 4x4 inverse of the allocation matrix, row-major (16)
-MX_T_UNIT = 16      # thrust of one lift rotor at full throttle, N
-MX_TOTAL_UNIT = 17  # total lift at full collective, N (= 4 * MX_T_UNIT)
-MX_U_MAX = 18       # throttle limit, fraction
-MX_SIZE = 19
+MIXER_PARAMS = BlockLayout("mixer parameters", [
+    Field("INV", 16, "-", "4x4 inverse of the allocation matrix, row-major"),
+    Field("T_UNIT", 1, "N", "thrust of one lift rotor at full throttle"),
+    Field("TOTAL_UNIT", 1, "N", "total lift at full collective (4 x T_UNIT)"),
+    Field("U_MAX", 1, "-", "throttle limit, fraction"),
+])
+"""The mixer's kernel parameter array (:func:`mixer_params`)."""
+MX_INV, MX_T_UNIT, MX_TOTAL_UNIT, MX_U_MAX = MIXER_PARAMS.offsets("INV", "T_UNIT", "TOTAL_UNIT", "U_MAX")
+MX_SIZE = MIXER_PARAMS.size
 
 
 def mixer_params(vehicle: Vehicle) -> np.ndarray:
@@ -39,12 +43,8 @@ def mixer_params(vehicle: Vehicle) -> np.ndarray:
     if abs(np.linalg.det(A)) < 1e-12:
         raise ValueError("lift rotor layout cannot produce independent roll, pitch and yaw moments")
     t_unit = vehicle.mass.mass_kg * vehicle.theta_scaled[1] / N_LIFT
-    p = np.zeros(MX_SIZE)
-    p[MX_INV:MX_INV + 16] = np.linalg.inv(A).ravel()
-    p[MX_T_UNIT] = t_unit
-    p[MX_TOTAL_UNIT] = N_LIFT * t_unit
-    p[MX_U_MAX] = vehicle.actuators.throttle_max_pct / 100.0
-    return p
+    return MIXER_PARAMS.pack(INV=np.linalg.inv(A).ravel(), T_UNIT=t_unit, TOTAL_UNIT=N_LIFT * t_unit,
+                             U_MAX=vehicle.actuators.throttle_max_pct / 100.0)
 
 
 @njit(cache=True)

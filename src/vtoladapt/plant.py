@@ -22,7 +22,8 @@ lacks, each switchable:
 Rotor/wing interaction (slipstream over the wing) is not modelled: the lift rotors sit outboard
 of the wing root on booms and the paper gives nothing to calibrate it against.
 
-Kernels take the plant parameter array built once by :meth:`PlantConfig.to_kernel`. The
+Kernels take the plant parameter array built once by :meth:`PlantConfig.to_kernel` (its layout:
+:data:`PLANT_PARAMS`). The
 rigid-body derivative runs 16 times per controller tick (four RK4 steps at 1 kHz), so the force
 kernels it calls take and return scalars and are inlined into it (``inline="always"``): as
 separate calls, the reference counting of the parameter array alone took a fifth of the
@@ -40,8 +41,9 @@ from numba import njit
 from . import forces
 from .config import ConfigError, build, setting
 from .frames import GRAVITY_MPS2
-from .layout import MOTOR_PUSHER, N_LIFT, N_MOTORS, X_MOTOR, X_OMEGA_B, X_P_W, X_Q_WB, X_SIZE, X_V_W
-from .models import theta_to_scaled
+from .layout import (MOTOR_PUSHER, N_LIFT, N_MOTORS, X_MOTOR, X_OMEGA_B, X_P_W, X_Q_WB, X_SIZE, X_V_W,
+                     BlockLayout, Field)
+from .scaling import theta_to_scaled
 from .vehicle import PARAMETER_NAMES, Vehicle
 
 #: UIUC magf 7x4 static thrust coefficient (mean of the 16 static points, 3069-7203 RPM).
@@ -120,7 +122,7 @@ class PlantConfig:
         return theta_to_scaled(np.array([c[n] for n in PARAMETER_NAMES]), c["k1"])
 
     def to_kernel(self, vehicle: Vehicle) -> np.ndarray:
-        """Kernel parameter array (layout: the ``P_*`` constants of this module)."""
+        """Kernel parameter array (layout: :data:`PLANT_PARAMS`)."""
         c = self.true_coefficients(vehicle)
         theta = self.theta_true_scaled(vehicle)
         mass = self.mass_kg if self.mass_kg is not None else vehicle.mass.mass_kg
@@ -135,39 +137,22 @@ class PlantConfig:
         n_max = math.sqrt(theta[0] * vehicle.mass.mass_kg / (self.pusher_static_CT * rho * D**4))
         tau_lift = self.lift_motor_time_constant_s or vehicle.actuators.lift_motor_time_constant_s
         tau_push = self.pusher_motor_time_constant_s or vehicle.actuators.pusher_motor_time_constant_s
-        p = np.zeros(P_SIZE)
-        p[P_MASS] = mass
-        p[P_FORCE_MASS] = vehicle.mass.mass_kg
-        p[P_J:P_J + 9] = J.ravel()
-        p[P_JINV:P_JINV + 9] = np.linalg.inv(J).ravel()
-        p[P_THETA:P_THETA + 8] = theta
-        p[P_K1] = c["k1"]
-        p[P_K2] = c["k2"]
-        p[P_RHO] = rho
-        p[P_S] = S
-        p[P_SPAN] = b
-        p[P_CHORD] = S / b
-        p[P_STALL_ON] = float(self.stall)
-        p[P_ALPHA_STALL] = math.radians(self.stall_angle_deg)
-        p[P_STALL_M] = self.stall_blend_rate_per_rad
-        p[P_STALL_EXP] = math.exp(min(self.stall_blend_rate_per_rad * p[P_ALPHA_STALL], 700.0))
-        p[P_CY_BETA] = self.CY_beta_per_rad if self.side_force else 0.0
-        p[P_PUSH_J_ON] = float(self.pusher_advance_ratio_loss)
-        p[P_CT_A1], p[P_CT_A2] = self.pusher_CT_ratio_coeffs
-        p[P_PUSH_NMAX] = n_max
-        p[P_PUSH_D] = D
-        p[P_LAG_ON] = float(self.motor_lag)
-        p[P_TAU_LIFT] = tau_lift
-        p[P_TAU_PUSH] = tau_push
-        for i, (x, y) in enumerate(vehicle.geometry.lift_rotor_positions_m):
-            p[P_ROTOR_X + i] = x
-            p[P_ROTOR_Y + i] = y
-            p[P_ROTOR_SPIN + i] = vehicle.geometry.lift_rotor_spin[i]
-        p[P_KM] = vehicle.actuators.yaw_torque_per_thrust_m
-        p[P_KM_PUSHER] = vehicle.actuators.yaw_torque_per_thrust_m if self.rotor_reaction_torque else 0.0
-        p[P_DAMP_ON] = float(self.aero_rate_damping)
-        p[P_CLP], p[P_CMQ], p[P_CNR] = self.Clp, self.Cmq, self.Cnr
-        return p
+        alpha_stall = math.radians(self.stall_angle_deg)
+        a1, a2 = self.pusher_CT_ratio_coeffs
+        rotors = vehicle.geometry.lift_rotor_positions_m
+        return PLANT_PARAMS.pack(
+            MASS=mass, FORCE_MASS=vehicle.mass.mass_kg, J=J.ravel(), JINV=np.linalg.inv(J).ravel(),
+            THETA=theta, K1=c["k1"], K2=c["k2"], RHO=rho, S=S, SPAN=b, CHORD=S / b,
+            STALL_ON=float(self.stall), ALPHA_STALL=alpha_stall, STALL_M=self.stall_blend_rate_per_rad,
+            STALL_EXP=math.exp(min(self.stall_blend_rate_per_rad * alpha_stall, 700.0)),
+            CY_BETA=self.CY_beta_per_rad if self.side_force else 0.0,
+            PUSH_J_ON=float(self.pusher_advance_ratio_loss), CT_A1=a1, CT_A2=a2, PUSH_NMAX=n_max, PUSH_D=D,
+            LAG_ON=float(self.motor_lag), TAU_LIFT=tau_lift, TAU_PUSH=tau_push,
+            ROTOR_X=[x for x, _ in rotors], ROTOR_Y=[y for _, y in rotors],
+            ROTOR_SPIN=vehicle.geometry.lift_rotor_spin[:N_LIFT],
+            KM=vehicle.actuators.yaw_torque_per_thrust_m,
+            KM_PUSHER=vehicle.actuators.yaw_torque_per_thrust_m if self.rotor_reaction_torque else 0.0,
+            DAMP_ON=float(self.aero_rate_damping), CLP=self.Clp, CMQ=self.Cmq, CNR=self.Cnr)
 
 
 def plant_config_from_mapping(data: dict | None, source: str) -> PlantConfig:
@@ -175,41 +160,49 @@ def plant_config_from_mapping(data: dict | None, source: str) -> PlantConfig:
     return build(PlantConfig, data or {}, source=source, section="plant")
 
 
-# --- kernel parameter layout (private to this module) -----------------------------------------
-P_MASS = 0
-P_J = 1
-P_JINV = 10
-P_THETA = 19
-P_K1 = 27
-P_K2 = 28
-P_RHO = 29
-P_S = 30
-P_SPAN = 31
-P_CHORD = 32
-P_STALL_ON = 33
-P_ALPHA_STALL = 34
-P_STALL_M = 35
-P_CY_BETA = 36
-P_PUSH_J_ON = 37
-P_CT_A1 = 38
-P_CT_A2 = 39
-P_PUSH_NMAX = 40
-P_PUSH_D = 41
-P_LAG_ON = 42
-P_TAU_LIFT = 43
-P_TAU_PUSH = 44
-P_ROTOR_X = 45
-P_ROTOR_Y = 49
-P_ROTOR_SPIN = 53
-P_KM = 57
-P_DAMP_ON = 58
-P_CLP = 59
-P_CMQ = 60
-P_CNR = 61
-P_FORCE_MASS = 62  # mass the coefficients were normalised by (vehicle's), kg
-P_KM_PUSHER = 63   # pusher drag torque per thrust (0 when rotor_reaction_torque is off), m
-P_STALL_EXP = 64   # exp(M alpha_stall) (clamped), so the stall blend needs one exp per evaluation
-P_SIZE = 65
+# --- kernel parameter layout -------------------------------------------------------------------
+PLANT_PARAMS = BlockLayout("plant parameters", [
+    Field("MASS", 1, "kg", "true mass"),
+    Field("FORCE_MASS", 1, "kg", "mass the coefficients are normalised by (the vehicle's): newtons = "
+          "FORCE_MASS x coefficient"),
+    Field("J", 9, "kg m^2", "true inertia matrix about the centre of mass, body FRD, row-major"),
+    Field("JINV", 9, "1/(kg m^2)", "its inverse, row-major"),
+    Field("THETA", 8, "adaptation scaling", "true linear-model coefficients (forces.I_* order)"),
+    Field("K1", 1, "-", "side-force exponent k1"),
+    Field("K2", 1, "rad", "side-force offset k2"),
+    Field("RHO", 1, "kg/m^3", "air density"),
+    Field("S", 1, "m^2", "wing reference area"),
+    Field("SPAN", 1, "m", "wingspan"),
+    Field("CHORD", 1, "m", "mean chord S / b"),
+    Field("STALL_ON", 1, "-", "1.0: blend to flat-plate aerodynamics past stall"),
+    Field("ALPHA_STALL", 1, "rad", "angle of attack where the stall blend is half way"),
+    Field("STALL_M", 1, "1/rad", "sharpness M of the stall blend"),
+    Field("STALL_EXP", 1, "-", "exp(M alpha_stall) (clamped): the stall blend needs one exp per call"),
+    Field("CY_BETA", 1, "1/rad", "side-force slope (0 when the side force is off)"),
+    Field("PUSH_J_ON", 1, "-", "1.0: pusher thrust falls with advance ratio"),
+    Field("CT_A1", 1, "-", "a1 of C_T(J)/C_T(0) = 1 + a1 J + a2 J^2"),
+    Field("CT_A2", 1, "-", "a2 of the same"),
+    Field("PUSH_NMAX", 1, "rev/s", "pusher speed at full throttle"),
+    Field("PUSH_D", 1, "m", "pusher diameter"),
+    Field("LAG_ON", 1, "-", "1.0: first-order motor lag"),
+    Field("TAU_LIFT", 1, "s", "lift-motor time constant"),
+    Field("TAU_PUSH", 1, "s", "pusher time constant"),
+    Field("ROTOR_X", N_LIFT, "m", "body x of the lift rotors"),
+    Field("ROTOR_Y", N_LIFT, "m", "body y of the lift rotors"),
+    Field("ROTOR_SPIN", N_LIFT, "-", "spin direction of the lift rotors (+1 / -1)"),
+    Field("KM", 1, "m", "lift-rotor reaction torque per thrust"),
+    Field("KM_PUSHER", 1, "m", "pusher drag torque per thrust (0 when rotor_reaction_torque is off)"),
+    Field("DAMP_ON", 1, "-", "1.0: aerodynamic rate damping"),
+    Field("CLP", 1, "-", "roll damping derivative"),
+    Field("CMQ", 1, "-", "pitch damping derivative"),
+    Field("CNR", 1, "-", "yaw damping derivative"),
+])
+"""The plant's kernel parameter array, built by :meth:`PlantConfig.to_kernel`."""
+(P_MASS, P_FORCE_MASS, P_J, P_JINV, P_THETA, P_K1, P_K2, P_RHO, P_S, P_SPAN, P_CHORD, P_STALL_ON,
+ P_ALPHA_STALL, P_STALL_M, P_STALL_EXP, P_CY_BETA, P_PUSH_J_ON, P_CT_A1, P_CT_A2, P_PUSH_NMAX, P_PUSH_D,
+ P_LAG_ON, P_TAU_LIFT, P_TAU_PUSH, P_ROTOR_X, P_ROTOR_Y, P_ROTOR_SPIN, P_KM, P_KM_PUSHER, P_DAMP_ON,
+ P_CLP, P_CMQ, P_CNR) = PLANT_PARAMS.offsets(*(f.name for f in PLANT_PARAMS.fields))
+P_SIZE = PLANT_PARAMS.size
 PUSHER_J_MAX = 0.8  # edge of the UIUC data; the quadratic is not extrapolated beyond
 N_BODY = X_MOTOR    # the rigid-body part of the state: p, v, q, omega (the motors follow)
 ROTOR_TERMS_SIZE = 7
@@ -418,17 +411,20 @@ def plant_derivative(x, motor_cmd, v_wind_W, p, xdot, f_B) -> None:
 
 
 # --- fixed-step integration -------------------------------------------------------------------
-# work array layout: RK4 stages k1..k4 and the trial state (rigid body only), the motor outputs
-# at mid-step and end of step, the rotor terms at the start of the next step
-_W_K1 = 0
-_W_K2 = N_BODY
-_W_K3 = 2 * N_BODY
-_W_K4 = 3 * N_BODY
-_W_XT = 4 * N_BODY
-_W_M_MID = 5 * N_BODY
-_W_M_END = _W_M_MID + N_MOTORS
-_W_ROTORS = _W_M_END + N_MOTORS
-RK4_WORK_SIZE = _W_ROTORS + ROTOR_TERMS_SIZE
+RK4_WORK = BlockLayout("RK4 work array", [
+    Field("K1", N_BODY, "per s", "RK4 stage 1 of the rigid body (p, v, q, omega)"),
+    Field("K2", N_BODY, "per s", "stage 2"),
+    Field("K3", N_BODY, "per s", "stage 3"),
+    Field("K4", N_BODY, "per s", "stage 4"),
+    Field("XT", N_BODY, "state", "trial rigid-body state of the stage being evaluated"),
+    Field("M_MID", N_MOTORS, "-", "motor outputs at mid-step"),
+    Field("M_END", N_MOTORS, "-", "motor outputs at the end of the step"),
+    Field("ROTORS", ROTOR_TERMS_SIZE, "mixed", "rotor_terms at the start of the next step"),
+])
+"""Scratch of :func:`plant_first_stage` and :func:`plant_advance` (one per run, reused every tick)."""
+_W_K1, _W_K2, _W_K3, _W_K4, _W_XT, _W_M_MID, _W_M_END, _W_ROTORS = RK4_WORK.offsets(
+    "K1", "K2", "K3", "K4", "XT", "M_MID", "M_END", "ROTORS")
+RK4_WORK_SIZE = RK4_WORK.size
 
 
 @njit(cache=True)

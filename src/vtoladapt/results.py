@@ -52,18 +52,22 @@ class SimulationResult:
 
     @property
     def time_s(self) -> np.ndarray:
+        """Time of each tick (s), shape (T,)."""
         return self["t_s"]
 
     @property
     def position_W(self) -> np.ndarray:
+        """True position, NED (m), shape (T, 3)."""
         return self.columns_like(("p_N_m", "p_E_m", "p_D_m"))
 
     @property
     def velocity_W(self) -> np.ndarray:
+        """True velocity, NED (m/s), shape (T, 3)."""
         return self.columns_like(("v_N_mps", "v_E_mps", "v_D_mps"))
 
     @property
     def wind_W(self) -> np.ndarray:
+        """Wind at the vehicle, NED (m/s), shape (T, 3)."""
         return self.columns_like(("wind_N_mps", "wind_E_mps", "wind_D_mps"))
 
     @property

@@ -46,6 +46,40 @@ this fixed order: gyro noise xyz, accelerometer noise xyz, gyro bias walk xyz, a
 walk xyz, mocap position NED, mocap velocity NED, attitude rotation xyz, probe xyz, probe dropout
 (uniform). Every channel draws whether it is ideal or not, so making one sensor ideal never
 changes the noise of the others: a run differs from another only where its settings differ.
+
+Layouts
+-------
+The parameter array is one block per sensor (:data:`IMU_PARAMS`, :data:`MOCAP_PARAMS`,
+:data:`ATTITUDE_PARAMS`, :data:`PROBE_PARAMS`, composed in :data:`SENSOR_PARAMS`; the pressure
+probe appends :data:`PRESSURE_PROBE_PARAMS`), the state array is :data:`SENSOR_STATE`, all
+declared with :class:`vtoladapt.layout.BlockLayout`; the kernels' offsets are derived from them.
+
+The sensor interface
+--------------------
+A sensor suite is three things; the simulator and the tools here use nothing else:
+
+1. **Settings**: a frozen dataclass whose fields are declared with
+   :func:`vtoladapt.config.setting` (unit, meaning, allowed values), built from a TOML table with
+   :func:`vtoladapt.config.build`, with a ``to_kernel()`` that returns the suite's float64
+   parameter array, laid out with a :class:`~vtoladapt.layout.BlockLayout` whose offsets the
+   kernels bind at import.
+2. ``initial_state(params, rng) -> state``: a fresh state array; it may draw from ``rng`` (a
+   fixed number of draws), e.g. the run's constant biases.
+3. A compiled ``step(params, state, t, dt, x_true, specific_force_B, v_i_B_true, rng, meas_out)``
+   (``numba.njit``) that writes every slot of ``meas_out`` (layout
+   :data:`vtoladapt.layout.MEASUREMENT`: position, velocity, attitude, body rate, specific force,
+   incident velocity and its validity flag) from the truth it is given, and advances ``state`` in
+   place. Randomness only from ``rng``, a fixed number of draws per call whatever the settings,
+   so a setting changes nothing but what it is about.
+
+:func:`run_sensor_model` drives any such suite over a recorded truth;
+``tests/test_sensor_interface.py`` writes a suite of its own (a GNSS-class receiver instead of
+motion capture) and holds it and :func:`sensors_step` to the same contract. The closed loop
+(:mod:`vtoladapt.compiled_loop`) calls :func:`sensors_step`. A new model of one channel goes
+into it the way the pressure probe did: its settings in that channel's config class, its block
+in the layouts above, a compiled function called from :func:`sensors_step` (for the probe, a
+``_probe_<model>`` function selected by ``PROBE_MODELS``) that draws a fixed number of random
+numbers after the existing channels' draws, so existing runs stay bit-identical.
 """
 from __future__ import annotations
 
@@ -53,7 +87,7 @@ import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping, Optional
+from typing import Any, Callable, Mapping, Optional
 
 import numpy as np
 from numba import njit
@@ -63,7 +97,9 @@ from .config import build, setting
 from .frames import GRAVITY_MPS2
 from .probe import (ProbeTip, SDP33Sensor, calibrate_tip, incident_velocity_from_pressures,
                     load_calibration, probe_differential_pressures, sdp33_sensor_step)
-from .probe.sensor import SENSOR_OFFSET_PA
+from .layout import BlockLayout, Field
+from .probe.sensor import SENSOR_KERNEL_SIZE, SENSOR_OFFSET_PA
+from .probe.tip import TIP_KERNEL_SIZE
 
 MICRO_G_MPS2 = 1e-6 * GRAVITY_MPS2
 """One micro-g in m/s^2."""
@@ -78,61 +114,101 @@ SENSOR_UNIFORMS_PER_STEP = 1
 PROBE_MODELS = ("ideal_noise", "pressure")
 VELOCITY_SOURCES = ("direct", "differentiate")
 
-# --- kernel parameter layout (private to this module) -------------------------------------------
-_IMU_IDEAL = 0
-_GYRO_DENSITY = 1        # rad/s/sqrt(Hz)
-_ACCEL_DENSITY = 2       # m/s^2/sqrt(Hz)
-_GYRO_BIAS_STD = 3       # rad/s
-_ACCEL_BIAS_STD = 4      # m/s^2
-_GYRO_WALK = 5           # rad/s/sqrt(s)
-_ACCEL_WALK = 6          # m/s^2/sqrt(s)
-_GYRO_RANGE = 7          # rad/s
-_ACCEL_RANGE = 8         # m/s^2
-_MOCAP_IDEAL = 9
-_MOCAP_POS_STD = 10      # m
-_MOCAP_VEL_DIFF = 11     # 1.0: velocity by differencing positions; 0.0: direct noise
-_MOCAP_VEL_STD = 12      # m/s
-_MOCAP_VEL_LP_HZ = 13    # Hz (0: no filter)
-_MOCAP_LATENCY = 14      # s
-_ATT_IDEAL = 15
-_ATT_STD = 16            # rad
-_PROBE_IDEAL = 17
-_PROBE_MODEL = 18        # index into PROBE_MODELS
-_PROBE_STD = 19          # m/s
-_PROBE_TAU = 20          # s
-_PROBE_DROPOUT = 21      # probability per tick
-_PROBE_MIN_V = 22        # m/s
-SENSORS_KERNEL_SIZE = 23
-# pressure probe only, appended: true and assumed air density, tip, SDP33, calibration (to the end)
-_PP_RHO_TRUE = SENSORS_KERNEL_SIZE
-_PP_RHO_ASSUMED = SENSORS_KERNEL_SIZE + 1
-_PP_TIP = SENSORS_KERNEL_SIZE + 2
-_PP_SDP = _PP_TIP + 3
-SDP33_KERNEL_SIZE = 7
-_PP_CAL = _PP_SDP + SDP33_KERNEL_SIZE
-PROBE_MODEL_IDEAL_NOISE = 0
-PROBE_MODEL_PRESSURE = 1
+PROBE_MODEL_IDEAL_NOISE = PROBE_MODELS.index("ideal_noise")
+PROBE_MODEL_PRESSURE = PROBE_MODELS.index("pressure")
 TIP_CALIBRATION_CONE_DEG = 20.0
 
+# --- kernel parameter layout: one block per sensor ----------------------------------------------
+IMU_PARAMS = BlockLayout("IMU parameters", [
+    Field("IDEAL", 1, "-", "1.0: perfect IMU"),
+    Field("GYRO_DENSITY", 1, "rad/s/sqrt(Hz)", "gyro white-noise density"),
+    Field("ACCEL_DENSITY", 1, "m/s^2/sqrt(Hz)", "accelerometer white-noise density"),
+    Field("GYRO_BIAS_STD", 1, "rad/s", "std of the constant gyro bias"),
+    Field("ACCEL_BIAS_STD", 1, "m/s^2", "std of the constant accelerometer bias"),
+    Field("GYRO_WALK", 1, "rad/s/sqrt(s)", "gyro bias random walk"),
+    Field("ACCEL_WALK", 1, "m/s^2/sqrt(s)", "accelerometer bias random walk"),
+    Field("GYRO_RANGE", 1, "rad/s", "gyro full-scale range"),
+    Field("ACCEL_RANGE", 1, "m/s^2", "accelerometer full-scale range"),
+])
+MOCAP_PARAMS = BlockLayout("motion-capture parameters", [
+    Field("IDEAL", 1, "-", "1.0: perfect, undelayed position and velocity"),
+    Field("POS_STD", 1, "m", "position noise per axis"),
+    Field("VEL_DIFF", 1, "-", "1.0: velocity by differencing positions; 0.0: direct noise"),
+    Field("VEL_STD", 1, "m/s", "velocity noise per axis (direct)"),
+    Field("VEL_LP_HZ", 1, "Hz", "low-pass cut-off of the differenced velocity (0: none)"),
+    Field("LATENCY", 1, "s", "delay of position and velocity"),
+])
+ATTITUDE_PARAMS = BlockLayout("attitude-estimate parameters", [
+    Field("IDEAL", 1, "-", "1.0: perfect attitude"),
+    Field("STD", 1, "rad", "small-rotation noise per body axis"),
+])
+PROBE_PARAMS = BlockLayout("airflow-probe parameters", [
+    Field("IDEAL", 1, "-", "1.0: perfect, always valid incident velocity"),
+    Field("MODEL", 1, "-", "index into PROBE_MODELS"),
+    Field("STD", 1, "m/s", "white noise per body axis (ideal_noise)"),
+    Field("TAU", 1, "s", "first-order lag (ideal_noise)"),
+    Field("DROPOUT", 1, "-", "probability per tick of an invalid reading"),
+    Field("MIN_V", 1, "m/s", "readings below this airspeed are flagged invalid"),
+])
+SENSOR_PARAMS = BlockLayout("sensor parameters", [
+    Field("IMU", IMU_PARAMS.size, "-", "IMU_PARAMS"),
+    Field("MOCAP", MOCAP_PARAMS.size, "-", "MOCAP_PARAMS"),
+    Field("ATTITUDE", ATTITUDE_PARAMS.size, "-", "ATTITUDE_PARAMS"),
+    Field("PROBE", PROBE_PARAMS.size, "-", "PROBE_PARAMS"),
+])
+"""The sensors' parameter array (the pressure probe appends :data:`PRESSURE_PROBE_PARAMS`)."""
+(_IMU_IDEAL, _GYRO_DENSITY, _ACCEL_DENSITY, _GYRO_BIAS_STD, _ACCEL_BIAS_STD, _GYRO_WALK, _ACCEL_WALK,
+ _GYRO_RANGE, _ACCEL_RANGE) = SENSOR_PARAMS.nested("IMU", IMU_PARAMS, *(f.name for f in IMU_PARAMS.fields))
+(_MOCAP_IDEAL, _MOCAP_POS_STD, _MOCAP_VEL_DIFF, _MOCAP_VEL_STD, _MOCAP_VEL_LP_HZ, _MOCAP_LATENCY) = \
+    SENSOR_PARAMS.nested("MOCAP", MOCAP_PARAMS, *(f.name for f in MOCAP_PARAMS.fields))
+_ATT_IDEAL, _ATT_STD = SENSOR_PARAMS.nested("ATTITUDE", ATTITUDE_PARAMS, "IDEAL", "STD")
+_PROBE_IDEAL, _PROBE_MODEL, _PROBE_STD, _PROBE_TAU, _PROBE_DROPOUT, _PROBE_MIN_V = SENSOR_PARAMS.nested(
+    "PROBE", PROBE_PARAMS, *(f.name for f in PROBE_PARAMS.fields))
+SENSORS_KERNEL_SIZE = SENSOR_PARAMS.size
+
+SDP33_KERNEL_SIZE = SENSOR_KERNEL_SIZE
+PRESSURE_PROBE_PARAMS = BlockLayout("pressure-probe parameters (after SENSOR_PARAMS)", [
+    Field("RHO_TRUE", 1, "kg/m^3", "true air density (makes the pressures)"),
+    Field("RHO_ASSUMED", 1, "kg/m^3", "the flight computer's density (turns them back into a speed)"),
+    Field("TIP", TIP_KERNEL_SIZE, "-", "ProbeTip.to_kernel()"),
+    Field("SDP", SDP33_KERNEL_SIZE, "-", "SDP33Sensor.to_kernel(), with the run's drawn offsets"),
+    Field("CAL", 0, "-", "the calibration's to_kernel(), to the end of the array (its length varies)"),
+])
+"""Appended to the parameter array for ``model = "pressure"`` only."""
+_PP_RHO_TRUE, _PP_RHO_ASSUMED, _PP_TIP, _PP_SDP, _PP_CAL = (
+    SENSORS_KERNEL_SIZE + o for o in PRESSURE_PROBE_PARAMS.offsets("RHO_TRUE", "RHO_ASSUMED", "TIP", "SDP", "CAL"))
+
 # --- state layout -----------------------------------------------------------------------------
-_ST_INIT = 0          # 0.0 until the first step has filled the buffers
-_ST_GYRO_BIAS = 1     # rad/s (3)
-_ST_ACCEL_BIAS = 4    # m/s^2 (3)
-_ST_PROBE = 7         # probe model state: lagged incident velocity, m/s (3)
-_ST_PREV_P = 10       # previous delayed noisy mocap position, m (3)
-_ST_VEL_F = 13        # low-passed differenced mocap velocity, m/s (3)
-_ST_DT_KEY = 16       # dt the cached coefficients below were computed for (0: none yet)
-_ST_INV_SQRT_DT = 17  # 1 / sqrt(dt): white-noise density -> per-sample sigma
-_ST_SQRT_DT = 18      # sqrt(dt): random-walk density -> per-step increment
-_ST_MOCAP_GAIN = 19   # 1 - exp(-2 pi f_c dt) of the differenced-velocity low-pass
-_ST_PROBE_GAIN = 20   # 1 - exp(-dt / tau) of the probe lag
-_ST_DELAY = 21        # mocap latency in whole ticks
-_ST_RING_HEAD = 22    # ring slot written this tick
-_ST_Q_TRUE = 23       # scratch of the pressure probe: true [q_inf, q_alpha, q_beta] this tick, Pa (3)
-_ST_Q_MEAS = 26       # scratch of the pressure probe: the SDP33 readings this tick, Pa (3)
-_ST_RING = 29         # MOCAP_RING_SIZE slots of (p_W, v_W)
-_RING_STRIDE = 6
-SENSORS_STATE_SIZE = _ST_RING + _RING_STRIDE * MOCAP_RING_SIZE
+MOCAP_SAMPLE = BlockLayout("motion-capture ring entry", [
+    Field("P_W", 3, "m", "true position, NED"),
+    Field("V_W", 3, "m/s", "true velocity, NED"),
+])
+SENSOR_STATE = BlockLayout("sensor state", [
+    Field("INIT", 1, "-", "0.0 until the first step has filled the buffers"),
+    Field("GYRO_BIAS", 3, "rad/s", "gyro bias"),
+    Field("ACCEL_BIAS", 3, "m/s^2", "accelerometer bias"),
+    Field("PROBE", 3, "m/s or Pa", "probe model state: lagged incident velocity (ideal_noise) or the "
+          "SDP33 filter states (pressure)"),
+    Field("PREV_P", 3, "m", "previous delayed noisy mocap position"),
+    Field("VEL_F", 3, "m/s", "low-passed differenced mocap velocity"),
+    Field("DT_KEY", 1, "s", "dt the cached coefficients below were computed for (0: none yet)"),
+    Field("INV_SQRT_DT", 1, "1/sqrt(s)", "1 / sqrt(dt): white-noise density -> per-sample sigma"),
+    Field("SQRT_DT", 1, "sqrt(s)", "sqrt(dt): random-walk density -> per-step increment"),
+    Field("MOCAP_GAIN", 1, "-", "1 - exp(-2 pi f_c dt) of the differenced-velocity low-pass"),
+    Field("PROBE_GAIN", 1, "-", "1 - exp(-dt / tau) of the probe lag"),
+    Field("DELAY", 1, "ticks", "mocap latency in whole ticks"),
+    Field("RING_HEAD", 1, "-", "ring slot written this tick"),
+    Field("Q_TRUE", 3, "Pa", "scratch of the pressure probe: true [q_inf, q_alpha, q_beta] this tick"),
+    Field("Q_MEAS", 3, "Pa", "scratch of the pressure probe: the SDP33 readings this tick"),
+    Field("RING", MOCAP_SAMPLE.size * MOCAP_RING_SIZE, "-", "MOCAP_RING_SIZE entries of MOCAP_SAMPLE"),
+])
+"""The sensors' state array, built by :func:`sensors_initial_state`."""
+(_ST_INIT, _ST_GYRO_BIAS, _ST_ACCEL_BIAS, _ST_PROBE, _ST_PREV_P, _ST_VEL_F, _ST_DT_KEY, _ST_INV_SQRT_DT,
+ _ST_SQRT_DT, _ST_MOCAP_GAIN, _ST_PROBE_GAIN, _ST_DELAY, _ST_RING_HEAD, _ST_Q_TRUE, _ST_Q_MEAS,
+ _ST_RING) = SENSOR_STATE.offsets(*(f.name for f in SENSOR_STATE.fields))
+_RING_P, _RING_V = MOCAP_SAMPLE.offsets("P_W", "V_W")
+_RING_STRIDE = MOCAP_SAMPLE.size
+SENSORS_STATE_SIZE = SENSOR_STATE.size
 
 
 # ==================================================================================================
@@ -429,8 +505,8 @@ def _mocap_step(params, state, dt, x_true, rng, meas_out):
     state[_ST_RING_HEAD] = head
     k = _ST_RING + _RING_STRIDE * head
     for j in range(3):
-        state[k + j] = x_true[layout.X_P_W + j]
-        state[k + 3 + j] = x_true[layout.X_V_W + j]
+        state[k + _RING_P + j] = x_true[layout.X_P_W + j]
+        state[k + _RING_V + j] = x_true[layout.X_V_W + j]
     d = _ST_RING + _RING_STRIDE * ((head - n_delay) % MOCAP_RING_SIZE)
     ideal = params[_MOCAP_IDEAL] != 0.0
     for j in range(3):
@@ -438,7 +514,7 @@ def _mocap_step(params, state, dt, x_true, rng, meas_out):
         if ideal:
             meas_out[layout.MEAS_P_W + j] = x_true[layout.X_P_W + j]
         else:
-            meas_out[layout.MEAS_P_W + j] = state[d + j] + params[_MOCAP_POS_STD] * n
+            meas_out[layout.MEAS_P_W + j] = state[d + _RING_P + j] + params[_MOCAP_POS_STD] * n
     differentiate = params[_MOCAP_VEL_DIFF] != 0.0
     gain = state[_ST_MOCAP_GAIN]
     for j in range(3):
@@ -452,7 +528,7 @@ def _mocap_step(params, state, dt, x_true, rng, meas_out):
             state[_ST_VEL_F + j] += gain * (raw - state[_ST_VEL_F + j])
             meas_out[layout.MEAS_V_W + j] = state[_ST_VEL_F + j]
         else:
-            meas_out[layout.MEAS_V_W + j] = state[d + 3 + j] + params[_MOCAP_VEL_STD] * n
+            meas_out[layout.MEAS_V_W + j] = state[d + _RING_V + j] + params[_MOCAP_VEL_STD] * n
 
 
 @njit(cache=True, inline="always")
@@ -556,8 +632,8 @@ def _first_step(state, x_true, v_i_B_true):
     for s in range(MOCAP_RING_SIZE):
         k = _ST_RING + _RING_STRIDE * s
         for j in range(3):
-            state[k + j] = x_true[layout.X_P_W + j]
-            state[k + 3 + j] = x_true[layout.X_V_W + j]
+            state[k + _RING_P + j] = x_true[layout.X_P_W + j]
+            state[k + _RING_V + j] = x_true[layout.X_V_W + j]
     state[_ST_RING_HEAD] = MOCAP_RING_SIZE - 1  # the first step writes slot 0
     for j in range(3):
         state[_ST_PREV_P + j] = x_true[layout.X_P_W + j]
@@ -603,3 +679,52 @@ def sensors_step(params: np.ndarray, state: np.ndarray, t: float, dt: float, x_t
     _mocap_step(params, state, dt, x_true, rng, meas_out)
     _attitude_step(params, x_true, rng, meas_out)
     _probe_step(params, state, dt, v_i_B_true, rng, meas_out)
+
+
+@njit(cache=True)
+def _run_sensor_model(step, params, state, t0, dt, X, F, VI, rng, out):
+    for k in range(X.shape[0]):
+        row = out[k]
+        row[:] = np.nan  # a slot the model does not write stays NaN
+        step(params, state, t0 + k * dt, dt, X[k], F[k], VI[k], rng, row)
+
+
+def run_sensor_model(step: Callable, params: np.ndarray, state: np.ndarray, dt_s: float,
+                     x_true: np.ndarray, specific_force_B: np.ndarray, v_i_B_true: np.ndarray,
+                     rng: np.random.Generator, t0_s: float = 0.0) -> np.ndarray:
+    """Drive any sensor suite (the interface in this module's docstring) over a recorded truth.
+
+    Parameters
+    ----------
+    step : compiled function
+        ``step(params, state, t, dt, x_true, specific_force_B, v_i_B_true, rng, meas_out)``,
+        e.g. :func:`sensors_step`.
+    params, state : numpy.ndarray
+        The suite's parameter array and its state (advanced in place).
+    dt_s : float
+        Control tick (s), > 0.
+    x_true : numpy.ndarray, shape (T, layout.X_SIZE)
+        True plant state at each tick.
+    specific_force_B, v_i_B_true : numpy.ndarray, shape (T, 3)
+        True specific force (m/s^2) and incident velocity (m/s), body axes.
+    rng : numpy.random.Generator
+        Source of the suite's draws.
+    t0_s : float
+        Time of the first tick (s).
+
+    Returns
+    -------
+    numpy.ndarray, shape (T, layout.MEAS_SIZE)
+        The measurements; a slot the suite did not write is NaN.
+    """
+    if not dt_s > 0.0:
+        raise ValueError(f"dt_s = {dt_s!r}: must be > 0")
+    X = np.ascontiguousarray(x_true, dtype=float)
+    F = np.ascontiguousarray(specific_force_B, dtype=float)
+    VI = np.ascontiguousarray(v_i_B_true, dtype=float)
+    if X.ndim != 2 or X.shape[1] != layout.X_SIZE or F.shape != (X.shape[0], 3) or VI.shape != F.shape:
+        raise ValueError(f"x_true {X.shape}, specific_force_B {F.shape}, v_i_B_true {VI.shape}: expected "
+                         f"(T, {layout.X_SIZE}), (T, 3), (T, 3)")
+    out = np.empty((X.shape[0], layout.MEAS_SIZE))
+    _run_sensor_model(step, np.asarray(params, dtype=float), state, float(t0_s), float(dt_s), X, F, VI, rng, out)
+    return out

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .config import ConfigError, build, read_toml, setting
+from .scaling import model_kernel_params, theta_to_scaled
 
 VEHICLE_DIR = Path(__file__).with_name("vehicles")
 PARAMETER_NAMES = ("CTx", "CTz", "CS", "CD0", "CD1", "CD2", "CL0", "CL1")
@@ -44,6 +45,7 @@ class MassProperties:
 
     @property
     def inertia_matrix(self) -> np.ndarray:
+        """Inertia matrix about the centre of mass, body FRD (kg m^2), with the xz product."""
         ixx, iyy, izz = self.inertia_kgm2
         ixz = self.product_of_inertia_xz_kgm2
         return np.array([[ixx, 0.0, -ixz], [0.0, iyy, 0.0], [-ixz, 0.0, izz]])
@@ -121,6 +123,7 @@ class ForceModelStd:
     CL1: float = setting("1/rad", "std of CL1", gt=0.0)
 
     def as_table_theta(self) -> np.ndarray:
+        """Standard deviations in the paper's order and Table I units (throttle in percent)."""
         return np.array([getattr(self, n) for n in PARAMETER_NAMES])
 
 
@@ -189,22 +192,17 @@ class Vehicle:
 
     @cached_property
     def model_kernel(self) -> np.ndarray:
-        """Kernel parameters of the force model (see :mod:`vtoladapt.models`)."""
-        from .models import model_kernel_params
-
+        """Kernel parameters of the force model (see :mod:`vtoladapt.forces`)."""
         return _read_only(model_kernel_params(self.aero_scale_per_m, self.force_model.k1, self.force_model.k2))
 
     @cached_property
     def theta_scaled(self) -> np.ndarray:
-        """theta_0 in the adaptation scaling (see :func:`vtoladapt.models.theta_to_scaled`)."""
-        from .models import theta_to_scaled
-
+        """theta_0 in the adaptation scaling (see :func:`vtoladapt.scaling.theta_to_scaled`)."""
         return _read_only(theta_to_scaled(self.force_model.as_table_theta(), self.force_model.k1))
 
     @cached_property
     def theta_std_scaled(self) -> np.ndarray:
-        from .models import theta_to_scaled
-
+        """The coefficients' standard deviations in the adaptation scaling."""
         return _read_only(theta_to_scaled(self.force_model_std.as_table_theta(), self.force_model.k1))
 
     def replace(self, **changes) -> "Vehicle":

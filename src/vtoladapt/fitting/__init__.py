@@ -2,8 +2,11 @@
 
 * :mod:`~vtoladapt.fitting.data`: the force-balance CSV format (reader/validator, writer);
 * :mod:`~vtoladapt.fitting.tunnel`: the virtual wind tunnel (simulated balance data);
-* :mod:`~vtoladapt.fitting.bayes`: Bayesian regression by MCMC (emcee) with the linear
-  coefficients marginalised analytically; the closed-form posterior used to check it;
+* :mod:`~vtoladapt.fitting.linear_gaussian`: closed-form Bayesian linear regression and its
+  marginal likelihood;
+* :mod:`~vtoladapt.fitting.sampler`: the marginal problem and its MCMC sampler (emcee), with the
+  linear coefficients marginalised analytically, and the convergence diagnostics;
+* :mod:`~vtoladapt.fitting.bayes`: the Table I problem and its fit;
 * :mod:`~vtoladapt.fitting.posterior`: ``posterior.json``, and theta_0 / P0 / bounds for the
   adaptive controller from it;
 * :mod:`~vtoladapt.fitting.realdata`: UIUC propeller and TU Delft wing fits;
@@ -23,8 +26,9 @@ import importlib
 # Names are imported on first use (PEP 562): the CLI registers `vtoladapt fit` without loading
 # emcee and scipy.stats, which keeps `vtoladapt run` quick to start.
 _EXPORTS = {
-    "bayes": ("SamplerSettings", "Table1Fit", "closed_form_posterior", "fit_table1",
-              "mcmc_linear_regression", "sample_marginal", "split_rhat"),
+    "bayes": ("Table1Fit", "fit_table1"),
+    "linear_gaussian": ("closed_form_posterior",),
+    "sampler": ("SamplerSettings", "mcmc_linear_regression", "sample_marginal", "split_rhat"),
     "data": ("FitDataError", "ForceBalanceData", "read_force_balance_csv", "write_force_balance_csv"),
     "posterior": ("ControllerPrior", "Posterior", "PosteriorError", "apply_posterior", "controller_prior",
                   "load_posterior", "vehicle_with_posterior", "write_posterior"),

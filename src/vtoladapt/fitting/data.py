@@ -182,6 +182,7 @@ class ForceBalanceData:
 
     @property
     def n_rows(self) -> int:
+        """Number of balance readings."""
         return int(self.airspeed_mps.shape[0])
 
     @property

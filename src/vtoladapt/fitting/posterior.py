@@ -94,9 +94,11 @@ class Posterior:
     source: str = "<posterior>"
 
     def mean(self, name: str) -> float:
+        """Posterior mean of parameter ``name`` (Table I units)."""
         return float(self.raw["parameters"][name]["mean"])
 
     def std(self, name: str) -> float:
+        """Posterior standard deviation of parameter ``name`` (Table I units)."""
         return float(self.raw["parameters"][name]["std"])
 
 

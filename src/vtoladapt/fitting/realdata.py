@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .bayes import MarginalProblem, SamplerSettings, find_map, sample_marginal, split_rhat, autocorr_time
+from .sampler import MarginalProblem, SamplerSettings, autocorr_time, find_map, sample_marginal, split_rhat
 from .data import FitDataError
 
 INCH_M = 0.0254
@@ -90,6 +90,7 @@ class PropellerData:
 
     @property
     def static(self) -> np.ndarray:
+        """Mask of the static points (advance ratio J = 0)."""
         return self.J == 0.0
 
 

@@ -39,13 +39,13 @@ from typing import Mapping
 
 import numpy as np
 
-from vtoladapt.probe.data import ProbeCalibrationData
+from vtoladapt.probe.points import ProbeCalibrationData
 from vtoladapt.probe.errors import ProbeError, require_number
 from vtoladapt.probe.estimation import (
     KIND_CALIBRATED,
     KIND_SINGLE_K,
-    SK_SIZE,
-    TB_HEADER,
+    SINGLE_K_PARAMS,
+    TABLE_HEADER,
     estimate_incident_velocity,
     tps_evaluate,
 )
@@ -117,12 +117,8 @@ class SingleKCalibration(_KernelEstimator):
 
     def to_kernel(self) -> np.ndarray:
         """``[1.0, k, q_inf_min_Pa, angle_limit_rad]`` for the compiled estimator."""
-        out = np.empty(SK_SIZE)
-        out[0] = KIND_SINGLE_K
-        out[1] = self.k
-        out[2] = self.q_inf_min_Pa
-        out[3] = math.radians(self.angle_limit_deg)
-        return out
+        return SINGLE_K_PARAMS.pack(KIND=KIND_SINGLE_K, K=self.k, Q_MIN=self.q_inf_min_Pa,
+                                    ANGLE_LIMIT=math.radians(self.angle_limit_deg))
 
     def to_dict(self) -> dict:
         """JSON-ready description."""
@@ -301,16 +297,10 @@ class SplineCalibration(_KernelEstimator):
         pts = np.ascontiguousarray(np.column_stack([X.ravel(), Y.ravel()]))
         vals = np.empty((pts.shape[0], 3))
         tps_evaluate(pts, self.centres, self.weights, self.poly, vals)
-        out = np.empty(TB_HEADER + 3 * n * n)
-        out[0] = KIND_CALIBRATED
-        out[1] = self.q_inf_min_Pa
-        out[2] = math.radians(self.angle_limit_deg)
-        out[3] = self.c_scale
-        out[4] = self.radius_limit
-        out[5] = n
-        out[6] = x0
-        out[7] = h
-        out[TB_HEADER:] = vals.T.ravel()
+        header = TABLE_HEADER.pack(KIND=KIND_CALIBRATED, Q_MIN=self.q_inf_min_Pa,
+                                   ANGLE_LIMIT=math.radians(self.angle_limit_deg), SCALE=self.c_scale,
+                                   RADIUS_LIMIT=self.radius_limit, N=n, X0=x0, H=h)
+        out = np.concatenate((header, vals.T.ravel()))
         self._kernel_cache.append(out)
         return out.copy()
 

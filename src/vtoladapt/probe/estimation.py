@@ -32,24 +32,37 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from vtoladapt.layout import BlockLayout, Field
+
 KIND_SINGLE_K = 1.0
 KIND_CALIBRATED = 2.0
 
-# single_k layout
-SK_K = 1
-SK_Q_MIN = 2
-SK_ANGLE_LIMIT = 3
-SK_SIZE = 4
+SINGLE_K_PARAMS = BlockLayout("single-k calibration", [
+    Field("KIND", 1, "-", "KIND_SINGLE_K"),
+    Field("K", 1, "-", "eq:aoa's k"),
+    Field("Q_MIN", 1, "Pa", "smallest q_inf accepted as valid"),
+    Field("ANGLE_LIMIT", 1, "rad", "largest flow angle accepted as valid"),
+])
+"""Kernel array of a single-k calibration."""
+SK_KIND, SK_K, SK_Q_MIN, SK_ANGLE_LIMIT = SINGLE_K_PARAMS.offsets("KIND", "K", "Q_MIN", "ANGLE_LIMIT")
+SK_SIZE = SINGLE_K_PARAMS.size
 
-# calibrated (table) layout
-TB_Q_MIN = 1
-TB_ANGLE_LIMIT = 2
-TB_SCALE = 3
-TB_RADIUS_LIMIT = 4
-TB_N = 5
-TB_X0 = 6
-TB_H = 7
-TB_HEADER = 8
+TABLE_HEADER = BlockLayout("calibrated (table) calibration header", [
+    Field("KIND", 1, "-", "KIND_CALIBRATED"),
+    Field("Q_MIN", 1, "Pa", "smallest q_inf accepted as valid"),
+    Field("ANGLE_LIMIT", 1, "rad", "largest flow angle accepted as valid"),
+    Field("SCALE", 1, "-", "scale of the normalised pressure ratios"),
+    Field("RADIUS_LIMIT", 1, "-", "largest radius in the ratio plane accepted as valid"),
+    Field("N", 1, "-", "grid nodes per side n"),
+    Field("X0", 1, "-", "first grid node"),
+    Field("H", 1, "-", "grid spacing"),
+])
+"""Kernel array of a calibrated table: this header, then the 3 n^2 grid values."""
+TB_KIND, TB_Q_MIN, TB_ANGLE_LIMIT, TB_SCALE, TB_RADIUS_LIMIT, TB_N, TB_X0, TB_H = TABLE_HEADER.offsets(
+    "KIND", "Q_MIN", "ANGLE_LIMIT", "SCALE", "RADIUS_LIMIT", "N", "X0", "H")
+TB_HEADER = TABLE_HEADER.size
+CAL_KIND = SK_KIND
+"""Where every calibration array holds its kind (both layouts declare ``KIND`` first)."""
 
 # Smallest C_q accepted from the table (C_q = q_inf / (rho V^2 / 2), about 0.7..1.1 in practice).
 _CQ_MIN = 1.0e-3
@@ -228,7 +241,7 @@ def incident_velocity_from_pressures(q, rho, calibration, out_v_i_B):
         return False
     if not (np.isfinite(rho) and rho > 0.0):
         return False
-    kind = calibration[0]
+    kind = calibration[CAL_KIND]
     if kind == KIND_SINGLE_K:
         valid = _single_k(q_inf, q_alpha, q_beta, rho, calibration, out_v_i_B)
     elif kind == KIND_CALIBRATED:

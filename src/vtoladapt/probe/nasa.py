@@ -53,7 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vtoladapt.probe.data import ProbeCalibrationData
+from vtoladapt.probe.points import ProbeCalibrationData
 from vtoladapt.probe.errors import ProbeError
 from vtoladapt.probe.flow import cone_roll_to_alpha_beta
 

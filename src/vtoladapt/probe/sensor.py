@@ -26,15 +26,20 @@ import numpy as np
 from numba import njit
 
 from vtoladapt.config import setting
+from vtoladapt.layout import BlockLayout, Field
 from vtoladapt.probe.errors import ProbeError, require_number
 
-# Layout of the sensor kernel array (SDP33Sensor.to_kernel()).
-SENSOR_TIME_CONSTANT_S = 0
-SENSOR_NOISE_STD_PA = 1
-SENSOR_OFFSET_PA = 2  # three entries: 2, 3, 4
-SENSOR_RESOLUTION_PA = 5
-SENSOR_RANGE_PA = 6
-SENSOR_KERNEL_SIZE = 7
+SENSOR_PARAMS = BlockLayout("SDP33 parameters", [
+    Field("TIME_CONSTANT", 1, "s", "first-order lag"),
+    Field("NOISE_STD", 1, "Pa", "white measurement noise"),
+    Field("OFFSET", 3, "Pa", "zero offsets of the q_inf, q_alpha, q_beta channels"),
+    Field("RESOLUTION", 1, "Pa", "quantisation step"),
+    Field("RANGE", 1, "Pa", "full-scale range"),
+])
+"""Layout of the sensor kernel array (:meth:`SDP33Sensor.to_kernel`)."""
+(SENSOR_TIME_CONSTANT_S, SENSOR_NOISE_STD_PA, SENSOR_OFFSET_PA, SENSOR_RESOLUTION_PA,
+ SENSOR_RANGE_PA) = SENSOR_PARAMS.offsets("TIME_CONSTANT", "NOISE_STD", "OFFSET", "RESOLUTION", "RANGE")
+SENSOR_KERNEL_SIZE = SENSOR_PARAMS.size
 
 
 @dataclass(frozen=True)
@@ -109,13 +114,9 @@ class SDP33Sensor:
             ``[tau_s, noise_std_Pa, offset_inf, offset_alpha, offset_beta, resolution_Pa,
             range_Pa]``.
         """
-        out = np.empty(SENSOR_KERNEL_SIZE)
-        out[SENSOR_TIME_CONSTANT_S] = self.time_constant_s
-        out[SENSOR_NOISE_STD_PA] = self.noise_std_Pa
-        out[SENSOR_OFFSET_PA:SENSOR_OFFSET_PA + 3] = self.offset_Pa
-        out[SENSOR_RESOLUTION_PA] = self.resolution_Pa
-        out[SENSOR_RANGE_PA] = self.range_Pa
-        return out
+        return SENSOR_PARAMS.pack(TIME_CONSTANT=self.time_constant_s, NOISE_STD=self.noise_std_Pa,
+                                  OFFSET=self.offset_Pa, RESOLUTION=self.resolution_Pa,
+                                  RANGE=self.range_Pa)
 
     def initial_state(self, q_true=None) -> np.ndarray:
         """A lag state: settled at ``q_true`` (Pa, shape (3,)) if given, else zeros."""

@@ -54,13 +54,18 @@ import numpy as np
 from numba import njit
 
 from vtoladapt.config import setting
+from vtoladapt.layout import BlockLayout, Field
 from vtoladapt.probe.errors import require_number
 
-# Layout of the tip kernel array (ProbeTip.to_kernel()).
-TIP_PORT_ANGLE_RAD = 0
-TIP_PRESSURE_FACTOR = 1
-TIP_STATIC_COEFFICIENT = 2
-TIP_KERNEL_SIZE = 3
+TIP_PARAMS = BlockLayout("probe tip parameters", [
+    Field("PORT_ANGLE", 1, "rad", "angle between the probe axis and each peripheral port's normal"),
+    Field("PRESSURE_FACTOR", 1, "-", "K in Cp = 1 - K sin^2(theta)"),
+    Field("STATIC_COEFFICIENT", 1, "-", "pressure coefficient of the q_inf sensor's static reference"),
+])
+"""Layout of the tip kernel array (:meth:`ProbeTip.to_kernel`)."""
+TIP_PORT_ANGLE_RAD, TIP_PRESSURE_FACTOR, TIP_STATIC_COEFFICIENT = TIP_PARAMS.offsets(
+    "PORT_ANGLE", "PRESSURE_FACTOR", "STATIC_COEFFICIENT")
+TIP_KERNEL_SIZE = TIP_PARAMS.size
 
 # Order of the ports in probe_port_pressures' output.
 PORT_NAMES = ("centre", "bottom", "top", "right", "left", "static")
@@ -105,11 +110,9 @@ class ProbeTip:
         numpy.ndarray
             ``[port_angle_rad, pressure_factor, static_port_coefficient]``.
         """
-        out = np.empty(TIP_KERNEL_SIZE)
-        out[TIP_PORT_ANGLE_RAD] = math.radians(self.port_angle_deg)
-        out[TIP_PRESSURE_FACTOR] = self.pressure_factor
-        out[TIP_STATIC_COEFFICIENT] = self.static_port_coefficient
-        return out
+        return TIP_PARAMS.pack(PORT_ANGLE=math.radians(self.port_angle_deg),
+                               PRESSURE_FACTOR=self.pressure_factor,
+                               STATIC_COEFFICIENT=self.static_port_coefficient)
 
     def ideal_k(self) -> float:
         """eq:aoa's ``k`` that is exact to first order in the flow angles: ``1/(2 K sin 2d)``."""

@@ -1,0 +1,85 @@
+"""Discrete gusts: ``"one_minus_cosine"`` and ``"step"`` shapes added to the wind.
+
+``"one_minus_cosine"``: ``A (1 - cos(2 pi (t - t0) / T)) / 2`` for ``t0 <= t <= t0 + T``: rises
+to ``A`` at mid-gust and returns to zero, the CS-25 / FAR-25 discrete-gust shape. ``"step"``:
+``A`` for ``t0 <= t < t0 + T``. ``A`` is a wind vector (NED, m/s); the gusts of a scenario add up.
+
+A part of the composed wind (:mod:`vtoladapt.wind.composer`): :func:`pack_gusts` lays the gusts
+out as :data:`GUSTS_PARAMS` (each entry :data:`GUST_PARAMS`), :func:`add_gusts` reads them at a
+base offset ``o`` inside the wind parameter array.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+from numba import njit
+
+from ..config import setting
+from ..layout import BlockLayout, Field
+
+GUST_SHAPES = ("one_minus_cosine", "step")
+MAX_GUSTS = 16
+"""Largest number of gusts the kernel holds."""
+
+GUST_PARAMS = BlockLayout("one gust", [
+    Field("SHAPE", 1, "-", "index into GUST_SHAPES"),
+    Field("START", 1, "s", "start time t0"),
+    Field("DURATION", 1, "s", "duration T"),
+    Field("AMPLITUDE", 3, "m/s", "peak wind vector A, NED"),
+])
+"""One entry of the gust table."""
+GUSTS_PARAMS = BlockLayout("gusts", [
+    Field("N", 1, "-", "number of gusts"),
+    Field("TABLE", MAX_GUSTS * GUST_PARAMS.size, "-", "MAX_GUSTS entries laid out as GUST_PARAMS"),
+])
+"""The gusts' block of the wind parameter array."""
+_N, _TABLE = GUSTS_PARAMS.offsets("N", "TABLE")
+_SHAPE, _START, _DURATION, _AMPLITUDE = GUST_PARAMS.offsets("SHAPE", "START", "DURATION", "AMPLITUDE")
+_STRIDE = GUST_PARAMS.size
+
+
+@dataclass(frozen=True)
+class GustConfig:
+    """One discrete gust (an entry of ``[[wind.gusts]]``)."""
+
+    shape: str = setting("-", "'one_minus_cosine' (up to A and back to zero) or 'step'",
+                         choices=GUST_SHAPES)
+    start_s: float = setting("s", "start time", ge=0.0)
+    duration_s: float = setting("s", "duration", gt=0.0)
+    amplitude_mps: tuple[float, ...] = setting("m/s", "peak wind vector, NED", length=3)
+
+
+def pack_gusts(gusts: Sequence[GustConfig]) -> np.ndarray:
+    """The gusts as their kernel block (layout :data:`GUSTS_PARAMS`)."""
+    if len(gusts) > MAX_GUSTS:
+        raise ValueError(f"{len(gusts)} gusts: at most {MAX_GUSTS} are allowed")
+    p = np.zeros(GUSTS_PARAMS.size)
+    p[_N] = len(gusts)
+    for i, g in enumerate(gusts):
+        k = _TABLE + _STRIDE * i
+        p[k + _SHAPE] = GUST_SHAPES.index(g.shape)
+        p[k + _START] = g.start_s
+        p[k + _DURATION] = g.duration_s
+        p[k + _AMPLITUDE:k + _AMPLITUDE + 3] = g.amplitude_mps
+    return p
+
+
+@njit(cache=True, inline="always")
+def add_gusts(params: np.ndarray, o: int, t: float, out_v_W: np.ndarray) -> None:
+    """Add the gusts' wind at time ``t`` (NED, m/s) to ``out_v_W``; the block starts at ``params[o]``."""
+    for i in range(int(params[o + _N])):
+        k = o + _TABLE + _STRIDE * i
+        t0 = params[k + _START]
+        dur = params[k + _DURATION]
+        if t < t0 or t > t0 + dur:
+            continue
+        if params[k + _SHAPE] == 0.0:
+            s = 0.5 * (1.0 - np.cos(2.0 * np.pi * (t - t0) / dur))
+        elif t < t0 + dur:
+            s = 1.0
+        else:
+            s = 0.0
+        for j in range(3):
+            out_v_W[j] += s * params[k + _AMPLITUDE + j]
