@@ -69,6 +69,7 @@ class _Record:
         return {n: float(v) for n, v in zip(self.COLUMNS, self._a)}
 
     def copy(self):
+        """A record with its own copy of the array."""
         return type(self)(self._a.copy())
 
     def __repr__(self) -> str:
@@ -145,6 +146,7 @@ class Reference(_Record):
     @classmethod
     def from_parts(cls, p_W, v_W=(0.0, 0.0, 0.0), a_W=(0.0, 0.0, 0.0), yaw_rad=0.0,
                    yaw_rate_radps=0.0) -> "Reference":
+        """A reference from named parts (see the properties for units and frames)."""
         return cls(L.pack_reference(p_W, v_W, a_W, yaw_rad, yaw_rate_radps))
 
     @classmethod
@@ -165,10 +167,12 @@ class Command(_Record):
 
     @property
     def throttle_x_pct(self) -> float:
+        """Pusher throttle, percent."""
         return 100.0 * float(self._a[L.CMD_U_X])
 
     @property
     def throttle_z_pct(self) -> float:
+        """Collective lift throttle, percent."""
         return 100.0 * float(self._a[L.CMD_U_Z])
 
 

@@ -49,7 +49,7 @@ from .tracking import (
 )
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def default_law_diagnostics(params, diag) -> None:
     """The law-owned columns before the law runs: ``P_diag`` = diag(P0), no active bound, no integral."""
     for i in range(N_THETA):
@@ -59,7 +59,7 @@ def default_law_diagnostics(params, diag) -> None:
         diag[DIAG_INTEGRATOR + i] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_ok, R, v_W, v_i, p_tilde, v_r,
              v_tilde_raw, yaw_d) -> None:
     """Steps 1-6 of the module notes: writes ``cmd`` and ``diag``, updates the shared state."""

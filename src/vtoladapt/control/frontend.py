@@ -119,7 +119,7 @@ def prediction_error(state) -> tuple:
     return ad.prediction_error(state, S_W_F, state, S_THETA, state, S_AM_F)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def front_end(params, state, meas, ref, dt) -> tuple:
     """Steps 1-5 of the module notes for one tick; updates the shared state in place.
 
