@@ -54,6 +54,8 @@ CONTROLLERS: dict[str, ControllerInfo] = {c.id: c for c in (
                    "PX4-style velocity PID with the same force allocation, theta-hat = theta_0 (IV)", "pid"),
     ControllerInfo("pd", "PD", "C3", False, False,
                    "the PID without its integral (V)", "pd"),
+    ControllerInfo("nominal", "Nominal (no adapt)", "C7", False, False,
+                   "the composite law with adaptation off, theta-hat = theta_0", "nominal"),
 )}
 
 CONTROLLER_IDS: tuple[str, ...] = tuple(CONTROLLERS)
