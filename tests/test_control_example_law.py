@@ -153,3 +153,29 @@ def test_a_law_added_as_one_file_and_one_registry_entry_flies(tmp_path):
     assert "[controller.example] gain_scale" in r["moved"]
     assert r["ticks"] == r["n"]
     assert r["final_error_m"] < 0.02
+
+
+def test_the_example_law_meets_the_interface_and_the_registry_gains_one_entry(tmp_path, monkeypatch):
+    """The fast half: the law module passes the interface check and the copy's registry lists it last."""
+    import ast
+    import importlib.util
+
+    from vtoladapt.control.laws import LawContext, check_law
+    from vtoladapt.control.registry import CONTROLLER_IDS
+
+    path = tmp_path / "example_law.py"
+    path.write_text(EXAMPLE_LAW)
+    spec = importlib.util.spec_from_file_location("example_law", path)
+    module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "example_law", module)     # dataclasses look their module up
+    spec.loader.exec_module(module)
+    check_law(module)
+    block = module.fill_params(module.Settings(gain_scale=1.5), LawContext(None, None, None, None, 0.004))
+    assert block.tolist() == [1.5] and module.STATE.size == 1
+
+    root = _package_with_example_law(tmp_path / "copy")
+    tree = ast.parse((root / "vtoladapt" / "control" / "registry.py").read_text())
+    ids = [node.args[0].value for node in ast.walk(tree)
+           if isinstance(node, ast.Call) and getattr(node.func, "id", "") == "ControllerInfo"]
+    assert ids == list(CONTROLLER_IDS) + ["example"]
+    assert (root / "vtoladapt" / "control" / "laws" / "example.py").read_text() == EXAMPLE_LAW
