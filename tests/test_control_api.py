@@ -24,6 +24,7 @@ from vtoladapt.control import (
     trajectory_from_reference,
 )
 from vtoladapt.control.kernel import DIAG_SIZE, controller_initial_state, controller_params
+from vtoladapt.control.laws.composite import CompositeSettings
 from vtoladapt.frames import GRAVITY_MPS2, quat_from_euler
 
 
@@ -116,12 +117,13 @@ def test_records_have_named_views(caltech):
 
 def test_config_from_a_controller_table(tmp_path):
     path = tmp_path / "scenario.toml"
-    path.write_text('[controller]\nkind = "pid"\nK_v = [2.0, 2.0, 4.5]\nforgetting_lambda = 0.2\n')
+    path.write_text('[controller]\nkind = "pid"\nK_v = [2.0, 2.0, 4.5]\n\n[controller.composite]\n'
+                    'forgetting_lambda = 0.2\n')
     cfg = load_controller_config(path)
-    assert cfg.kind == "pid" and cfg.K_v == (2.0, 2.0, 4.5) and cfg.forgetting_lambda == 0.2
+    assert cfg.kind == "pid" and cfg.K_v == (2.0, 2.0, 4.5) and cfg.composite.forgetting_lambda == 0.2
     assert cfg.Lambda_p == ControllerConfig().Lambda_p
     with pytest.raises(ConfigError, match="did you mean 'forgetting_lambda'"):
-        controller_config_from_mapping({"forgeting_lambda": 0.1}, source="s.toml")
+        controller_config_from_mapping({"composite": {"forgeting_lambda": 0.1}}, source="s.toml")
     with pytest.raises(ConfigError, match="kind"):
         controller_config_from_mapping({"kind": "lqr"})
     with pytest.raises(ConfigError, match="K_v.*exactly 3"):
@@ -148,7 +150,7 @@ def test_params_conversion_accepts_a_posterior_and_rejects_bad_priors(caltech):
     with pytest.raises(ValueError, match="within the bounds"):
         Controller(caltech, cfg, theta_lower=caltech.theta_scaled * 1.1, theta_upper=caltech.theta_scaled * 1.2)
     with pytest.raises(ValueError, match="sigma"):
-        Controller(caltech, ControllerConfig(sigma=50.0))
+        Controller(caltech, ControllerConfig(composite=CompositeSettings(sigma=50.0)))
     # K_omega defaults to J times the rate bandwidth
     from vtoladapt.control.kernel import P_K_OMEGA
     p = controller_params(cfg, caltech)

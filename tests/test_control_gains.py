@@ -68,9 +68,10 @@ def _horizontal(vehicle, cfg, kind):
     Lq = cfg.Lambda_q[1]
     tau_m = vehicle.actuators.lift_motor_time_constant_s
     Kv, Lp = cfg.K_v[0], cfg.Lambda_p[0]
-    KI = cfg.K_I[0] if kind == "pid" else 0.0
-    KD = cfg.K_D[0] if kind in ("pid", "pd") else 0.0
-    wf = 2 * np.pi * cfg.derivative_cutoff_hz
+    baseline = getattr(cfg, kind) if kind in ("pid", "pd") else cfg.pid     # the law's own table
+    KI = baseline.K_I[0] if kind == "pid" else 0.0
+    KD = baseline.K_D[0] if kind in ("pid", "pd") else 0.0
+    wf = 2 * np.pi * baseline.derivative_cutoff_hz
     A = np.zeros((7, 7))
     A[0, 1] = 1.0
     A[1, 2] = -g
@@ -114,7 +115,7 @@ def test_vertical_velocity_loop_through_the_lift_motors_is_stable(any_vehicle, k
     cfg = ControllerConfig()
     tau_m = any_vehicle.actuators.lift_motor_time_constant_s
     Kv, Lp = cfg.K_v[2], cfg.Lambda_p[2]
-    KI = cfg.K_I[2] if kind == "pid" else 0.0
+    KI = cfg.pid.K_I[2] if kind == "pid" else 0.0
     A = np.array([[0, 1, 0, 0], [0, 0, 1, 0], [0, 0, -1 / tau_m, 0], [-KI * Lp, -KI, 0, 0]])
     B = np.array([[0], [0], [1 / tau_m], [0]])
     if kind == "adaptive":

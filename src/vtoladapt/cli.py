@@ -29,7 +29,7 @@ def _add_run(sub) -> None:
     p.add_argument("--duration", type=float, default=None, help="override duration_s (s)")
     p.add_argument("--seed", type=int, default=None, help="override the seed")
     p.add_argument("--controller", default=None,
-                   help="override [controller] kind (single runs)")
+                   help="override [controller] kind: an id of vtoladapt.control.registry (that controller only)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(handler=_cmd_run)
 

@@ -139,7 +139,8 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
     Raises
     ------
     ConfigError
-        On an unknown key, a missing required key, a wrong type or an out-of-range value; the
+        On an unknown key (naming where it moved, if ``cls.moved_key(key)`` says), a missing
+        required key, a wrong type or an out-of-range value; the
         message names ``source``, the section, the key, the value and what is allowed.
     """
     if not isinstance(data, Mapping):
@@ -153,6 +154,11 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
         hint = f"; did you mean '{close[0]}'?" if close else ""
         shown = repr(data[key])
         shown = shown if len(shown) <= 60 else shown[:57] + "..."
+        # a class may say where a key it no longer has went (e.g. a gain moved to a sub-table)
+        moved = getattr(cls, "moved_key", None)
+        moved_to = moved(key) if moved is not None else None
+        if moved_to:
+            raise ConfigError(f"{_where(source, section, key)} = {shown}: {moved_to}")
         raise ConfigError(
             f"{_where(source, section, key)} = {shown}: unknown key{hint} "
             f"Allowed keys: {', '.join(fields)}")

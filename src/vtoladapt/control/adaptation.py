@@ -77,6 +77,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..layout import BlockLayout, Field
+
 N_THETA = 8
 
 ADAPT_COMPOSITE = 0
@@ -97,40 +99,54 @@ PROJECTION_MAX_ITER = 32
 
 # The adaptation's memory, one block: theta-hat, the information matrix Gamma = P^-1, the
 # filtered regressor W = [Phi]_f (3 x 8) and the filtered specific force a_m (body, m/s^2).
-MEM_THETA = 0
-MEM_GAMMA = MEM_THETA + N_THETA
-MEM_W = MEM_GAMMA + N_THETA * N_THETA
-MEM_A_M = MEM_W + 3 * N_THETA
-MEM_SIZE = MEM_A_M + 3
+MEMORY = BlockLayout("adaptation memory", [
+    Field("THETA", N_THETA, "adaptation units", "theta-hat"),
+    Field("GAMMA", N_THETA * N_THETA, "adaptation units", "information matrix P^-1, row-major"),
+    Field("W", 3 * N_THETA, "m/s^2 per adaptation unit", "filtered regressor W = [Phi]_f, row-major"),
+    Field("A_M", 3, "m/s^2", "filtered specific force a_m, body axes"),
+])
+MEM_THETA, MEM_GAMMA, MEM_W, MEM_A_M = MEMORY.offsets("THETA", "GAMMA", "W", "A_M")
+MEM_SIZE = MEMORY.size
 
 # The prior, one block: theta_0, the initial theta-hat, the bounds, Gamma_0 = P_0^-1 and P_0.
-PRIOR_THETA0 = 0
-PRIOR_THETA_INIT = PRIOR_THETA0 + N_THETA
-PRIOR_LOWER = PRIOR_THETA_INIT + N_THETA
-PRIOR_UPPER = PRIOR_LOWER + N_THETA
-PRIOR_GAMMA0 = PRIOR_UPPER + N_THETA
-PRIOR_P0 = PRIOR_GAMMA0 + N_THETA * N_THETA
-PRIOR_SIZE = PRIOR_P0 + N_THETA * N_THETA
+PRIOR = BlockLayout("adaptation prior", [
+    Field("THETA0", N_THETA, "adaptation units", "prior mean theta_0 (sigma-modification target)"),
+    Field("THETA_INIT", N_THETA, "adaptation units", "theta-hat at the start"),
+    Field("LOWER", N_THETA, "adaptation units", "lower bounds of theta-hat"),
+    Field("UPPER", N_THETA, "adaptation units", "upper bounds of theta-hat"),
+    Field("GAMMA0", N_THETA * N_THETA, "adaptation units", "P_0^-1, row-major"),
+    Field("P0", N_THETA * N_THETA, "adaptation units", "initial gain P_0, row-major"),
+])
+PRIOR_THETA0, PRIOR_THETA_INIT, PRIOR_LOWER, PRIOR_UPPER, PRIOR_GAMMA0, PRIOR_P0 = PRIOR.offsets(
+    "THETA0", "THETA_INIT", "LOWER", "UPPER", "GAMMA0", "P0")
+PRIOR_SIZE = PRIOR.size
 
 # The projection's scratch: its system (K[A, A] or K^-1[F, F], at most 4 x 4) and the system's
 # Cholesky factor, the right-hand side (the solution, in place) and the multipliers.
-PJ_SYSTEM = 0
-PJ_FACTOR = PJ_SYSTEM + (N_THETA // 2) ** 2
-PJ_RHS = PJ_FACTOR + (N_THETA // 2) ** 2
-PJ_MU = PJ_RHS + N_THETA
-PROJECTION_WORK_SIZE = PJ_MU + N_THETA
+PROJECTION_WORK = BlockLayout("projection scratch", [
+    Field("SYSTEM", (N_THETA // 2) ** 2, "-", "K[A, A] or K^-1[F, F]"),
+    Field("FACTOR", (N_THETA // 2) ** 2, "-", "its Cholesky factor"),
+    Field("RHS", N_THETA, "-", "right-hand side, then the solution"),
+    Field("MU", N_THETA, "-", "multipliers of the active bounds"),
+])
+PJ_SYSTEM, PJ_FACTOR, PJ_RHS, PJ_MU = PROJECTION_WORK.offsets("SYSTEM", "FACTOR", "RHS", "MU")
+PROJECTION_WORK_SIZE = PROJECTION_WORK.size
 
-# One step's scratch (meaningless between ticks); P_diag is the step's output.
-WK_WTW = 0                                  # W^T W, then (composite_pconst) the gain's inverse
-WK_M = WK_WTW + N_THETA * N_THETA           # L^-1 for the Cholesky factor L of the gain's inverse
-WK_L = WK_M + N_THETA * N_THETA             # L
-WK_K = WK_L + N_THETA * N_THETA             # the gain K, formed only to project
-WK_TAU = WK_K + N_THETA * N_THETA
-WK_D0 = WK_TAU + N_THETA                    # K tau
-WK_D = WK_D0 + N_THETA                      # its projection
-WK_P_DIAG = WK_D + N_THETA                  # diag(P) after the step
-WK_PROJECTION = WK_P_DIAG + N_THETA
-WORK_SIZE = WK_PROJECTION + PROJECTION_WORK_SIZE
+# One step's scratch (meaningless between ticks); P_DIAG is the step's output.
+WORK = BlockLayout("adaptation scratch", [
+    Field("WTW", N_THETA * N_THETA, "-", "W^T W, then (composite_pconst) the gain's inverse"),
+    Field("M", N_THETA * N_THETA, "-", "L^-1 for the Cholesky factor L of the gain's inverse"),
+    Field("L", N_THETA * N_THETA, "-", "L"),
+    Field("K", N_THETA * N_THETA, "-", "the gain K, formed only to project"),
+    Field("TAU", N_THETA, "-", "tau of eq:th_adapt"),
+    Field("D0", N_THETA, "-", "K tau"),
+    Field("D", N_THETA, "-", "its projection"),
+    Field("P_DIAG", N_THETA, "adaptation units", "diag(P) after the step"),
+    Field("PROJECTION", PROJECTION_WORK.size, "-", "the projection's scratch"),
+])
+WK_WTW, WK_M, WK_L, WK_K, WK_TAU, WK_D0, WK_D, WK_P_DIAG, WK_PROJECTION = WORK.offsets(
+    "WTW", "M", "L", "K", "TAU", "D0", "D", "P_DIAG", "PROJECTION")
+WORK_SIZE = WORK.size
 
 
 # --- small dense linear algebra (n x n, flat storage, no allocation) --------------------------

@@ -11,7 +11,9 @@ True
 
 ``step`` does no Python-level work beyond one call of the compiled kernel
 (:func:`.kernel.controller_step`): the records are thin named views of float64 arrays in the
-layouts of :mod:`vtoladapt.layout`.
+layouts of :mod:`vtoladapt.layout`. The same class steps every registered law (the config's
+``kind``); :attr:`Controller.state` names the shared memory and, by :meth:`ControllerState.law_field`,
+the law's own (its ``STATE`` layout).
 """
 from __future__ import annotations
 
@@ -26,10 +28,12 @@ from .kernel import (
     controller_params,
     controller_step,
     default_theta_bounds,
+    law_of_params,
     state_P,
     state_P_inv,
 )
 from . import kernel as _k
+from .layouts import S_LAW
 
 
 def _fill(a: np.ndarray, off: int, value, n: int, name: str) -> None:
@@ -65,6 +69,7 @@ class _Record:
         return {n: float(v) for n, v in zip(self.COLUMNS, self._a)}
 
     def copy(self):
+        """A record with its own copy of the array."""
         return type(self)(self._a.copy())
 
     def __repr__(self) -> str:
@@ -141,6 +146,7 @@ class Reference(_Record):
     @classmethod
     def from_parts(cls, p_W, v_W=(0.0, 0.0, 0.0), a_W=(0.0, 0.0, 0.0), yaw_rad=0.0,
                    yaw_rate_radps=0.0) -> "Reference":
+        """A reference from named parts (see the properties for units and frames)."""
         return cls(L.pack_reference(p_W, v_W, a_W, yaw_rad, yaw_rate_radps))
 
     @classmethod
@@ -161,10 +167,12 @@ class Command(_Record):
 
     @property
     def throttle_x_pct(self) -> float:
+        """Pusher throttle, percent."""
         return 100.0 * float(self._a[L.CMD_U_X])
 
     @property
     def throttle_z_pct(self) -> float:
+        """Collective lift throttle, percent."""
         return 100.0 * float(self._a[L.CMD_U_Z])
 
 
@@ -179,12 +187,28 @@ class ControllerSnapshot:
 
 
 class ControllerState:
-    """Named, read-only view of a controller's memory (``Controller.state``)."""
+    """Named, read-only view of a controller's memory (``Controller.state``).
 
-    __slots__ = ("_s",)
+    The shared memory has a property each; the law's own fields (its module's ``STATE`` layout)
+    are read by :meth:`law_field` and listed by :attr:`law_fields`.
+    """
 
-    def __init__(self, s: np.ndarray):
+    __slots__ = ("_s", "_law_state")
+
+    def __init__(self, s: np.ndarray, law_state=None):
         self._s = s
+        self._law_state = law_state
+
+    @property
+    def law_fields(self) -> tuple[str, ...]:
+        """Names of the law's own state fields."""
+        return () if self._law_state is None else tuple(f.name for f in self._law_state.fields)
+
+    def law_field(self, name: str) -> np.ndarray:
+        """Field ``name`` of the law's own state (copy); ``KeyError`` naming the fields otherwise."""
+        if self._law_state is None:
+            raise KeyError(f"no law state layout known; cannot read {name!r}")
+        return self._law_state.view(self._s[S_LAW:], name).copy()
 
     @property
     def theta_hat(self) -> np.ndarray:
@@ -203,8 +227,10 @@ class ControllerState:
 
     @property
     def integrator(self) -> np.ndarray:
-        """PID integral term (3,), m/s^2 NED (copy)."""
-        return _k.state_integrator(self._s).copy()
+        """The law's integral term (3,), m/s^2 NED: its ``INTEGRATOR`` state field, zeros if it has none (copy)."""
+        if "INTEGRATOR" in self.law_fields:
+            return self.law_field("INTEGRATOR")
+        return np.zeros(3)
 
     @property
     def filtered_accel(self) -> np.ndarray:
@@ -233,7 +259,7 @@ class ControllerState:
 
 
 class Controller:
-    """One of the five controllers, stepping in the caller's loop.
+    """Any registered controller (``config.kind``), stepping in the caller's loop.
 
     Parameters
     ----------
@@ -246,7 +272,7 @@ class Controller:
         adaptation scaling (see :func:`.kernel.controller_params`).
     """
 
-    __slots__ = ("vehicle", "config", "_params", "_state", "_diag", "_t_last", "_dt_nominal")
+    __slots__ = ("vehicle", "config", "_params", "_state", "_diag", "_t_last", "_dt_nominal", "_law_state")
 
     def __init__(self, vehicle, config: ControllerConfig | None = None, theta_0=None, P0_diag=None,
                  theta_lower=None, theta_upper=None, theta_init=None):
@@ -258,11 +284,12 @@ class Controller:
                                          theta_lower=theta_lower, theta_upper=theta_upper,
                                          theta_init=theta_init)
         self._dt_nominal = 1.0 / self.config.loop_rate_hz
+        self._law_state = law_of_params(self._params).law.STATE
         self._diag = np.zeros(DIAG_SIZE)
         self.reset()
 
     def reset(self) -> None:
-        """Back to the initial state (theta-hat = theta_init, P = P0, filters and integrator empty)."""
+        """Back to the initial state (theta-hat = theta_init, P = P0, filters and the law's memory empty)."""
         self._state = controller_initial_state(self._params)
         self._diag[:] = 0.0
         self._t_last = None
@@ -288,8 +315,8 @@ class Controller:
 
     @property
     def state(self) -> ControllerState:
-        """Named view of the controller's memory (theta_hat, P, integrator, ...)."""
-        return ControllerState(self._state)
+        """Named view of the controller's memory (theta_hat, P, integrator, ... and the law's own fields)."""
+        return ControllerState(self._state, self._law_state)
 
     def get_state(self) -> ControllerSnapshot:
         """A copy of the complete memory; :meth:`set_state` restores it bit for bit."""

@@ -1,6 +1,12 @@
-"""Controller settings: the frozen, validated ``[controller]`` table of a scenario.
+"""Controller settings: the frozen, validated ``[controller]`` table of a scenario and its law tables.
 
-Every gain carries its unit (see :func:`vtoladapt.config.describe`). Defaults and why
+``[controller]`` holds the controller's ``kind`` (an id of :mod:`.registry`) and the gains every
+law shares; each law's own gains are in its table ``[controller.<id>]`` (the law module's
+``Settings``, e.g. ``[controller.pid] K_I``, ``[controller.composite] forgetting_lambda``): one
+field of :class:`ControllerConfig` per registered law, generated from the registry. A law gain
+written in ``[controller]`` itself (where it was before the laws had their own tables) is refused
+with a message naming the table it moved to; nothing is silently dropped or zeroed. Every gain
+carries its unit (see :func:`vtoladapt.config.describe`). Defaults and why
 ----------------------------------------------------------------------------------------
 
 The paper gives none of its gains; the defaults below are chosen for the 250 Hz loop, the
@@ -15,11 +21,8 @@ linearised attitude and velocity loops, with the motor lag and the one-tick hold
   gains. The horizontal velocity loop acts through the attitude loop, so its 0.55 s time
   constant stays 3x slower than the attitude loop's; the vertical loop acts directly on the lift
   rotors (one motor lag, 30 ms) and can be faster.
-* **PID/PD extras.** ``K_I = (0.4, 0.4, 2.0) 1/s^2`` and ``K_D = (0.2, 0.2, 0.0)`` are PX4's
-  ``MPC_XY_VEL_I_ACC``, ``MPC_Z_VEL_I_ACC``, ``MPC_XY_VEL_D_ACC``, ``MPC_Z_VEL_D_ACC``
-  defaults; the derivative acts on the measured velocity, filtered at 5 Hz
-  (PX4 ``MPC_VELD_LP``). The integral time ``K_v/K_I`` = 4.5 s horizontally is what makes a PID
-  slow to follow the fan-array steps, which is the paper's point.
+* **Law gains** (PID integral and derivative, forgetting factor, sigma): in each law's module
+  (:mod:`.laws.pid`, :mod:`.laws.composite`, ...), with the reasons for their defaults.
 * **Attitude loop.** ``Lambda_q = (10, 10, 6) 1/s``: with ``omega = omega_r``, eq:wr gives
   ``q_v' = -Lambda_q q_v / 2``, a 0.2 s roll/pitch time constant (PX4's ``MC_ROLL_P`` = 6.5 on
   the angle is ``Lambda_q`` = 13 on the quaternion vector part), a factor ~4 below the rate loop.
@@ -27,12 +30,8 @@ linearised attitude and velocity loops, with the motor lag and the one-tick hold
   ``(20, 20, 10) rad/s``: for a rate loop closed through a first-order motor lag ``tau_m`` the
   damping ratio is ``zeta = sqrt(J / (K tau_m)) / 2``, so ``K/J = 20 /s`` with ``tau_m`` = 30 ms
   gives zeta = 0.65 (yaw, driven by weak rotor drag torques, is kept slower).
-* **Adaptation.** ``lowpass_cutoff_hz = 10`` (the paper). ``forgetting_lambda = 0.5 1/s``: a
-  2 s memory, short next to the 5 s fan steps of the comparison experiment; in excited
-  directions the estimator's time constant is then about ``1/lambda`` = 2 s. ``sigma = 1e-4``:
-  the smallest excitation the adaptation must follow is the pusher column (``u_x^2`` ~ 0.07 at
-  9 m/s, ``W^T W`` ~ 4e-3), and the sigma bias is ``sigma / (W^T W + sigma)``, 2.4 % there;
-  robustness in unexcited directions comes from the projection bounds, not from sigma.
+* **Prediction-error filter.** ``lowpass_cutoff_hz = 10`` (the paper); shared, since every
+  law's log holds the prediction error of its theta-hat.
 * **omega_d feed-forward off.** ``omega_d`` must be differenced from ``R_d``, and in the wing
   regime ``R_d`` follows the measured flow direction: with the probe's ~0.3 deg angle noise and
   4 % turbulence, ``omega_d`` and ``omega_d'`` (even filtered at 5 Hz) added ~0.3 N m rms of pitch
@@ -46,28 +45,28 @@ linearised attitude and velocity loops, with the motor lag and the one-tick hold
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, Mapping, Optional
 
-from ..config import build, read_toml, setting
-from .registry import CONTROLLER_IDS
+from ..config import ConfigError, build, read_toml, setting
+from .registry import CONTROLLER_IDS, CONTROLLERS, ControllerInfo, controller_info
 
 CONTROLLER_KINDS = CONTROLLER_IDS
-"""The five controllers of the paper's comparison, (I) to (V)."""
+"""The registered controllers' ids (:data:`.registry.CONTROLLER_IDS`)."""
 
 
 @dataclass(frozen=True)
-class ControllerConfig:
-    """Gains and settings of one controller (the scenario's ``[controller]`` table).
+class SharedControllerConfig:
+    """The ``[controller]`` table's own keys: the controller's kind and the gains every law shares.
 
-    All 3-vectors are diagonals of the paper's gain matrices, in NED (``K_v``, ``Lambda_p``,
-    ``K_I``, ``K_D``, integrator limit) or body FRD (``Lambda_q``, ``K_omega``) axes.
+    All 3-vectors are diagonals of the paper's gain matrices, in NED (``K_v``, ``Lambda_p``) or
+    body FRD (``Lambda_q``, ``K_omega``) axes. :class:`ControllerConfig` adds one field per law.
     """
 
-    kind: str = setting("-", "which controller: 'composite' (I, eq:th_adapt + eq:P_adapt), "
-                        "'composite_pconst' (II, P-dot = 0), 'tracking_only' (III, theta-hat-dot = "
-                        "P0 Phi^T R^T v~), 'pid' (IV), 'pd' (V)", default="composite",
-                        choices=CONTROLLER_KINDS)
+    kind: str = setting("-", "which controller, an id of vtoladapt.control.registry: "
+                        + "; ".join(f"'{c.id}': {c.description}" for c in CONTROLLERS.values()),
+                        default="composite", choices=CONTROLLER_IDS)
     K_v: tuple[float, ...] = setting("1/s", "velocity-error gain K_v (eq:f_ctrl); the PID's velocity "
                                      "P gain", default=(1.8, 1.8, 4.0), gt=0.0, length=3)
     Lambda_p: tuple[float, ...] = setting("1/s", "position-error gain Lambda_p (eq:wr); the PID's "
@@ -80,28 +79,13 @@ class ControllerConfig:
     rate_bandwidth_radps: tuple[float, ...] = setting(
         "rad/s", "K_omega / J per body axis, used when K_omega is not given",
         default=(20.0, 20.0, 10.0), gt=0.0, length=3)
-    K_I: tuple[float, ...] = setting("1/s^2", "velocity-error integral gain (pid only)",
-                                     default=(0.4, 0.4, 2.0), ge=0.0, length=3)
-    K_D: tuple[float, ...] = setting("-", "velocity-derivative gain on the measured acceleration "
-                                     "(pid and pd)", default=(0.2, 0.2, 0.0), ge=0.0, length=3)
-    integrator_limit_mps2: tuple[float, ...] = setting(
-        "m/s^2", "clamp of the PID integral term per axis", default=(4.0, 4.0, 5.0), ge=0.0, length=3)
-    derivative_cutoff_hz: float = setting("Hz", "low-pass on the PID's measured acceleration",
-                                          default=5.0, gt=0.0)
-    forgetting_lambda: float = setting("1/s", "forgetting factor lambda (eq:P_adapt, information form "
-                                       "forgetting toward P0)", default=0.5, ge=0.0, le=100.0)
-    sigma: float = setting("adaptation units", "sigma-modification toward theta_0 (eq:th_adapt)",
-                           default=1e-4, ge=0.0, le=100.0)
     lowpass_cutoff_hz: float = setting("Hz", "first-order filter [.]_f on the accelerometer and Phi "
                                        "(eq:prediction_error)", default=10.0, gt=0.0)
     gamma: float = setting("-", "weight gamma of the attitude term in the Lyapunov function",
                            default=1.0, gt=0.0)
-    information_trace_max: float = setting(
-        "adaptation units", "cap on trace(P^-1 - P0^-1): bounds P below for any regressor",
-        default=1e6, gt=0.0)
     adaptation_holdoff_s: float = setting(
-        "s", "adaptation resumes this long after the probe or accelerometer is valid again "
-        "(filters re-settle)", default=0.05, ge=0.0)
+        "s", "an adaptive law resumes adapting this long after the probe or accelerometer is valid "
+        "again (filters re-settle)", default=0.05, ge=0.0)
     alpha_max_deg: Optional[float] = setting("deg", "largest desired angle of attack; default: the "
                                              "vehicle's envelope", default=None, gt=0.0, le=45.0)
     alpha_min_deg: Optional[float] = setting("deg", "smallest desired angle of attack; default: "
@@ -143,8 +127,6 @@ class ControllerConfig:
                                   default=250.0, gt=0.0)
 
     def _check(self, source: str) -> None:
-        from ..config import ConfigError
-
         amax = self.alpha_max_deg
         if amax is not None and self.alpha_min_deg is not None and not self.alpha_min_deg < amax:
             raise ConfigError(f"{source}: [controller] alpha_min_deg = {self.alpha_min_deg}: must be "
@@ -152,8 +134,18 @@ class ControllerConfig:
 
     @property
     def kind_id(self) -> int:
-        """The kind as the number the compiled kernel uses (index in :data:`CONTROLLER_KINDS`)."""
+        """The kind as the number the compiled step dispatches on (index in :data:`CONTROLLER_KINDS`)."""
         return CONTROLLER_KINDS.index(self.kind)
+
+    @property
+    def info(self) -> ControllerInfo:
+        """The registry entry of :attr:`kind`."""
+        return controller_info(self.kind)
+
+    @property
+    def law_settings(self):
+        """The settings of the law :attr:`kind` names (its ``[controller.<kind>]`` table)."""
+        return getattr(self, self.kind)
 
     def to_kernel(self, vehicle, theta_0=None, P0_diag=None, theta_lower=None, theta_upper=None):
         """Kernel parameter array for this configuration (see :func:`.kernel.controller_params`)."""
@@ -161,6 +153,36 @@ class ControllerConfig:
 
         return controller_params(self, vehicle, theta_0=theta_0, P0_diag=P0_diag,
                                  theta_lower=theta_lower, theta_upper=theta_upper)
+
+    @classmethod
+    def moved_key(cls, key: str) -> Optional[str]:
+        """Where a law gain written in ``[controller]`` itself belongs now (None if it is no law's)."""
+        tables = [f"[controller.{c.id}] {key}" for c in CONTROLLERS.values()
+                  if key in {f.name for f in dataclasses.fields(c.settings)}]
+        if not tables:
+            return None
+        return "moved to the law's own table: " + ", ".join(tables)
+
+
+def _make_controller_config() -> type:
+    """:class:`SharedControllerConfig` plus one field per registered law, ``<id>: <law>.Settings``."""
+    shared = {f.name for f in dataclasses.fields(SharedControllerConfig)}
+    fields = []
+    for c in CONTROLLERS.values():
+        if c.id in shared:
+            raise TypeError(f"controller id {c.id!r} clashes with a [controller] key")
+        fields.append((c.id, c.settings, setting("-", f"settings of the {c.id} law ([controller.{c.id}], "
+                                                 f"{c.law.__name__}.Settings)", default=c.settings())))
+    cls = dataclasses.make_dataclass("ControllerConfig", fields, bases=(SharedControllerConfig,), frozen=True)
+    cls.__module__ = __name__
+    cls.__doc__ = ("Gains and settings of one controller: the scenario's ``[controller]`` table (the keys of "
+                   ":class:`SharedControllerConfig`) and one ``[controller.<id>]`` table per registered law "
+                   "(field ``<id>``, that law's ``Settings``). Only the law named by ``kind`` flies; the "
+                   "others' tables are kept so that a comparison can switch ``kind``.")
+    return cls
+
+
+ControllerConfig = _make_controller_config()
 
 
 def controller_config_from_mapping(data: Mapping[str, Any], source: str = "<controller>") -> ControllerConfig:
@@ -174,5 +196,5 @@ def load_controller_config(path) -> ControllerConfig:
     return controller_config_from_mapping(data.get("controller", {}), source=str(path))
 
 
-__all__ = ["CONTROLLER_KINDS", "ControllerConfig", "controller_config_from_mapping",
+__all__ = ["CONTROLLER_KINDS", "ControllerConfig", "SharedControllerConfig", "controller_config_from_mapping",
            "load_controller_config"]

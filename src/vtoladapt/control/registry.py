@@ -1,20 +1,25 @@
-"""The one registry of controllers: id, label, colour and what kind of law each is.
+"""The one registry of controllers: id, label, colour, what kind of law each is, and its module.
 
-Configuration validation, scenarios, experiments, the step API and the CLI read the list of
-controllers from here and nowhere else. A new control law adds one entry (and its own module).
+Configuration validation (the ``kind`` choices and the ``[controller.<id>]`` tables), scenarios,
+experiments, the step API, the compiled step's dispatch and the CLI read the list of controllers
+from here and nowhere else. A new control law is one new module in :mod:`vtoladapt.control.laws`
+(the interface is in :mod:`vtoladapt.control`) and one entry below.
 """
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
+from types import ModuleType
 
 
 @dataclass(frozen=True)
 class ControllerInfo:
     """What the rest of the package needs to know about one control law.
 
-    ``adaptive``: it adapts theta-hat online; ``composite``: it predicts the measured specific force
-    (so its prediction error is a metric); ``label`` and ``colour`` (a Matplotlib colour) are used
-    in every figure and table.
+    ``adaptive``: it adapts theta-hat online; ``composite``: it predicts the measured specific
+    force with an adapted theta-hat (so its prediction error is one of the composite metrics);
+    ``label`` and ``colour`` (a Matplotlib colour) are used in every figure and table;
+    ``module``: the law's module, relative to :mod:`vtoladapt.control.laws` or absolute.
     """
 
     id: str
@@ -23,19 +28,34 @@ class ControllerInfo:
     adaptive: bool
     composite: bool
     description: str
+    module: str
+
+    @property
+    def law(self) -> ModuleType:
+        """The law's module (imported on first use)."""
+        name = self.module if "." in self.module else f"{__package__}.laws.{self.module}"
+        return importlib.import_module(name)
+
+    @property
+    def settings(self) -> type:
+        """The law's settings dataclass (its ``[controller.<id>]`` table)."""
+        return self.law.Settings
 
 
 CONTROLLERS: dict[str, ControllerInfo] = {c.id: c for c in (
     ControllerInfo("composite", "C. Adapt", "C0", True, True,
-                   "the paper's composite adaptive law (eq:th_adapt, eq:P_adapt)"),
+                   "the paper's composite adaptive law (eq:th_adapt, eq:P_adapt)", "composite"),
     ControllerInfo("composite_pconst", "C. Adapt, P const", "C2", True, True,
-                   "the composite law with P held at P0 (the paper's controller II)"),
+                   "the composite law with P held at P0 (the paper's controller II)", "composite_pconst"),
     ControllerInfo("tracking_only", "Tracking-error adapt", "C4", True, False,
-                   "adaptation on the tracking error only, theta-hat' = P0 Phi^T R^T v-tilde (III)"),
+                   "adaptation on the tracking error only, theta-hat' = P0 Phi^T R^T v-tilde (III)",
+                   "tracking_only"),
     ControllerInfo("pid", "PID", "C1", False, False,
-                   "PX4-style velocity PID with the same force allocation, theta-hat = theta_0 (IV)"),
+                   "PX4-style velocity PID with the same force allocation, theta-hat = theta_0 (IV)", "pid"),
     ControllerInfo("pd", "PD", "C3", False, False,
-                   "the PID without its integral (V)"),
+                   "the PID without its integral (V)", "pd"),
+    ControllerInfo("nominal", "Nominal (no adapt)", "C7", False, False,
+                   "the composite law with adaptation off, theta-hat = theta_0", "nominal"),
 )}
 
 CONTROLLER_IDS: tuple[str, ...] = tuple(CONTROLLERS)
@@ -49,3 +69,9 @@ def controller_info(controller_id: str) -> ControllerInfo:
         return CONTROLLERS[controller_id]
     except KeyError:
         raise KeyError(f"unknown controller {controller_id!r}; allowed: {', '.join(CONTROLLER_IDS)}") from None
+
+
+def law_index(controller_id: str) -> int:
+    """The number the compiled step dispatches on: the law's position in :data:`CONTROLLER_IDS`."""
+    controller_info(controller_id)
+    return CONTROLLER_IDS.index(controller_id)

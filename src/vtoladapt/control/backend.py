@@ -1,0 +1,179 @@
+"""The controller's back end, shared by every law: attitude, moment, allocation, output guard, diagnostics.
+
+One call of :func:`back_end` per tick, after the law's update has given the force command
+``f_r`` (and updated theta-hat, if it adapts):
+
+1. ``|f_r + g|`` limited (``accel_max_mps2``).
+2. **Desired attitude** (:mod:`.attitude`) and, if ``omega_d_feedforward`` is on (default off, see
+   :mod:`.config`), ``omega_d``, ``omega_d'``: the desired frame's rate ``log(R_d,prev^T R_d)/dt``
+   is limited to ``omega_d_max`` and passed through two cascaded first-order low-passes at
+   ``omega_d_cutoff_hz``; ``omega_d`` is the second stage's output and ``omega_d'`` its exact
+   derivative ``(x_1 - x_2) 2 pi f_c`` (a dirty derivative of a smoothed signal, limited to
+   ``omega_d_dot_max``). The reference yaw rate is not used: the change of ``R_d`` already
+   contains it.
+3. **Moment command** (eq:wr, eq:m_ctrl) with the constrained quaternion error, limited per axis.
+4. **Thruster allocation** at the current attitude with theta-hat (eq:f_proj, :mod:`.allocation`).
+5. A non-finite command (impossible for finite sanitised inputs, but guarded) is replaced by the
+   previous command and flagged.
+6. The diagnostics (:data:`.layouts.DIAGNOSTICS`) other than the law's own columns.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .. import layout as L
+from ..forces import I_CL0, I_CL1
+from ..frames import GRAVITY_MPS2
+from . import adaptation as ad
+from .allocation import allocate_thrusters
+from .attitude import desired_attitude, desired_frame_rate
+from .frontend import plausible, rotation_rows, rows_times, rows_transpose_times, vec3
+from .layouts import (
+    DIAG_A_M, DIAG_ADAPT_ACTIVE, DIAG_ALLOC_RES, DIAG_ALPHA_D, DIAG_AIRSPEED, DIAG_BLEND, DIAG_F_R, DIAG_FAULTS,
+    DIAG_INTEGRATOR, DIAG_LYAP_Q, DIAG_LYAP_V, DIAG_OMEGA_D, DIAG_OMEGA_R, DIAG_P_DIAG, DIAG_P_TILDE,
+    DIAG_PRED_ERR, DIAG_PROBE_VALID, DIAG_PROJ_ACTIVE, DIAG_Q_D, DIAG_Q_TILDE, DIAG_SAT_X, DIAG_SAT_Z,
+    DIAG_THETA_HAT, DIAG_V_I_USED, DIAG_V_R, DIAG_V_TILDE, DIAG_W_THETA, DIAG_WIND_EST, FAULT_COMMAND,
+    GAIN_OMEGA_D, N_THETA, P_ACC_MAX, P_ALPHA_MAX, P_ALPHA_MIN, P_GAMMA_LYAP, P_J, P_K_OMEGA, P_LAMBDA_Q,
+    P_MIN_LIFT, P_MODEL, P_P0, P_TAU_MAX, P_TILT_MAX, P_U_MAX, P_V_HI, P_V_LO, P_WD_DOT_MAX, P_WD_HZ,
+    P_WD_MAX, P_WD_ON, S_AM_F, S_GAINS, S_HAVE_MEAS, S_HAVE_QD, S_HAVE_Y_I, S_OMEGA_LAST, S_Q_D_PREV, S_Q_LAST,
+    S_RES_PREV_W, S_SAT_PREV, S_STEPS, S_TAU_PREV, S_THETA, S_TIME, S_U_PREV, S_V_PREV, S_WD_X1, S_WD_X2,
+    S_WIND_EST, S_Y_I_PREV,
+)
+from .tracking import (
+    limit_norm,
+    moment_command,
+    quat_error_from_quats,
+    reference_angular_acceleration,
+    reference_angular_rate,
+)
+
+
+@njit(cache=True, inline="always")
+def default_law_diagnostics(params, diag) -> None:
+    """The law-owned columns before the law runs: ``P_diag`` = diag(P0), no active bound, no integral."""
+    for i in range(N_THETA):
+        diag[DIAG_P_DIAG + i] = params[P_P0 + N_THETA * i + i]
+    diag[DIAG_PROJ_ACTIVE] = 0.0
+    for i in range(3):
+        diag[DIAG_INTEGRATOR + i] = 0.0
+
+
+@njit(cache=True, inline="always")
+def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_ok, R, v_W, v_i, p_tilde, v_r,
+             v_tilde_raw, yaw_d) -> None:
+    """Steps 1-6 of the module notes: writes ``cmd`` and ``diag``, updates the shared state."""
+    for i in range(3):
+        state[S_V_PREV + i] = v_W[i]
+    u_max = params[P_U_MAX]
+    theta = (state[S_THETA], state[S_THETA + 1], state[S_THETA + 2], state[S_THETA + 3], state[S_THETA + 4],
+             state[S_THETA + 5], state[S_THETA + 6], state[S_THETA + 7])
+    model = vec3(params, P_MODEL)
+    q_WB = (state[S_Q_LAST], state[S_Q_LAST + 1], state[S_Q_LAST + 2], state[S_Q_LAST + 3])
+    omega = vec3(state, S_OMEGA_LAST)
+    v_i_W = rows_times(R, v_i)
+    airspeed = np.sqrt(v_i[0] ** 2 + v_i[1] ** 2 + v_i[2] ** 2)
+
+    # 1. |f_r + g| limited
+    f_r, _ = limit_norm((f_r[0], f_r[1], f_r[2] + GRAVITY_MPS2), params[P_ACC_MAX])
+    f_r = (f_r[0], f_r[1], f_r[2] - GRAVITY_MPS2)
+
+    # 2. desired attitude and the desired frame's rate
+    q_d, y_i, alpha_d, w_blend, formed = desired_attitude(
+        f_r, v_i_W, yaw_d, theta[I_CL0], theta[I_CL1], model[0], params[P_ALPHA_MIN],
+        params[P_ALPHA_MAX], params[P_V_LO], params[P_V_HI], params[P_TILT_MAX], params[P_MIN_LIFT],
+        vec3(state, S_Y_I_PREV), state[S_HAVE_Y_I] > 0.0)
+    if formed:
+        state[S_Y_I_PREV], state[S_Y_I_PREV + 1], state[S_Y_I_PREV + 2] = y_i
+        state[S_HAVE_Y_I] = 1.0
+    if state[S_HAVE_QD] > 0.0 and params[P_WD_ON] > 0.0:
+        q_d_prev = (state[S_Q_D_PREV], state[S_Q_D_PREV + 1], state[S_Q_D_PREV + 2], state[S_Q_D_PREV + 3])
+        raw, _ = limit_norm(desired_frame_rate(q_d_prev, q_d, dt), params[P_WD_MAX])
+        c_w = state[S_GAINS + GAIN_OMEGA_D]
+        for i in range(3):
+            state[S_WD_X1 + i] = ad.lowpass(state[S_WD_X1 + i], raw[i], c_w)
+            state[S_WD_X2 + i] = ad.lowpass(state[S_WD_X2 + i], state[S_WD_X1 + i], c_w)
+    state[S_HAVE_QD] = 1.0
+    for i in range(4):
+        state[S_Q_D_PREV + i] = q_d[i]
+    x1 = vec3(state, S_WD_X1)
+    omega_d = vec3(state, S_WD_X2)
+    k_wd = 2.0 * np.pi * params[P_WD_HZ]
+    omega_d_dot, _ = limit_norm((k_wd * (x1[0] - omega_d[0]), k_wd * (x1[1] - omega_d[1]),
+                                 k_wd * (x1[2] - omega_d[2])), params[P_WD_DOT_MAX])
+
+    # 3. moment command (eq:wr, eq:m_ctrl)
+    q_tilde = quat_error_from_quats(q_d, q_WB)
+    if params[P_WD_ON] > 0.0:
+        # omega_d and its rate in body axes: R~^T omega_d, R~ = R_d^T R
+        Rt = rotation_rows(q_tilde)
+        omega_d_B = rows_transpose_times(Rt, omega_d)
+        omega_d_dot_B = rows_transpose_times(Rt, omega_d_dot)
+    else:
+        # without the feed-forward omega_d = omega_d' = 0 in every frame
+        omega_d_B = (0.0, 0.0, 0.0)
+        omega_d_dot_B = (0.0, 0.0, 0.0)
+    Lq = vec3(params, P_LAMBDA_Q)
+    omega_r = reference_angular_rate(omega_d_B, q_tilde, Lq)
+    omega_r_dot = reference_angular_acceleration(q_tilde, omega, omega_d_B, omega_d_dot_B, Lq)
+    J = (vec3(params, P_J), vec3(params, P_J + 3), vec3(params, P_J + 6))
+    tau = moment_command(J, omega, omega_r, omega_r_dot, vec3(params, P_K_OMEGA))
+    tau = (min(max(tau[0], -params[P_TAU_MAX]), params[P_TAU_MAX]),
+           min(max(tau[1], -params[P_TAU_MAX + 1]), params[P_TAU_MAX + 1]),
+           min(max(tau[2], -params[P_TAU_MAX + 2]), params[P_TAU_MAX + 2]))
+
+    # 4. thruster allocation at the current attitude (eq:f_proj)
+    f_rb = rows_transpose_times(R, f_r)
+    u_x, u_z, res, sat_x, sat_z = allocate_thrusters(f_rb, v_i, theta, model, u_max)
+
+    # 5. output, with a last guard against non-finite values
+    if not (np.isfinite(u_x) and np.isfinite(u_z) and plausible(tau, np.inf)):
+        faults |= FAULT_COMMAND
+        u_x = state[S_U_PREV]
+        u_z = state[S_U_PREV + 1]
+        tau = vec3(state, S_TAU_PREV)
+    cmd[L.CMD_U_X] = min(max(u_x, 0.0), u_max)
+    cmd[L.CMD_U_Z] = min(max(u_z, 0.0), u_max)
+    for i in range(3):
+        cmd[L.CMD_TAU_B + i] = tau[i]
+    state[S_U_PREV] = cmd[L.CMD_U_X]
+    state[S_U_PREV + 1] = cmd[L.CMD_U_Z]
+    res_W = rows_times(R, res)
+    for i in range(3):
+        state[S_TAU_PREV + i] = tau[i]
+        state[S_RES_PREV_W + i] = res_W[i]
+    state[S_SAT_PREV] = sat_x
+    state[S_SAT_PREV + 1] = sat_z
+    state[S_TIME] += dt
+    state[S_STEPS] += 1.0
+    state[S_HAVE_MEAS] = 1.0
+
+    # 6. diagnostics
+    for i in range(3):
+        diag[DIAG_P_TILDE + i] = p_tilde[i]
+        diag[DIAG_V_TILDE + i] = v_tilde_raw[i]
+        diag[DIAG_V_R + i] = v_r[i]
+        diag[DIAG_F_R + i] = f_r[i]
+        diag[DIAG_OMEGA_D + i] = omega_d[i]
+        diag[DIAG_OMEGA_R + i] = omega_r[i]
+        diag[DIAG_V_I_USED + i] = v_i[i]
+        diag[DIAG_WIND_EST + i] = state[S_WIND_EST + i]
+        diag[DIAG_PRED_ERR + i] = e[i]
+        diag[DIAG_A_M + i] = state[S_AM_F + i]
+        diag[DIAG_W_THETA + i] = e[i] + state[S_AM_F + i]
+        diag[DIAG_ALLOC_RES + i] = res[i]
+    for i in range(4):
+        diag[DIAG_Q_TILDE + i] = q_tilde[i]
+        diag[DIAG_Q_D + i] = q_d[i]
+    diag[DIAG_ALPHA_D] = alpha_d
+    diag[DIAG_AIRSPEED] = airspeed
+    diag[DIAG_BLEND] = w_blend
+    for i in range(N_THETA):
+        diag[DIAG_THETA_HAT + i] = theta[i]
+    diag[DIAG_SAT_X] = sat_x
+    diag[DIAG_SAT_Z] = sat_z
+    diag[DIAG_PROBE_VALID] = 1.0 if probe_ok else 0.0
+    diag[DIAG_ADAPT_ACTIVE] = 1.0 if adapt_active else 0.0
+    diag[DIAG_LYAP_V] = 0.5 * (v_tilde_raw[0] ** 2 + v_tilde_raw[1] ** 2 + v_tilde_raw[2] ** 2)
+    diag[DIAG_LYAP_Q] = (2.0 - 2.0 * q_tilde[0]) / params[P_GAMMA_LYAP]
+    diag[DIAG_FAULTS] = faults

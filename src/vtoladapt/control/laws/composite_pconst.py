@@ -1,0 +1,62 @@
+"""The composite law with P held at P0 (the paper's controller II).
+
+As :mod:`.composite`, with ``P' = 0``: the prediction-error term is stepped with the gain
+``(P0^-1 + dt W^T W)^-1`` (backward Euler, see :mod:`vtoladapt.control.adaptation`) and P stays P0.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ...config import setting
+from ...layout import BlockLayout, Field
+from .. import adaptation as ad
+from ..layouts import P_K_V, P_LAW, S_LAW, law_offsets
+from ..tracking import force_command
+from . import LawContext, check_sigma_step
+from ._adaptive import adaptive_estimate
+
+
+@dataclass(frozen=True)
+class CompositePConstSettings:
+    """The constant-P composite law's own gains (the ``[controller.composite_pconst]`` table)."""
+
+    sigma: float = setting("adaptation units", "sigma-modification toward theta_0 (eq:th_adapt)",
+                           default=1e-4, ge=0.0, le=100.0)
+
+
+Settings = CompositePConstSettings
+"""The law interface's name for the settings class."""
+
+
+PARAMS = BlockLayout("composite_pconst parameters", [
+    Field("SIGMA", 1, "adaptation units", "sigma-modification"),
+])
+STATE = BlockLayout("composite_pconst state", [
+    Field("ACTIVE_SET", 1, "-", "bit mask of the bounds the last projection held"),
+    Field("WORK", ad.WORK.size, "-", "the adaptation's scratch (no meaning between ticks)"),
+])
+(P_SIGMA,) = law_offsets(PARAMS, P_LAW, "SIGMA")
+S_ACTIVE_SET, S_WORK = law_offsets(STATE, S_LAW, "ACTIVE_SET", "WORK")
+
+
+def fill_params(settings: CompositePConstSettings, ctx: LawContext) -> np.ndarray:
+    """The law's parameter block; ``ValueError`` if sigma makes the explicit sigma step unstable."""
+    check_sigma_step(settings.sigma, ctx, "controller.composite_pconst")
+    return PARAMS.pack(SIGMA=settings.sigma)
+
+
+def init_state(params: np.ndarray, state: np.ndarray) -> None:
+    """Nothing beyond the shared start (theta-hat = theta_init, P = P0)."""
+
+
+@njit(cache=True)
+def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_tilde, a_d) -> tuple:
+    """Adapt theta-hat with P = P0, then the force command (eq:f_ctrl); see the law interface."""
+    e, adapt_active, faults = adaptive_estimate(
+        ad.ADAPT_PCONST, params, state, diag, S_ACTIVE_SET, S_WORK, may_adapt, Phi, R, v_tilde, dt,
+        1.0, dt, params[P_SIGMA], np.inf)
+    K_v = (params[P_K_V], params[P_K_V + 1], params[P_K_V + 2])
+    return force_command(v_r_dot, v_tilde, K_v), e, adapt_active, faults

@@ -1,0 +1,45 @@
+"""The PID without its integral (the paper's controller V).
+
+Exactly :mod:`.pid` with the integral left out: the same parameter and state blocks, with the
+integral gain fixed at 0 (a PD has none to set) and the integrator never moving.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ...config import setting
+from . import LawContext
+from .pid import PARAMS, STATE, pid_update
+
+
+@dataclass(frozen=True)
+class PDSettings:
+    """The PD's own gains (the ``[controller.pd]`` table)."""
+
+    K_D: tuple[float, ...] = setting("-", "velocity-derivative gain on the measured acceleration, NED",
+                                     default=(0.2, 0.2, 0.0), ge=0.0, length=3)
+    derivative_cutoff_hz: float = setting("Hz", "low-pass on the measured acceleration", default=5.0, gt=0.0)
+
+
+Settings = PDSettings
+"""The law interface's name for the settings class."""
+
+
+def fill_params(settings: PDSettings, ctx: LawContext) -> np.ndarray:
+    """The PID's parameter block with no integral (``K_I`` = 0, limit 0)."""
+    return PARAMS.pack(K_D=settings.K_D, DERIV_HZ=settings.derivative_cutoff_hz)
+
+
+def init_state(params: np.ndarray, state: np.ndarray) -> None:
+    """Derivative filter empty (the shared start holds theta-hat = theta_init)."""
+
+
+@njit(cache=True)
+def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_tilde, a_d) -> tuple:
+    """The PD force command (:mod:`.pid` without the integral). See the law interface."""
+    return pid_update(params, state, diag, False, dt, new_dt, v_W, v_tilde, a_d)
+
+

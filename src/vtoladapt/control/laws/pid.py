@@ -1,0 +1,114 @@
+"""The PX4-style velocity PID (the paper's controller IV), with theta-hat = theta_0 held constant.
+
+Velocity setpoint ``v_sp = v_r`` (PX4's position P loop with feed-forward);
+``acc_sp = K_v (v_sp - v) + I - K_D a_f`` with the integral ``I' = K_I (v_sp - v)`` and the
+derivative on the measurement (``a_f``: the measured velocity differenced and low-passed at
+``derivative_cutoff_hz``); ``f_r = -g + a_d + acc_sp``. Anti-windup: ``I`` is clamped per axis, and
+an axis is frozen while the allocation saturated on the previous tick and integrating would
+push further into the unachieved force (``(v_sp - v)_i (R residual)_i > 0``). Then the same
+desired attitude, allocation and moment law as every law, with theta-hat constant.
+
+Settings (``[controller.pid]``), defaults and why: ``K_I = (0.4, 0.4, 2.0) 1/s^2`` and
+``K_D = (0.2, 0.2, 0.0)`` are PX4's ``MPC_XY_VEL_I_ACC``, ``MPC_Z_VEL_I_ACC``,
+``MPC_XY_VEL_D_ACC``, ``MPC_Z_VEL_D_ACC`` defaults; the derivative is filtered at 5 Hz (PX4
+``MPC_VELD_LP``). The integral time ``K_v/K_I`` = 4.5 s horizontally is what makes a PID slow to
+follow the fan-array steps, which is the paper's point. The velocity P gain is the shared ``K_v``
+(the "equivalent gains" of the paper's comparison).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ...config import setting
+from ...frames import GRAVITY_MPS2
+from ...layout import BlockLayout, Field
+from .. import adaptation as ad
+from ..frontend import prediction_error
+from ..layouts import DIAG_INTEGRATOR, P_K_V, P_LAW, S_LAW, S_RES_PREV_W, S_SAT_PREV, S_V_PREV, law_offsets
+from . import LawContext
+
+
+@dataclass(frozen=True)
+class PIDSettings:
+    """The PID's own gains (the ``[controller.pid]`` table)."""
+
+    K_I: tuple[float, ...] = setting("1/s^2", "velocity-error integral gain, NED", default=(0.4, 0.4, 2.0),
+                                     ge=0.0, length=3)
+    K_D: tuple[float, ...] = setting("-", "velocity-derivative gain on the measured acceleration, NED",
+                                     default=(0.2, 0.2, 0.0), ge=0.0, length=3)
+    integrator_limit_mps2: tuple[float, ...] = setting(
+        "m/s^2", "clamp of the integral term per axis, NED", default=(4.0, 4.0, 5.0), ge=0.0, length=3)
+    derivative_cutoff_hz: float = setting("Hz", "low-pass on the measured acceleration", default=5.0, gt=0.0)
+
+
+Settings = PIDSettings
+"""The law interface's name for the settings class."""
+
+
+PARAMS = BlockLayout("pid parameters", [
+    Field("K_I", 3, "1/s^2", "velocity-error integral gain (0: no integral, the PD)"),
+    Field("K_D", 3, "-", "velocity-derivative gain"),
+    Field("INT_LIMIT", 3, "m/s^2", "clamp of the integral term"),
+    Field("DERIV_HZ", 1, "Hz", "low-pass on the measured acceleration"),
+])
+STATE = BlockLayout("pid state", [
+    Field("INTEGRATOR", 3, "m/s^2", "integral term, NED"),
+    Field("VDOT_F", 3, "m/s^2", "filtered measured acceleration, NED"),
+    Field("VDOT_INIT", 1, "-", "1 once the derivative filter has a sample"),
+    Field("DERIV_GAIN", 1, "-", "gain of the derivative low-pass for the current dt"),
+])
+P_K_I, P_K_D, P_INT_LIMIT, P_DERIV_HZ = law_offsets(PARAMS, P_LAW, "K_I", "K_D", "INT_LIMIT", "DERIV_HZ")
+S_INT, S_VDOT_F, S_VDOT_INIT, S_DERIV_GAIN = law_offsets(STATE, S_LAW, "INTEGRATOR", "VDOT_F", "VDOT_INIT",
+                                                         "DERIV_GAIN")
+
+
+def fill_params(settings: PIDSettings, ctx: LawContext) -> np.ndarray:
+    """The law's parameter block."""
+    return PARAMS.pack(K_I=settings.K_I, K_D=settings.K_D, INT_LIMIT=settings.integrator_limit_mps2,
+                       DERIV_HZ=settings.derivative_cutoff_hz)
+
+
+def init_state(params: np.ndarray, state: np.ndarray) -> None:
+    """Integral and derivative filter empty (the shared start holds theta-hat = theta_init)."""
+
+
+@njit(cache=True)
+def pid_force(params, state, integrate, v_W, v_tilde, a_d, dt) -> tuple:
+    """The force command ``f_r`` of the module notes, m/s^2 NED; the integral moves only if ``integrate``."""
+    if state[S_VDOT_INIT] > 0.0:
+        c_d = state[S_DERIV_GAIN]
+        for i in range(3):
+            state[S_VDOT_F + i] = ad.lowpass(state[S_VDOT_F + i], (v_W[i] - state[S_V_PREV + i]) / dt, c_d)
+    state[S_VDOT_INIT] = 1.0
+    saturated = state[S_SAT_PREV] != 0.0 or state[S_SAT_PREV + 1] != 0.0
+    v_err = (-v_tilde[0], -v_tilde[1], -v_tilde[2])
+    if integrate:
+        for i in range(3):
+            frozen = saturated and v_err[i] * state[S_RES_PREV_W + i] > 0.0
+            if not frozen:
+                lim = params[P_INT_LIMIT + i]
+                state[S_INT + i] = min(max(state[S_INT + i] + params[P_K_I + i] * v_err[i] * dt, -lim), lim)
+    return (a_d[0] + params[P_K_V] * v_err[0] + state[S_INT] - params[P_K_D] * state[S_VDOT_F],
+            a_d[1] + params[P_K_V + 1] * v_err[1] + state[S_INT + 1] - params[P_K_D + 1] * state[S_VDOT_F + 1],
+            a_d[2] + params[P_K_V + 2] * v_err[2] + state[S_INT + 2] - params[P_K_D + 2] * state[S_VDOT_F + 2]
+            - GRAVITY_MPS2)
+
+
+@njit(cache=True)
+def pid_update(params, state, diag, integrate, dt, new_dt, v_W, v_tilde, a_d) -> tuple:
+    """The PID's (``integrate``) or PD's tick: force, integral diagnostics, prediction error of theta_0."""
+    if new_dt:
+        state[S_DERIV_GAIN] = ad.lowpass_gain(params[P_DERIV_HZ], dt)
+    f_r = pid_force(params, state, integrate, v_W, v_tilde, a_d, dt)
+    for i in range(3):
+        diag[DIAG_INTEGRATOR + i] = state[S_INT + i]
+    return f_r, prediction_error(state), False, 0
+
+
+@njit(cache=True)
+def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_tilde, a_d) -> tuple:
+    """The PID force command (module notes); theta-hat is not adapted. See the law interface."""
+    return pid_update(params, state, diag, True, dt, new_dt, v_W, v_tilde, a_d)

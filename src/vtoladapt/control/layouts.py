@@ -1,0 +1,191 @@
+"""The controller's flat arrays: the shared parameter, state and diagnostics blocks, and where a law's own go.
+
+Every controller's ``params`` and ``state`` arrays are one shared block followed by the law's
+own block (:data:`P_LAW`, :data:`S_LAW`)::
+
+    params = [ SHARED_PARAMS | law.PARAMS ]        state = [ SHARED_STATE | law.STATE ]
+
+The shared blocks hold what the front end (:mod:`.frontend`) and back end (:mod:`.backend`)
+need for every law: the shared gains of ``[controller]``, the model estimate theta-hat and
+``P^-1`` (:data:`vtoladapt.control.adaptation.MEMORY`, read by the allocation for every law,
+updated only by adaptive laws), the sanitiser's last good values, the filters. A law binds the
+absolute offsets of its own fields with :func:`law_offsets`. The diagnostics columns (the
+``diag`` array, logged by the simulator) come from :data:`DIAGNOSTICS`, one declaration.
+
+Nothing here imports a law, the configuration or the kernel: laws import this module.
+"""
+from __future__ import annotations
+
+from .. import layout as L
+from ..layout import BlockLayout, Field
+from ..vehicle import PARAMETER_NAMES
+from . import adaptation as ad
+
+N_THETA = ad.N_THETA
+
+# fault bits in diag['fault_flags']
+FAULT_POSITION = 1
+FAULT_VELOCITY = 2
+FAULT_ATTITUDE = 4
+FAULT_GYRO = 8
+FAULT_ACCEL = 16
+FAULT_PROBE = 32
+FAULT_REFERENCE = 64
+FAULT_COMMAND = 128
+FAULT_ADAPTATION = 256
+FAULT_DT = 512
+
+# --- shared parameters ---------------------------------------------------------------------------
+SHARED_PARAMS = BlockLayout("controller parameters (shared)", [
+    Field("LAW_INDEX", 1, "-", "the law's position in the registry (which law's update runs)"),
+    Field("K_V", 3, "1/s", "velocity-error gain K_v (eq:f_ctrl), NED"),
+    Field("LAMBDA_P", 3, "1/s", "position-error gain Lambda_p (eq:wr), NED"),
+    Field("LAMBDA_Q", 3, "1/s", "attitude-error gain Lambda_q (eq:wr), FRD"),
+    Field("K_OMEGA", 3, "N m s", "rate-error gain K_omega (eq:m_ctrl), FRD"),
+    Field("J", 9, "kg m^2", "the controller's inertia, row-major"),
+    Field("MODEL", 3, "-", "the vehicle's force-model constants (vehicle.model_kernel)"),
+    Field("PRIOR", ad.PRIOR.size, "adaptation units", "theta_0, initial theta-hat, bounds, P0^-1, P0"),
+    Field("LOWPASS_HZ", 1, "Hz", "filter [.]_f of the accelerometer and Phi"),
+    Field("GAMMA_LYAP", 1, "-", "weight of the attitude term of the Lyapunov function"),
+    Field("HOLDOFF_S", 1, "s", "adaptation resumes this long after the sensors are valid again"),
+    Field("ALPHA_MIN", 1, "rad", "smallest desired angle of attack"),
+    Field("ALPHA_MAX", 1, "rad", "largest desired angle of attack"),
+    Field("V_LO", 1, "m/s", "hover-blend airspeed, start"),
+    Field("V_HI", 1, "m/s", "hover-blend airspeed, end"),
+    Field("TILT_MAX", 1, "rad", "tilt limit of the multirotor attitude"),
+    Field("MIN_LIFT", 1, "m/s^2", "least upward force the multirotor attitude assumes"),
+    Field("ACC_MAX", 1, "m/s^2", "limit on |f_r + g|"),
+    Field("VCORR_MAX", 1, "m/s", "limit on |Lambda_p p~|"),
+    Field("VERR_MAX", 1, "m/s", "limit on |v~|"),
+    Field("WD_ON", 1, "-", "1: omega_d feed-forward on"),
+    Field("WD_HZ", 1, "Hz", "omega_d low-pass cutoff"),
+    Field("WD_MAX", 1, "rad/s", "limit on |omega_d|"),
+    Field("WD_DOT_MAX", 1, "rad/s^2", "limit on |omega_d-dot|"),
+    Field("TAU_MAX", 3, "N m", "limit on each body moment command"),
+    Field("U_MAX", 1, "-", "throttle limit, fraction"),
+    Field("VPROBE_MAX", 1, "m/s", "probe readings faster than this are invalid"),
+    Field("WIND_TAU", 1, "s", "time constant of the wind estimate"),
+    Field("WIND_FADE", 1, "s", "fade of the wind estimate while the probe is out"),
+    Field("DT_NOMINAL", 1, "s", "nominal tick, replaces an invalid dt"),
+    Field("MOTOR_LAG_ON", 1, "-", "1: the regressor's throttles pass through the nominal motor lag"),
+    Field("MOTOR_TAU", 2, "s", "nominal motor time constants: pusher, lift"),
+])
+(P_LAW_INDEX, P_K_V, P_LAMBDA_P, P_LAMBDA_Q, P_K_OMEGA, P_J, P_MODEL, P_PRIOR, P_LOWPASS_HZ, P_GAMMA_LYAP,
+ P_HOLDOFF_S, P_ALPHA_MIN, P_ALPHA_MAX, P_V_LO, P_V_HI, P_TILT_MAX, P_MIN_LIFT, P_ACC_MAX, P_VCORR_MAX,
+ P_VERR_MAX, P_WD_ON, P_WD_HZ, P_WD_MAX, P_WD_DOT_MAX, P_TAU_MAX, P_U_MAX, P_VPROBE_MAX, P_WIND_TAU,
+ P_WIND_FADE, P_DT_NOMINAL, P_MOTOR_LAG_ON, P_MOTOR_TAU) = SHARED_PARAMS.offsets(*(f.name for f in SHARED_PARAMS.fields))
+(P_THETA0, P_THETA_INIT, P_LOWER, P_UPPER, P_GAMMA0, P_P0) = SHARED_PARAMS.nested(
+    "PRIOR", ad.PRIOR, "THETA0", "THETA_INIT", "LOWER", "UPPER", "GAMMA0", "P0")
+P_LAW = SHARED_PARAMS.size
+"""First slot of the law's own parameter block."""
+
+# --- shared state --------------------------------------------------------------------------------
+# The filter and lag gains depend only on dt and the parameters: they are computed when dt changes
+# (every tick of the Python API, whose dt jitters by rounding; once per run in the simulator).
+GAINS = BlockLayout("shared filter gains", [
+    Field("LOWPASS", 1, "-", "gain of [.]_f"),
+    Field("WIND", 1, "-", "gain of the wind estimate's low-pass"),
+    Field("FADE", 1, "-", "decay factor of the wind estimate while the probe is out"),
+    Field("MOTOR_X", 1, "-", "decay factor of the pusher's nominal lag"),
+    Field("MOTOR_Z", 1, "-", "decay factor of the lift rotors' nominal lag"),
+    Field("OMEGA_D", 1, "-", "gain of the omega_d low-passes"),
+])
+GAIN_LOWPASS, GAIN_WIND, GAIN_FADE, GAIN_MOTOR_X, GAIN_MOTOR_Z, GAIN_OMEGA_D = GAINS.offsets(
+    *(f.name for f in GAINS.fields))
+
+SHARED_STATE = BlockLayout("controller state (shared)", [
+    Field("ESTIMATE", ad.MEMORY.size, "adaptation units", "theta-hat, P^-1, filtered W and a_m"),
+    Field("FILT_INIT", 1, "-", "1 once the filters have their first sample"),
+    Field("V_PREV", 3, "m/s", "last tick's velocity, NED"),
+    Field("U_PREV", 2, "-", "throttles commanded for the current interval"),
+    Field("TAU_PREV", 3, "N m", "last moment command, FRD"),
+    Field("Q_D_PREV", 4, "-", "last desired attitude"),
+    Field("WD_X1", 3, "rad/s", "omega_d filter, first stage"),
+    Field("WD_X2", 3, "rad/s", "omega_d filter, second stage (omega_d)"),
+    Field("HAVE_QD", 1, "-", "1 once a desired attitude exists"),
+    Field("Y_I_PREV", 3, "-", "last desired body y axis"),
+    Field("HAVE_Y_I", 1, "-", "1 once Y_I_PREV holds one"),
+    Field("WIND_EST", 3, "m/s", "wind estimate, NED"),
+    Field("HAVE_WIND", 1, "-", "1 once the wind estimate has a sample"),
+    Field("VALID_TIME", 1, "s", "time the probe and accelerometer have been valid"),
+    Field("P_LAST", 3, "m", "last good position, NED"),
+    Field("V_LAST", 3, "m/s", "last good velocity, NED"),
+    Field("Q_LAST", 4, "-", "last good attitude"),
+    Field("OMEGA_LAST", 3, "rad/s", "last good body rate"),
+    Field("HAVE_MEAS", 1, "-", "1 after the first tick"),
+    Field("REF_LAST", L.REF_SIZE, "-", "last good reference (REF_* layout)"),
+    Field("HAVE_REF", 1, "-", "1 once a reference was seen"),
+    Field("SAT_PREV", 2, "-", "last allocation's saturation flags"),
+    Field("RES_PREV_W", 3, "m/s^2", "last allocation's residual, NED"),
+    Field("TIME", 1, "s", "controller time"),
+    Field("STEPS", 1, "-", "ticks so far"),
+    Field("U_EST", 2, "-", "throttles the motors are estimated to deliver (nominal lag)"),
+    Field("GAINS_DT", 1, "s", "the dt the gains were computed for; 0: not yet"),
+    Field("GAINS", GAINS.size, "-", "the filter gains (GAINS layout)"),
+])
+(S_ESTIMATE, S_FILT_INIT, S_V_PREV, S_U_PREV, S_TAU_PREV, S_Q_D_PREV, S_WD_X1, S_WD_X2, S_HAVE_QD, S_Y_I_PREV,
+ S_HAVE_Y_I, S_WIND_EST, S_HAVE_WIND, S_VALID_TIME, S_P_LAST, S_V_LAST, S_Q_LAST, S_OMEGA_LAST, S_HAVE_MEAS,
+ S_REF_LAST, S_HAVE_REF, S_SAT_PREV, S_RES_PREV_W, S_TIME, S_STEPS, S_U_EST, S_GAINS_DT,
+ S_GAINS) = SHARED_STATE.offsets(*(f.name for f in SHARED_STATE.fields))
+S_THETA, S_GAMMA, S_W_F, S_AM_F = SHARED_STATE.nested("ESTIMATE", ad.MEMORY, "THETA", "GAMMA", "W", "A_M")
+S_LAW = SHARED_STATE.size
+"""First slot of the law's own state block."""
+
+# --- diagnostics ---------------------------------------------------------------------------------
+_XYZ_NED = ("N", "E", "D")
+_XYZ_B = ("x", "y", "z")
+
+
+def _cols(stem: str, axes, unit: str) -> tuple[str, ...]:
+    return tuple(f"{stem}_{a}_{unit}" if unit else f"{stem}_{a}" for a in axes)
+
+
+DIAGNOSTICS = BlockLayout("controller diagnostics", [
+    Field("P_TILDE", 3, "m", "position error p - p_d", _cols("p_tilde", _XYZ_NED, "m")),
+    Field("V_TILDE", 3, "m/s", "velocity error v - v_r (before its limit)", _cols("v_tilde", _XYZ_NED, "mps")),
+    Field("V_R", 3, "m/s", "reference velocity v_r (eq:wr)", _cols("v_r", _XYZ_NED, "mps")),
+    Field("Q_TILDE", 4, "-", "attitude error quaternion", ("q_tilde_0", "q_tilde_x", "q_tilde_y", "q_tilde_z")),
+    Field("F_R", 3, "m/s^2", "force command f_r", _cols("f_r", _XYZ_NED, "mps2")),
+    Field("Q_D", 4, "-", "desired attitude", ("q_d_w", "q_d_x", "q_d_y", "q_d_z")),
+    Field("OMEGA_D", 3, "rad/s", "desired frame's rate (feed-forward)", _cols("omega_d", _XYZ_B, "radps")),
+    Field("OMEGA_R", 3, "rad/s", "reference rate (eq:wr)", _cols("omega_r", _XYZ_B, "radps")),
+    Field("ALPHA_D", 1, "rad", "desired angle of attack", ("alpha_d_rad",)),
+    Field("AIRSPEED", 1, "m/s", "airspeed the controller used", ("ctrl_airspeed_mps",)),
+    Field("BLEND", 1, "-", "weight of the wing attitude", ("blend_weight_wing",)),
+    Field("V_I_USED", 3, "m/s", "incident velocity used, body", _cols("ctrl_v_i", _XYZ_B, "mps")),
+    Field("WIND_EST", 3, "m/s", "wind estimate, NED", _cols("wind_est", _XYZ_NED, "mps")),
+    Field("THETA_HAT", N_THETA, "adaptation units", "theta-hat", tuple(f"theta_hat_{n}" for n in PARAMETER_NAMES)),
+    Field("P_DIAG", N_THETA, "adaptation units", "diag(P) (written by the law; P0's for a constant P)",
+          tuple(f"P_diag_{n}" for n in PARAMETER_NAMES)),
+    Field("PRED_ERR", 3, "m/s^2", "prediction error W theta-hat - a_m (eq:prediction_error), body",
+          _cols("pred_err", _XYZ_B, "mps2")),
+    Field("A_M", 3, "m/s^2", "filtered specific force, body", _cols("a_m", _XYZ_B, "mps2")),
+    Field("W_THETA", 3, "m/s^2", "predicted specific force, body", _cols("W_theta", _XYZ_B, "mps2")),
+    Field("ALLOC_RES", 3, "m/s^2", "allocation residual, body", _cols("alloc_residual", _XYZ_B, "mps2")),
+    Field("SAT_X", 1, "-", "pusher saturation: -1 at 0, +1 at the limit, 0", ("sat_u_x",)),
+    Field("SAT_Z", 1, "-", "lift saturation: -1 at 0, +1 at the limit, 0", ("sat_u_z",)),
+    Field("PROBE_VALID", 1, "-", "1 if the probe reading was used", ("probe_valid_used",)),
+    Field("ADAPT_ACTIVE", 1, "-", "1 if theta-hat and P were updated this tick", ("adaptation_active",)),
+    Field("PROJ_ACTIVE", 1, "-", "bounds the projection held (written by the law; 0 by default)",
+          ("projection_active_bounds",)),
+    Field("LYAP_V", 1, "m^2/s^2", "velocity term of the Lyapunov function", ("lyap_velocity_term_m2ps2",)),
+    Field("LYAP_Q", 1, "-", "attitude term of the Lyapunov function", ("lyap_attitude_term",)),
+    Field("INTEGRATOR", 3, "m/s^2", "the law's integral term (written by the law; 0 by default)",
+          _cols("integrator", _XYZ_NED, "mps2")),
+    Field("FAULTS", 1, "-", "sum of the FAULT_* bits", ("fault_flags",)),
+])
+(DIAG_P_TILDE, DIAG_V_TILDE, DIAG_V_R, DIAG_Q_TILDE, DIAG_F_R, DIAG_Q_D, DIAG_OMEGA_D, DIAG_OMEGA_R, DIAG_ALPHA_D,
+ DIAG_AIRSPEED, DIAG_BLEND, DIAG_V_I_USED, DIAG_WIND_EST, DIAG_THETA_HAT, DIAG_P_DIAG, DIAG_PRED_ERR, DIAG_A_M,
+ DIAG_W_THETA, DIAG_ALLOC_RES, DIAG_SAT_X, DIAG_SAT_Z, DIAG_PROBE_VALID, DIAG_ADAPT_ACTIVE, DIAG_PROJ_ACTIVE,
+ DIAG_LYAP_V, DIAG_LYAP_Q, DIAG_INTEGRATOR, DIAG_FAULTS) = DIAGNOSTICS.offsets(*(f.name for f in DIAGNOSTICS.fields))
+DIAG_SIZE = DIAGNOSTICS.size
+CONTROLLER_DIAG_COLUMNS: tuple[str, ...] = DIAGNOSTICS.columns
+"""Names of the ``diag`` entries, in order, with units in the names. ``sat_u_*``: -1 (throttle at
+0, the row wanted the other sign), +1 (at the limit), 0; ``fault_flags``: sum of the ``FAULT_*``
+bits of this module; ``lyap_*``: the tracking terms of the Lyapunov function (the parameter
+term needs the truth, see :func:`vtoladapt.control.adaptation.lyapunov_function`)."""
+
+
+def law_offsets(layout: BlockLayout, base: int, *names: str) -> tuple[int, ...]:
+    """Absolute offsets of a law's fields: ``base`` (:data:`P_LAW` or :data:`S_LAW`) plus their place in ``layout``."""
+    return tuple(base + o for o in layout.offsets(*names))

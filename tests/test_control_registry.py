@@ -1,0 +1,102 @@
+"""The controller registry drives everything that lists controllers, and nothing else lists them."""
+from __future__ import annotations
+
+import ast
+import dataclasses
+from pathlib import Path
+
+import pytest
+from matplotlib.colors import is_color_like
+
+import vtoladapt
+from vtoladapt.config import ConfigError
+from vtoladapt.control import kernel
+from vtoladapt.control.config import ControllerConfig, SharedControllerConfig, controller_config_from_mapping
+from vtoladapt.control.laws import check_law
+from vtoladapt.control.registry import (
+    ADAPTIVE_IDS, COMPOSITE_IDS, CONTROLLER_IDS, CONTROLLERS, controller_info, law_index,
+)
+from vtoladapt.scenario import ExperimentConfig
+
+SRC = Path(vtoladapt.__file__).resolve().parent
+
+# Literal lists of controller ids outside the registry that are known and owned elsewhere: the
+# paper's two baselines in a claim check of experiments.py (being split by another change; to be
+# replaced by a registry attribute there). Anything else found fails the test below.
+KNOWN_ID_LISTS = {("experiments.py", ("pid", "pd"))}
+
+
+@pytest.mark.parametrize("cid", CONTROLLER_IDS)
+def test_every_entry_has_a_law_module_settings_label_and_colour(cid):
+    info = controller_info(cid)
+    check_law(info.law)                                    # Settings, PARAMS, STATE, fill_params, init_state, update
+    assert info.law.__name__.startswith("vtoladapt.control.laws.")
+    assert dataclasses.is_dataclass(info.settings) and info.settings is info.law.Settings
+    assert info.label and info.description and is_color_like(info.colour)
+    assert info.adaptive or not info.composite             # a composite law adapts
+
+
+def test_labels_and_colours_are_distinct():
+    assert len({c.label for c in CONTROLLERS.values()}) == len(CONTROLLERS)
+    assert len({c.colour for c in CONTROLLERS.values()}) == len(CONTROLLERS)
+
+
+def test_derived_id_lists_follow_the_flags():
+    assert ADAPTIVE_IDS == tuple(k for k in CONTROLLER_IDS if CONTROLLERS[k].adaptive)
+    assert COMPOSITE_IDS == tuple(k for k in CONTROLLER_IDS if CONTROLLERS[k].composite)
+    with pytest.raises(KeyError, match="allowed: " + ", ".join(CONTROLLER_IDS)):
+        controller_info("lqr")
+
+
+def test_configuration_has_one_table_per_law_and_validates_kind_from_the_registry():
+    fields = {f.name: f for f in dataclasses.fields(ControllerConfig)}
+    shared = {f.name for f in dataclasses.fields(SharedControllerConfig)}
+    assert set(fields) - shared == set(CONTROLLER_IDS)
+    assert fields["kind"].metadata["choices"] == CONTROLLER_IDS
+    assert ExperimentConfig.__dataclass_fields__["controllers"].metadata["choices"] == CONTROLLER_IDS
+    for cid in CONTROLLER_IDS:
+        cfg = controller_config_from_mapping({"kind": cid})
+        assert isinstance(cfg.law_settings, CONTROLLERS[cid].settings)
+        assert cfg.kind_id == law_index(cid) == CONTROLLER_IDS.index(cid)
+        # a law's own key never repeats a shared one (it would be ambiguous where it belongs)
+        assert not {f.name for f in dataclasses.fields(CONTROLLERS[cid].settings)} & shared
+    with pytest.raises(ConfigError, match="kind = 'lqr': unknown"):
+        controller_config_from_mapping({"kind": "lqr"})
+
+
+def test_a_law_gain_in_the_shared_table_names_the_table_it_moved_to():
+    for cid, info in CONTROLLERS.items():
+        for f in dataclasses.fields(info.settings):
+            with pytest.raises(ConfigError, match=rf"\[controller\] {f.name} = .*\[controller\.{cid}\] {f.name}"):
+                controller_config_from_mapping({f.name: 1.0}, source="s.toml")
+    with pytest.raises(ConfigError, match="unknown key"):
+        controller_config_from_mapping({"no_such_gain": 1.0})
+
+
+def test_the_compiled_step_dispatches_over_the_registry_in_order():
+    assert [i for i, _ in kernel._LAWS] == list(range(len(CONTROLLER_IDS)))
+    assert [fn for _, fn in kernel._LAWS] == [CONTROLLERS[k].law.update for k in CONTROLLER_IDS]
+
+
+def _literal_id_lists(tree: ast.AST) -> list[tuple[str, ...]]:
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Tuple, ast.List, ast.Set)):
+            ids = tuple(e.value for e in node.elts if isinstance(e, ast.Constant) and e.value in CONTROLLERS)
+            if len(ids) >= 2:
+                found.append(ids)
+    return found
+
+
+def test_no_other_list_of_controllers_exists_in_the_package():
+    """Outside registry.py no tuple, list or set literal names two or more controller ids."""
+    found = set()
+    for path in sorted(SRC.rglob("*.py")):
+        rel = path.relative_to(SRC).as_posix()
+        if rel == "control/registry.py":
+            continue
+        for ids in _literal_id_lists(ast.parse(path.read_text())):
+            found.add((rel, ids))
+    assert found <= KNOWN_ID_LISTS, f"lists of controllers outside the registry: {sorted(found - KNOWN_ID_LISTS)}"
+    # the check itself finds such a list
+    assert _literal_id_lists(ast.parse(f"x = {CONTROLLER_IDS[:2]!r}")) == [CONTROLLER_IDS[:2]]
