@@ -24,9 +24,7 @@ from numba.core.dispatcher import Dispatcher
 import vtoladapt
 
 EXCLUDED = (
-    "vtoladapt.control",      # being rewritten (issue #14, control part)
     "vtoladapt.experiments",  # being rewritten (reports)
-    "vtoladapt.scenario",     # being rewritten with the controller registry (issue #14, control part)
     "vtoladapt.cli",          # being rewritten (CLI helper)
     "vtoladapt.campaign",     # being rewritten (campaign helper)
 )
@@ -77,7 +75,8 @@ def _methods(cls) -> list[tuple[str, object]]:
         if isinstance(attr, (staticmethod, classmethod)):
             attr = attr.__func__
         elif isinstance(attr, property):
-            attr = attr.fget
+            out.append((name, attr))  # its __doc__ is the doc= argument, else fget's docstring
+            continue
         elif hasattr(attr, "func") and type(attr).__name__ == "cached_property":
             attr = attr.func
         if inspect.isfunction(attr):

@@ -20,11 +20,7 @@ import vtoladapt
 
 PACKAGE_DIR = Path(vtoladapt.__file__).resolve().parent
 
-KNOWN_CYCLES: set[frozenset[str]] = {
-    # control/config <-> control/kernel belongs to the controller's restructuring (issue #14,
-    # the control part); delete this entry when that lands.
-    frozenset({"vtoladapt.control.config", "vtoladapt.control.kernel"}),
-}
+KNOWN_CYCLES: set[frozenset[str]] = set()
 """Cycles known and owned elsewhere. The second test fails when one is gone, so the list shrinks."""
 
 

@@ -129,9 +129,11 @@ class Scenario:
 
     @property
     def n_ticks(self) -> int:
+        """Number of controller ticks in the run (``duration_s / dt_control_s``, rounded)."""
         return int(round(self.duration_s / self.dt_control_s))
 
     def load_vehicle(self) -> Vehicle:
+        """The vehicle named by the scenario (a shipped name, or a path relative to the scenario file)."""
         path = Path(self.vehicle)
         if self.source_path and path.suffix == ".toml" and not path.is_absolute():
             path = Path(self.source_path).parent / path
@@ -139,6 +141,7 @@ class Scenario:
         return load_vehicle(self.vehicle)
 
     def posterior_path(self) -> Optional[Path]:
+        """Path of the ``[controller_prior] posterior`` file (relative to the scenario), or None."""
         if self.controller_prior.posterior is None:
             return None
         path = Path(self.controller_prior.posterior)
@@ -147,6 +150,7 @@ class Scenario:
         return path
 
     def replace(self, **changes) -> "Scenario":
+        """A copy with the given fields changed (``dataclasses.replace``)."""
         return dataclasses.replace(self, **changes)
 
 

@@ -66,6 +66,7 @@ class Hold(PositionReference):
         self.yaw_rad = float(yaw_rad)
 
     def reference_table(self, t_s) -> np.ndarray:
+        """``(N, layout.REF_SIZE)`` reference rows at the times ``t_s`` (s)."""
         t = _times(t_s)
         out = np.zeros((t.size, L.REF_SIZE))
         out[:, L.REF_P_W:L.REF_P_W + 3] = self.position_m
@@ -96,6 +97,7 @@ class MinJerkWaypoints(PositionReference):
         self.times_s, self.positions_m, self.yaw_rad = t, p, yaw
 
     def reference_table(self, t_s) -> np.ndarray:
+        """``(N, layout.REF_SIZE)`` reference rows at the times ``t_s`` (s)."""
         t = _times(t_s)
         tk, pk, yk = self.times_s, self.positions_m, self.yaw_rad
         k = np.clip(np.searchsorted(tk, t, side="right") - 1, 0, tk.size - 2)
@@ -139,6 +141,7 @@ class VelocityProfile(PositionReference):
         self._p_knots = p0 + np.vstack([np.zeros(3), np.cumsum(seg, axis=0)])
 
     def reference_table(self, t_s) -> np.ndarray:
+        """``(N, layout.REF_SIZE)`` reference rows at the times ``t_s`` (s)."""
         t = _times(t_s)
         tk, vk, pk = self.times_s, self.velocities_mps, self._p_knots
         out = np.zeros((t.size, L.REF_SIZE))
