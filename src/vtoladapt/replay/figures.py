@@ -28,7 +28,8 @@ def plot_replay(result: ReplayResult, path: Path) -> Path:
 
     log = result.log
     t = log.t_s
-    fig, axes = plt.subplots(7, 1, figsize=(10, 16), sharex=True, constrained_layout=True)
+    fig, axes = plt.subplots(7, 1, figsize=(10, 16), sharex=True)
+    fig.subplots_adjust(left=0.09, right=0.98, top=0.97, bottom=0.04, hspace=0.12)
     ax = axes[0]
     _shade(ax, t, log.landed, "on the ground (land detector)")
     ax.plot(t, np.linalg.norm(log.v_i_B_mps, axis=1), lw=1, label="|v_i| used by the model")
@@ -68,7 +69,7 @@ def plot_replay(result: ReplayResult, path: Path) -> Path:
     ax.legend(loc="upper left", fontsize=7, ncol=4)
     axes[-1].set_xlabel(f"time since log sample {log.t0_us} us (s)")
     axes[0].set_title(f"replay of {Path(log.source).name} with vehicle {result.vehicle.name}", fontsize=10)
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
     return Path(path)
 
