@@ -422,7 +422,7 @@ def assemble_flight_log(tables: Mapping[TopicKey, TopicTable], source: str, log_
         ts_w = _timestamps(tw, wind_topic, source)
         mark(wind_topic, 0, ts_w)
         wne = resample_hold(ts_w, _fields(tw, ["windspeed_north", "windspeed_east"], wind_topic, source),
-                            grid, max(gap, 3.0 * _median_dt_s(ts_w)))
+                            grid, gap)
         # before the first estimate or in its gaps the wind is unknown: zero, said below
         wind[:, :2] = np.nan_to_num(wne, nan=0.0)
         sources["wind"] = f"{wind_topic}.windspeed_north, windspeed_east (held); vertical zero"
