@@ -64,3 +64,33 @@ def test_nothing_reads_outside_the_repository():
             if pattern.search(path.read_text(encoding="utf-8")):
                 offenders.append(str(path.relative_to(REPO)))
     assert offenders == []
+
+
+MIT_SUBSET = {  # file -> (header, rows) as SOURCE.md's "Vendored subset" states
+    "flight3_vehicle_attitude_0.csv": (["timestamp", "q[0]", "q[1]", "q[2]", "q[3]"], 5200),
+    "flight3_vehicle_local_position_0.csv": (["timestamp", "x", "y", "z", "vx", "vy", "vz", "ax", "ay", "az"], 2600),
+    "flight3_airspeed_validated_0.csv": (["timestamp", "indicated_airspeed_m_s", "true_airspeed_m_s",
+                                          "airspeed_sensor_measurement_valid"], 1300),
+    "flight3_airspeed_wind_0.csv": (["timestamp", "windspeed_north", "windspeed_east"], 260),
+    "flight3_actuator_controls_0_0.csv": (["timestamp", "control[0]", "control[1]", "control[2]", "control[3]"], 5200),
+    "flight3_vehicle_status_0.csv": (["timestamp", "nav_state", "arming_state", "vehicle_type", "is_vtol"], 533),
+}
+
+
+def test_mit_fixed_wing_subset_is_the_stated_window_and_columns():
+    folder = REPO_DATA_DIR / "mit-solar-airplane-px4"
+    assert sorted(p.name for p in folder.glob("*.csv")) == sorted(MIT_SUBSET)
+    assert sum(p.stat().st_size for p in folder.iterdir()) < 1_500_000
+    source = (folder / "SOURCE.md").read_text()
+    assert "## Vendored subset" in source and "1117500000 <= timestamp <= 1377500000" in source
+    for name, (header, n_rows) in MIT_SUBSET.items():
+        with (folder / name).open(newline="") as fh:
+            reader = csv.reader(fh)
+            assert next(reader) == header, name
+            rows = list(reader)
+        assert len(rows) == n_rows, name
+        assert f"{name} | {', '.join(header)} | {n_rows} " in source, name
+        t = [int(r[0]) for r in rows]
+        assert t == sorted(t) and 1117500000 <= t[0] and t[-1] <= 1377500000, name
+    with (folder / "flight3_vehicle_status_0.csv").open(newline="") as fh:
+        assert {r["vehicle_type"] for r in csv.DictReader(fh)} == {"2"}  # fixed wing throughout

@@ -6,6 +6,7 @@
     vtoladapt vehicle list | show NAME      shipped vehicles and their parameters
     vtoladapt tunnel / fit / fit-realdata   virtual wind tunnel and Bayesian model fitting
     vtoladapt probe calibrate / evaluate    airflow-probe calibration
+    vtoladapt replay LOG --vehicle NAME     replay a real PX4 flight log (open-loop adaptation)
 
 Every command validates its input before writing anything and exits with status 2 and a message
 naming the bad file, key and value on a configuration error.
@@ -90,6 +91,7 @@ def build_parser() -> argparse.ArgumentParser:
     from .campaign import register_cli as register_campaign
     from .fitting.cli import register_cli as register_fitting
     from .probe.cli import register_cli as register_probe
+    from .replay.cli import register_cli as register_replay
 
     parser = argparse.ArgumentParser(prog="vtoladapt", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -99,6 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
     register_campaign(sub)
     register_fitting(sub)
     register_probe(sub)
+    register_replay(sub)
     return parser
 
 
