@@ -52,6 +52,7 @@ from ..control.adaptation import (
     prediction_error,
 )
 from ..config import setting
+from ..control.kernel import default_theta_bounds
 from ..models import THROTTLE_FULL_PCT, theta_from_scaled
 from ..vehicle import PARAMETER_NAMES, Vehicle
 from .flightlog import FlightLog, ReplayError
@@ -210,16 +211,9 @@ def replay_kernel(v_i_B, u_x, u_z, f_meas, use, dt, model, prior, c_f, forget_a,
 
 
 def theta_bounds(vehicle: Vehicle, theta_0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The controller's box for theta-hat: ``theta_0 +- max(bound_fraction |theta_0|, bound_sigmas std)``.
-
-    Floored at ``1e-13 |theta_0|`` (1e-13 where theta_0 = 0) so no bound pair coincides; the same
-    rule as the controller's ``theta_bound_half_widths``.
-    """
-    th0 = np.asarray(theta_0, dtype=float)
-    half = np.maximum(np.asarray(vehicle.adaptation.bound_fraction) * np.abs(th0),
-                      vehicle.adaptation.bound_sigmas * np.abs(vehicle.theta_std_scaled))
-    half = np.maximum(half, 1e-13 * np.where(th0 != 0.0, np.abs(th0), 1.0))
-    return th0 - half, th0 + half
+    """The controller's box for theta-hat around ``theta_0`` (the controller's own rule,
+    :func:`vtoladapt.control.kernel.default_theta_bounds`, with the vehicle's Table I std)."""
+    return default_theta_bounds(vehicle, np.asarray(theta_0, dtype=float))
 
 
 def prior_array(vehicle: Vehicle, theta_init: np.ndarray | None = None) -> np.ndarray:
