@@ -114,7 +114,7 @@ def plot_parameter_convergence(scenario: Scenario, results: list[SimulationResul
     fig.suptitle(f"Convergence of θ̂ over {len(results)} runs from random initial θ̂ ({scenario.name})\n"
                  "adaptation scaling: throttle u ∈ [0, 1], forces per unit mass", y=0.995, fontsize=11)
     fig.legend(h1 + h2, l1 + l2, loc="upper center", bbox_to_anchor=(0.5, 0.955), ncol=6, frameon=False)
-    fig.tight_layout(rect=(0, 0, 1, 0.925))
+    fig.tight_layout(rect=(0, 0, 1, 0.945))
     return fig
 
 
