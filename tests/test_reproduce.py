@@ -2,7 +2,6 @@
 import json
 import math
 
-import pytest
 from PIL import Image
 
 from vtoladapt.experiments import ADAPTIVE_IDS, COMPOSITE_IDS
