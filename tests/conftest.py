@@ -46,3 +46,14 @@ def any_vehicle(request):
 def rng() -> np.random.Generator:
     """A fixed-seed generator, fresh for every test."""
     return np.random.default_rng(20200531)
+
+
+@pytest.fixture(scope="session")
+def reproduced(tmp_path_factory):
+    """``vtoladapt reproduce`` at 0.12 of the paper's durations: its output folder (shared by the
+    tests of the experiments and of the reports, so it runs once)."""
+    from vtoladapt.cli import main
+
+    out = tmp_path_factory.mktemp("repro") / "results"
+    assert main(["reproduce", "--out", str(out), "--duration-scale", "0.12", "--quiet"]) == 0
+    return out

@@ -77,7 +77,10 @@ def test_fit_realdata_command(tmp_path):
 
 
 @pytest.mark.slow
-def test_fit_validate_quick(tmp_path):
+def test_fit_validate_quick(tmp_path, capsys):
     assert run(["fit-validate", "--out", tmp_path, "--quick"]) == 0
     res = json.loads((tmp_path / "validation.json").read_text())
     assert len(res["sqrt_n"]["n_rows"]) == 2 and (tmp_path / "sqrt_n.png").exists()
+    # progress on stderr: 1 full fit + 3 seeds + 2 sizes, each announced
+    err = capsys.readouterr().err
+    assert "6/6 fits" in err and "calibration study: seed 3" in err and "measured 4 times" in err

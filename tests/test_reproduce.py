@@ -2,21 +2,12 @@
 import json
 import math
 
-import pytest
 from PIL import Image
 
-from vtoladapt.cli import main
 from vtoladapt.experiments import ADAPTIVE_IDS, COMPOSITE_IDS
 from vtoladapt.vehicle import PARAMETER_NAMES
 
 CONTROLLERS = ("composite", "composite_pconst", "tracking_only", "pid", "pd")
-
-
-@pytest.fixture(scope="module")
-def reproduced(tmp_path_factory):
-    out = tmp_path_factory.mktemp("repro")
-    assert main(["reproduce", "--out", str(out), "--duration-scale", "0.12", "--quiet"]) == 0
-    return out
 
 
 def test_figures_exist_and_are_images(reproduced):

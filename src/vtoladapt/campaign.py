@@ -159,11 +159,11 @@ def run_campaign(specs: list[RunSpec], out: Path, scheduler: Optional[str] = "lo
     if bar is not None:
         bar.close()
     rows.sort(key=lambda r: r["run"])
-    _write_outputs(rows, out)
+    _write_outputs(rows, out, tuple(k for k in specs[0].drawn if k != "seed") if specs else ())
     return rows
 
 
-def _write_outputs(rows: list[dict], out: Path) -> None:
+def _write_outputs(rows: list[dict], out: Path, varied: tuple[str, ...] = ()) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -179,19 +179,38 @@ def _write_outputs(rows: list[dict], out: Path) -> None:
                       "min": float(np.nanmin(vals)), "p95": float(np.nanpercentile(vals, 95)),
                       "max": float(np.nanmax(vals))}
     (out / "summary.json").write_text(json.dumps({"runs": len(rows), "columns": summary}, indent=2))
-    from .experiments import new_figure
+    figure_campaign_png(rows, out / "fig_campaign.png", varied)
 
-    fig, axes = new_figure(1, 2, figsize=(10, 3.8))
-    for ax, key, label in ((axes[0], "vel_err_rms_mps", "RMS velocity error [m/s]"),
-                           (axes[1], "pos_err_max_m", "max position error [m]")):
-        vals = np.array([r[key] for r in rows])
-        ax.hist(vals, bins=max(5, min(30, len(rows) // 2)), color="C0", alpha=0.8)
-        ax.set_xlabel(label)
-        ax.set_ylabel("runs")
-        ax.grid(alpha=0.3)
-    fig.suptitle(f"Campaign of {len(rows)} runs")
-    fig.tight_layout()
-    fig.savefig(out / "fig_campaign.png", dpi=120)
+
+def figure_campaign_png(rows: list[dict], path: Path, varied: list[str] | tuple[str, ...] = ()) -> Path:
+    """The campaign's figure: metric histograms (whole-number counts) and each metric against
+    every varied scenario key, with the key's unit from the scenario's declarations."""
+    from .experiments import figure_campaign
+
+    return figure_campaign(rows, path, varied, {k: u for k in varied if (u := _setting_unit(k))})
+
+
+def _setting_unit(dotted_key: str) -> str | None:
+    """The declared unit of a dotted scenario key (``plant.stall_angle_deg`` -> ``deg``), or None."""
+    import dataclasses
+
+    from .scenario import Scenario
+
+    cls = Scenario
+    parts = dotted_key.split(".")
+    for i, part in enumerate(parts):
+        fields = {f.name: f for f in dataclasses.fields(cls)} if dataclasses.is_dataclass(cls) else {}
+        f = fields.get(part)
+        if f is None:
+            return None
+        if i == len(parts) - 1:
+            unit = f.metadata.get("unit")
+            return unit if unit and unit != "-" else None
+        default = f.default if f.default is not dataclasses.MISSING else None
+        if default is None and f.default_factory is not dataclasses.MISSING:
+            default = f.default_factory()
+        cls = type(default)
+    return None
 
 
 def register_cli(subparsers) -> None:

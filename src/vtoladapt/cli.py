@@ -50,7 +50,7 @@ def _add_vehicle(sub) -> None:
     p = sub.add_parser("vehicle", help="list shipped vehicles or show one")
     vsub = p.add_subparsers(dest="vehicle_cmd", required=True)
     vsub.add_parser("list", help="names of the shipped vehicles").set_defaults(handler=_cmd_vehicle_list)
-    show = vsub.add_parser("show", help="a vehicle's validated parameters as JSON")
+    show = vsub.add_parser("show", help="a vehicle's validated parameters with units (TOML layout)")
     show.add_argument("name", help="shipped name or path to a vehicle TOML")
     show.set_defaults(handler=_cmd_vehicle_show)
 
@@ -78,13 +78,44 @@ def _cmd_vehicle_list(args) -> int:
 
 
 def _cmd_vehicle_show(args) -> int:
+    """Print a vehicle's validated parameters in its file's TOML layout, each with unit and meaning."""
+    print(format_vehicle(args.name))
+    return 0
+
+
+def format_vehicle(name_or_path) -> str:
+    """The vehicle's parameters section by section as ``key = value  # [unit] meaning`` lines
+    (TOML, so the output can start a vehicle file of one's own)."""
     import dataclasses
 
     from .vehicle import load_vehicle
 
-    veh = load_vehicle(args.name)
-    print(json.dumps(dataclasses.asdict(veh), indent=2))
-    return 0
+    veh = load_vehicle(name_or_path)
+
+    def value(v) -> str:
+        if isinstance(v, str):
+            return json.dumps(v)
+        if isinstance(v, bool):
+            return str(v).lower()
+        if isinstance(v, (tuple, list)):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        return repr(v)
+
+    def block(obj) -> list[str]:
+        rows = [(f"{f.name} = {value(getattr(obj, f.name))}", f.metadata.get("unit", "-"), f.metadata.get("doc", ""))
+                for f in dataclasses.fields(obj) if not dataclasses.is_dataclass(getattr(obj, f.name))
+                and f.name != "source_path"]
+        width = max((len(r[0]) for r in rows), default=0)
+        return [f"{text:<{width}}  # [{unit}] {doc}" for text, unit, doc in rows]
+
+    lines = [f"# vehicle {veh.name}" + (f" (from {veh.source_path})" if veh.source_path else ""),
+             "# each value: [unit] and meaning; [-] = dimensionless",
+             f"name = {value(veh.name)}", f"description = {value(veh.description)}"]
+    for f in dataclasses.fields(veh):
+        sub = getattr(veh, f.name)
+        if dataclasses.is_dataclass(sub):
+            lines += ["", f"[{f.name}]  # {f.metadata.get('doc', '')}"] + block(sub)
+    return "\n".join(lines)
 
 
 def build_parser() -> argparse.ArgumentParser:

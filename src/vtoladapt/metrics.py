@@ -11,6 +11,41 @@ PRED_ERR_SKIP_S = 2.0
 OVERSHOOT_WINDOW_S = 5.0
 HIGH_WIND_THROTTLE_PCT = 60.0
 
+METRIC_INFO: dict[str, tuple[str, str]] = {
+    "vel_err_rms_mps": ("RMS velocity error", "m/s"),
+    "vel_err_max_mps": ("peak velocity error", "m/s"),
+    "vel_err_rms_high_wind_mps": (f"RMS velocity error at fan ≥ {HIGH_WIND_THROTTLE_PCT:g} %", "m/s"),
+    "overshoot_after_fan_off_mps": (f"peak velocity error in the {OVERSHOOT_WINDOW_S:g} s after the fan stops",
+                                    "m/s"),
+    "pos_err_rms_m": ("RMS position error", "m"),
+    "pos_err_max_m": ("peak position error", "m"),
+    "pred_err_rms_g": (f"RMS prediction error (after {PRED_ERR_SKIP_S:g} s)", "g"),
+    "pred_err_p95_g": (f"95th-percentile prediction error (after {PRED_ERR_SKIP_S:g} s)", "g"),
+    "mixer_saturated_fraction": ("share of time with a saturated motor", "%"),
+    "lyapunov_decreasing_fraction": ("share of ticks with the Lyapunov function decreasing", "%"),
+    "airspeed_max_mps": ("peak airspeed", "m/s"),
+    "fan_off_time_s": ("time the fan stops", "s"),
+    "wall_time_s": ("wall time of the run", "s"),
+}
+"""Every metric key -> (label in words, unit as printed): the one map tables and figures use.
+
+Keys ending in ``_fraction`` are stored as fractions in ``metrics.json`` and shown in percent
+(:func:`metric_display_value`)."""
+
+
+def metric_label(key: str, with_unit: bool = True) -> str:
+    """``"RMS velocity error [m/s]"`` for ``"vel_err_rms_mps"``; ``KeyError`` for an unknown key."""
+    try:
+        label, unit = METRIC_INFO[key]
+    except KeyError:
+        raise KeyError(f"metric {key!r} has no entry in METRIC_INFO; add its label and unit") from None
+    return f"{label} [{unit}]" if with_unit else label
+
+
+def metric_display_value(key: str, value: float) -> float:
+    """The value in the unit :data:`METRIC_INFO` prints (fractions as percent)."""
+    return 100.0 * value if key.endswith("_fraction") else value
+
 
 def fan_events(t: np.ndarray, fan_pct: np.ndarray) -> tuple[np.ndarray, float | None]:
     """Mask of high-wind samples (fan >= 60 %) and the time the fan last switched off (or None)."""

@@ -126,6 +126,7 @@ def register_cli(subparsers) -> dict[str, argparse.ArgumentParser]:
     val.add_argument("--seeds", type=int, default=10, help="seeds of the calibration study")
     val.add_argument("--quick", action="store_true",
                      help="3 seeds and N, 4N only, short chains (a smoke test)")
+    val.add_argument("--quiet", action="store_true", help="no progress bar")
     val.set_defaults(handler=cmd_fit_validate)
     parsers["fit-validate"] = val
     return parsers
@@ -197,10 +198,13 @@ def cmd_fit(args: argparse.Namespace) -> int:
         return _err("fit", exc)
     import json
 
+    from .report import largest_rhat
+
     post = json.loads(paths["posterior"].read_text())
     d = post["diagnostics"]
-    print(f"fit of {data.n_rows} rows in {elapsed:.1f} s: converged {d['converged']} (max R-hat "
-          f"{max(d['rhat_split'].values()):.4f}, chain = {d['chain_over_max_tau']:.0f} tau)")
+    rhat_name, rhat = largest_rhat(d["rhat_split"])
+    print(f"fit of {data.n_rows} rows in {elapsed:.1f} s: converged {d['converged']} (largest split "
+          f"R-hat {rhat:.4f} ({rhat_name}), chain = {d['chain_over_max_tau']:.0f} tau)")
     for n, e in post["parameters"].items():
         z = post.get("truth_check", {}).get(n, {}).get("z")
         print(f"  {n:4s} {e['mean']: .5g} +- {e['std']:.3g}" + (f"   z = {z:+.2f}" if z is not None else ""))
@@ -235,20 +239,37 @@ def cmd_fit_realdata(args: argparse.Namespace) -> int:
 
 def cmd_fit_validate(args: argparse.Namespace) -> int:
     """Handler of ``vtoladapt fit-validate``; returns the exit code."""
-    from .bayes import SamplerSettings
+    from tqdm import tqdm
 
-    from .report import validation_report
+    from .bayes import SamplerSettings
+    from .report import validation_fit_count, validation_report
+
+    n_seeds, repeats = (3, (1, 4)) if args.quick else (args.seeds, (1, 4, 16))
+    # a bar over the fits: a full validation takes minutes, and each fit is silent
+    bar = tqdm(total=validation_fit_count(n_seeds, repeats), unit="fit", desc="fit-validate",
+               file=sys.stderr, disable=args.quiet,
+               bar_format="{desc}: {n_fmt}/{total_fmt} fits |{bar}| [{elapsed}<{remaining}] {postfix}")
+    started = [False]
+
+    def progress(what: str) -> None:
+        if started[0]:
+            bar.update(1)
+        started[0] = True
+        bar.set_postfix_str(what)
 
     try:
         veh = load_vehicle(args.vehicle)
         if args.quick:
-            res = validation_report(args.out, veh, seed=args.seed, n_seeds=3, repeats=(1, 4),
+            res = validation_report(args.out, veh, seed=args.seed, n_seeds=n_seeds, repeats=repeats,
                                     settings=SamplerSettings.fast(),
-                                    sqrt_n_settings=SamplerSettings.fast())
+                                    sqrt_n_settings=SamplerSettings.fast(), progress=progress)
         else:
-            res = validation_report(args.out, veh, seed=args.seed, n_seeds=args.seeds)
+            res = validation_report(args.out, veh, seed=args.seed, n_seeds=n_seeds, progress=progress)
+        bar.update(1)
     except (ConfigError, ValueError, OSError) as exc:
         return _err("fit-validate", exc)
+    finally:
+        bar.close()
     s = res["single_seed"]
     print(f"seed {s['seed']}: max |z| = {s['max_abs_z']:.2f}, fit {s['fit_time_s']:.1f} s, "
           f"converged {s['converged']}")

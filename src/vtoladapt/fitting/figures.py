@@ -20,14 +20,26 @@ LABELS = {"CTx": r"$C_{Tx}$", "CTz": r"$C_{Tz}$", "CS": r"$C_S$", "CD0": r"$C_{D
           "sigma_rel": r"$\sigma_{rel}$", "log10_sigma_abs_N": r"$\log_{10}\sigma_{abs}$/N"}
 
 
+CORNER_TICK_PT = 8.0
+"""Tick-label size of the corner plot (pt): readable when the PNG is shown at its own size."""
+
+
 def _save(fig: Figure, path) -> Path:
+    """Write the PNG; its title (the figure's suptitle) also goes into the file's Title text chunk,
+    so what the figure states (e.g. the R-hat) can be read back from the file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=fig.dpi)
+    title = fig._suptitle.get_text() if fig._suptitle is not None else ""
+    fig.savefig(path, dpi=fig.dpi, metadata={"Title": title} if title else None)
     return path
 
 
 def plot_corner(fit, path, truth: dict | None = None, max_points: int = 2000) -> Path:
+    """:func:`corner_figure` written to ``path`` (PNG)."""
+    return _save(corner_figure(fit, truth, max_points), path)
+
+
+def corner_figure(fit, truth: dict | None = None, max_points: int = 2000) -> Figure:
     """Pairwise posterior of the ten Table I quantities: histograms on the diagonal, draws below.
 
     ``truth`` (name -> value), if given, is drawn as red lines (virtual-tunnel data).
@@ -38,7 +50,7 @@ def plot_corner(fit, path, truth: dict | None = None, max_points: int = 2000) ->
     rng = np.random.default_rng(0)      # only to pick which draws to plot
     pick = flat if flat.shape[0] <= max_points else flat[rng.choice(flat.shape[0], max_points, replace=False)]
     k = len(names)
-    fig = Figure(figsize=(1.35 * k, 1.35 * k), dpi=80)
+    fig = Figure(figsize=(1.35 * k, 1.35 * k), dpi=110)
     axes = fig.subplots(k, k)
     for i in range(k):
         for j in range(k):
@@ -57,9 +69,9 @@ def plot_corner(fit, path, truth: dict | None = None, max_points: int = 2000) ->
                     ax.axhline(truth[names[i]], color="C3", lw=0.8)
             ax.xaxis.set_major_locator(MaxNLocator(3))
             ax.yaxis.set_major_locator(MaxNLocator(3))
-            ax.tick_params(labelsize=5)
+            ax.tick_params(labelsize=CORNER_TICK_PT)
             for axis in (ax.xaxis, ax.yaxis):
-                axis.get_offset_text().set_fontsize(5)
+                axis.get_offset_text().set_fontsize(CORNER_TICK_PT)
             try:
                 ax.ticklabel_format(style="sci", scilimits=(-2, 3))
             except AttributeError:
@@ -67,24 +79,38 @@ def plot_corner(fit, path, truth: dict | None = None, max_points: int = 2000) ->
             if i == j:
                 ax.set_yticks([])
             if i == k - 1:
-                ax.set_xlabel(LABELS[names[j]], fontsize=8)
+                ax.set_xlabel(LABELS[names[j]], fontsize=11)
                 ax.tick_params(axis="x", labelrotation=45)
             else:
                 ax.set_xticklabels([])
             if j == 0 and i > 0:
-                ax.set_ylabel(LABELS[names[i]], fontsize=8)
+                ax.set_ylabel(LABELS[names[i]], fontsize=11)
             elif j > 0:
                 ax.set_yticklabels([])
-    title = "Posterior of the force model (Table I units: throttle in %, per unit mass)"
+    title = ("Posterior of the force model, Table I units (throttle in %, forces per unit mass; "
+             "units of each quantity in table1.md)")
     if truth:
         title += "; red: true values"
-    fig.suptitle(title, fontsize=10)
-    fig.subplots_adjust(left=0.06, right=0.99, bottom=0.05, top=0.96, wspace=0.08, hspace=0.08)
-    return _save(fig, path)
+    fig.suptitle(title, fontsize=13)
+    fig.subplots_adjust(left=0.07, right=0.99, bottom=0.07, top=0.96, wspace=0.12, hspace=0.12)
+    return fig
 
 
-def plot_trace(fit, path) -> Path:
-    """Chains of the sampled parameters and of the log posterior, every walker (after burn-in)."""
+def plot_trace(fit, path, diagnostics: dict | None = None) -> Path:
+    """:func:`trace_figure` written to ``path`` (PNG)."""
+    return _save(trace_figure(fit, diagnostics), path)
+
+
+def trace_figure(fit, diagnostics: dict | None = None) -> Figure:
+    """Chains of the sampled parameters and of the log posterior, every walker (after burn-in).
+
+    The R-hat values shown are the ones ``posterior.json``, ``table1.md`` and the CLI report
+    (``diagnostics["rhat_split"]``: split R-hat over the posterior draws, see
+    :func:`vtoladapt.fitting.report.largest_rhat`); computed from ``fit`` when not given.
+    """
+    from .report import SAMPLED_TO_QUANTITY, largest_rhat, rhat_by_quantity
+
+    rhat = rhat_by_quantity(fit) if diagnostics is None else diagnostics["rhat_split"]
     m = fit.marginal
     d = m.chain.shape[2]
     fig = Figure(figsize=(9, 1.7 * (d + 1)), dpi=90)
@@ -93,15 +119,18 @@ def plot_trace(fit, path) -> Path:
     for i, name in enumerate(m.problem.param_names):
         axes[i].plot(steps, m.chain[:, :, i], lw=0.4, alpha=0.5)
         label = LABELS.get(name, name)
-        axes[i].set_ylabel(label, fontsize=9)
-        axes[i].set_title(f"{name}: R-hat {m.rhat[i]:.4f}, tau {m.tau_steps[i]:.1f} steps", fontsize=8,
-                          loc="right")
+        axes[i].set_ylabel(label + (" [rad]" if name == "k2" else ""), fontsize=9)
+        q = SAMPLED_TO_QUANTITY.get(name, name)
+        r = f"split R-hat of {q} {rhat[q]:.4f}" if q in rhat else "split R-hat n/a"
+        axes[i].set_title(f"{name}: {r}, tau {m.tau_steps[i]:.1f} steps", fontsize=8, loc="right")
     axes[d].plot(steps, m.log_prob, lw=0.4, alpha=0.5)
     axes[d].set_ylabel("log posterior", fontsize=9)
     axes[d].set_xlabel(f"step after {m.n_burn} burn-in steps ({m.chain.shape[1]} walkers)")
-    fig.suptitle("MCMC traces (emcee) of the sampled parameters", fontsize=10)
+    q, r = largest_rhat(rhat)
+    fig.suptitle(f"MCMC traces (emcee) of the sampled parameters; largest split R-hat {r:.4f} ({q})",
+                 fontsize=10)
     fig.tight_layout()
-    return _save(fig, path)
+    return fig
 
 
 def side_force_points(fit) -> dict:
@@ -206,7 +235,7 @@ def plot_sqrt_n(n_rows, stds: dict, path) -> Path:
         ax.loglog(n, s / s[0], "o-", ms=4, lw=1, label=LABELS.get(name, name))
     ax.loglog(n, np.sqrt(n[0] / n), "k--", lw=2, label=r"$1/\sqrt{N}$")
     ax.set_xlabel("number of force-balance rows N")
-    ax.set_ylabel("posterior std / std at smallest N")
+    ax.set_ylabel("posterior std / std at smallest N [-]")
     ax.set_title("Posterior std vs number of rows (virtual tunnel)")
     ax.legend(fontsize=7, ncol=2)
     ax.grid(alpha=0.3, which="both")
@@ -276,5 +305,5 @@ def plot_tudelft(polar, res: dict, path) -> Path:
     return _save(fig, path)
 
 
-__all__ = ["plot_corner", "plot_residuals", "plot_side_force", "plot_sqrt_n", "plot_trace",
+__all__ = ["CORNER_TICK_PT", "corner_figure", "trace_figure", "plot_corner", "plot_residuals", "plot_side_force", "plot_sqrt_n", "plot_trace",
            "plot_tudelft", "plot_uiuc", "side_force_points"]

@@ -6,6 +6,7 @@ import json
 import math
 import time
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -19,6 +20,26 @@ THRUSTER_ROWS = ("CTx", "CTz", "CS", "k1", "k2")
 AERO_ROWS = ("CL0", "CL1", "CD0", "CD1", "CD2")
 TEX = {"CTx": "C_Tx", "CTz": "C_Tz", "CS": "C_S", "k1": "k_1", "k2": "k_2", "CL0": "C_L0",
        "CL1": "C_L1", "CD0": "C_D0", "CD1": "C_D1", "CD2": "C_D2"}
+
+
+SAMPLED_TO_QUANTITY = {"log10_sigma_abs_N": "sigma_abs_N"}
+"""Sampled parameter -> the reported quantity it is a transform of (same name otherwise)."""
+
+
+def rhat_by_quantity(fit: Table1Fit) -> dict[str, float]:
+    """Split R-hat over the posterior draws of each reported quantity (the ten Table I ones and
+    the noise): the values ``posterior.json`` stores as ``diagnostics.rhat_split``."""
+    s = fit.summary()
+    return {n: s[n]["rhat"] for n in POSTERIOR_NAMES + ("sigma_abs_N", "sigma_rel")}
+
+
+def largest_rhat(rhat_split: dict[str, float]) -> tuple[str, float]:
+    """The quantity with the largest split R-hat and that R-hat: the one number table1.md,
+    trace.png and ``vtoladapt fit`` report as the fit's R-hat. ``("none", nan)`` if empty."""
+    if not rhat_split:
+        return "none", float("nan")
+    name = max(rhat_split, key=lambda n: rhat_split[n])
+    return name, float(rhat_split[name])
 
 
 def _pm(e: dict) -> str:
@@ -57,6 +78,8 @@ def table1_markdown(post: dict, vehicle: Vehicle | None = None) -> str:
         sep += "---|---|"
     lines += ["", "## Details", "", head, sep]
     rhat = d.get("rhat_split", {})
+    rhat_name, rhat_value = largest_rhat(rhat)
+    rhat_text = f"{rhat_value:.4f} ({rhat_name})"
     ess = d.get("ess", {})
     tau = d.get("autocorr_time_steps", {})
     for n in POSTERIOR_NAMES:
@@ -86,7 +109,7 @@ def table1_markdown(post: dict, vehicle: Vehicle | None = None) -> str:
                   f"- chain: {d.get('chain_length_steps')} steps x {d.get('n_walkers')} walkers after "
                   f"{d.get('burn_in_steps')} burn-in steps; longest autocorrelation time of a sampled "
                   f"parameter: chain = {d.get('chain_over_max_tau', float('nan')):.0f} tau",
-                  f"- largest split R-hat: {max(rhat.values()) if rhat else float('nan'):.4f}; smallest "
+                  f"- largest split R-hat: {rhat_text}; smallest "
                   f"ESS: {min(ess.values()) if ess else float('nan'):.0f}",
                   f"- acceptance fraction {d.get('acceptance_fraction', float('nan')):.2f}; "
                   f"{d.get('log_prob_evaluations')} log-posterior evaluations; sampler wall time "
@@ -126,7 +149,7 @@ def write_fit_outputs(fit: Table1Fit, out_dir, *, data_path=None, truth_info: di
     paths["table1"] = md
     if make_figures:
         paths["corner"] = figures.plot_corner(fit, out / "corner.png", truth)
-        paths["trace"] = figures.plot_trace(fit, out / "trace.png")
+        paths["trace"] = figures.plot_trace(fit, out / "trace.png", post["diagnostics"])
         paths["side_force"] = figures.plot_side_force(fit, out / "side_force.png", truth)
         paths["residuals"] = figures.plot_residuals(fit, out / "residuals.png")
     return paths
@@ -144,7 +167,8 @@ def zscores(fit: Table1Fit, truth_theta_table: np.ndarray, k1: float, k2: float)
 
 
 def sqrt_n_study(vehicle: Vehicle, rng: np.random.Generator, repeats=(1, 4, 16),
-                 settings: SamplerSettings | None = None, design_overrides: dict | None = None) -> dict:
+                 settings: SamplerSettings | None = None, design_overrides: dict | None = None,
+                 progress: Callable[[str], None] | None = None) -> dict:
     """Fit virtual-tunnel data with every point measured 1, 4, 16 times (N, 4N, 16N rows).
 
     Returns rows, the posterior std of each quantity at each N, and the successive std ratios
@@ -153,6 +177,8 @@ def sqrt_n_study(vehicle: Vehicle, rng: np.random.Generator, repeats=(1, 4, 16),
     stds = {n: [] for n in POSTERIOR_NAMES}
     n_rows, times, rhat_max = [], [], []
     for r in repeats:
+        if progress is not None:
+            progress(f"1/sqrt(N) study: every point measured {r} times")
         design = make_design(repeats=int(r), **(design_overrides or {}))
         run = run_virtual_tunnel(vehicle, rng, design=design)
         t0 = time.perf_counter()
@@ -169,11 +195,13 @@ def sqrt_n_study(vehicle: Vehicle, rng: np.random.Generator, repeats=(1, 4, 16),
 
 
 def zscore_study(vehicle: Vehicle, seeds, settings: SamplerSettings | None = None,
-                 perturb: bool = True) -> dict:
+                 perturb: bool = True, progress: Callable[[str], None] | None = None) -> dict:
     """Tunnel + fit for several seeds (truth drawn from Table I's spread when ``perturb``);
     the z-scores of all ten quantities and the fraction within 1 and 2 standard deviations."""
     z_all = {}
     for seed in seeds:
+        if progress is not None:
+            progress(f"calibration study: seed {seed}")
         rng = np.random.default_rng(seed)
         run = run_virtual_tunnel(vehicle, rng, perturb=perturb, seed=seed)
         fit = fit_table1(run.data, vehicle, rng, settings=settings)
@@ -186,9 +214,15 @@ def zscore_study(vehicle: Vehicle, seeds, settings: SamplerSettings | None = Non
             "n_z": int(z.size), "max_abs_z": float(np.max(np.abs(z)))}
 
 
+def validation_fit_count(n_seeds: int, repeats) -> int:
+    """How many fits :func:`validation_report` makes (for a progress bar)."""
+    return 1 + int(n_seeds) + len(tuple(repeats))
+
+
 def validation_report(out_dir, vehicle: Vehicle, *, seed: int = 0, n_seeds: int = 10,
                       repeats=(1, 4, 16), settings: SamplerSettings | None = None,
-                      sqrt_n_settings: SamplerSettings | None = None) -> dict:
+                      sqrt_n_settings: SamplerSettings | None = None,
+                      progress: Callable[[str], None] | None = None) -> dict:
     """The targets of the fitting feature, measured: writes validation.json, validation.md and
     sqrt_n.png into ``out_dir`` and returns the numbers.
 
@@ -196,11 +230,16 @@ def validation_report(out_dir, vehicle: Vehicle, *, seed: int = 0, n_seeds: int 
        convergence.
     2. ``n_seeds`` seeds with the truth drawn from Table I's spread: the fraction of |z| < 2.
     3. 1/sqrt(N): fits at N, 4N, 16N rows.
+
+    ``progress``, if given, is called with a few words before each of the
+    ``1 + n_seeds + len(repeats)`` fits (:func:`validation_fit_count`).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     settings = settings or SamplerSettings()
     rng = np.random.default_rng(seed)
+    if progress is not None:
+        progress(f"full fit, seed {seed}")
     run = run_virtual_tunnel(vehicle, rng, seed=seed)
     t0 = time.perf_counter()
     fit = fit_table1(run.data, vehicle, rng, settings=settings)
@@ -215,9 +254,10 @@ def validation_report(out_dir, vehicle: Vehicle, *, seed: int = 0, n_seeds: int 
               "chain_over_max_tau": post["diagnostics"]["chain_over_max_tau"],
               "converged": post["diagnostics"]["converged"],
               "posterior": {n: {"mean": s[n]["mean"], "std": s[n]["std"]} for n in s}}
-    zs = zscore_study(vehicle, range(seed + 1, seed + 1 + n_seeds), settings)
+    zs = zscore_study(vehicle, range(seed + 1, seed + 1 + n_seeds), settings, progress=progress)
     sq = sqrt_n_study(vehicle, np.random.default_rng(seed + 1000), repeats,
-                      sqrt_n_settings or SamplerSettings(n_burn=300, min_steps=1000, max_steps=1000))
+                      sqrt_n_settings or SamplerSettings(n_burn=300, min_steps=1000, max_steps=1000),
+                      progress=progress)
     figures.plot_sqrt_n(sq["n_rows"], sq["std"], out / "sqrt_n.png")
     result = {"single_seed": single, "seeds": zs, "sqrt_n": sq}
     (out / "validation.json").write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
@@ -323,5 +363,5 @@ def realdata_outputs(out_dir, data_dir=None, seed: int = 0, prop_name: str | Non
     return result
 
 
-__all__ = ["realdata_outputs", "sqrt_n_study", "table1_markdown", "truth_dict", "validation_report",
+__all__ = ["largest_rhat", "rhat_by_quantity", "validation_fit_count", "realdata_outputs", "sqrt_n_study", "table1_markdown", "truth_dict", "validation_report",
            "write_fit_outputs", "zscore_study", "zscores"]

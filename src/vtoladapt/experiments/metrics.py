@@ -1,0 +1,89 @@
+"""The experiments' numbers: each run's metrics (:func:`vtoladapt.metrics.run_metrics`) per
+controller, and the spread of theta-hat across the random-start runs."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..control.registry import COMPOSITE_IDS
+from ..metrics import run_metrics
+from ..results import SimulationResult
+from ..scenario import Scenario
+from ..vehicle import PARAMETER_NAMES
+
+THETA_SCALED_UNITS: dict[str, str] = {
+    "CTx": "m/s²", "CTz": "m/s²", "CS": "m^(k1−1) s^(−k1)", "CD0": "-", "CD1": "1/rad",
+    "CD2": "1/rad²", "CL0": "-", "CL1": "1/rad"}
+"""Unit of each theta-hat entry in the adaptation scaling (throttle u as a fraction in [0, 1],
+forces per unit mass), the scaling the controller adapts and the logs hold. CS multiplies
+``u^k1 V^(2-k1)`` (eq:model_Fs), so its unit, (m/s^2) / (m/s)^(2-k1), depends on k1."""
+
+
+def fan_throttle_series(scenario: Scenario, t: np.ndarray) -> np.ndarray:
+    """The fan array's throttle (%) from the scenario's schedule at each time ``t`` (s)."""
+    from ..wind import fan_throttle_pct
+
+    params = scenario.wind.to_kernel()
+    return np.array([fan_throttle_pct(params, ti) for ti in t])
+
+
+def fan_speed_series(scenario: Scenario, t: np.ndarray) -> np.ndarray:
+    """The fan array's mean wind speed (m/s) at each time ``t`` (s)."""
+    from ..wind import fan_mean_wind_speed
+
+    params = scenario.wind.to_kernel()
+    return np.array([fan_mean_wind_speed(params, ti) for ti in t])
+
+
+def comparison_metrics(scenario: Scenario, results: dict[str, SimulationResult]) -> dict:
+    """Each controller's run metrics (prediction error only for the composite controllers)."""
+    out = {}
+    for cid, res in results.items():
+        m = run_metrics(res, fan_throttle_series(scenario, res.time_s))
+        if cid not in COMPOSITE_IDS:
+            m.pop("pred_err_rms_g", None)
+            m.pop("pred_err_p95_g", None)
+        out[cid] = m
+    return {"scenario": scenario.name, "controllers": out}
+
+
+def convergence_metrics(scenario: Scenario, results: list[SimulationResult]) -> dict:
+    """Spread of theta-hat across runs at the end over at the start, per parameter."""
+    theta = np.stack([r.theta_hat for r in results])  # runs x T x 8
+    std_start = theta[:, 0, :].std(axis=0, ddof=1)
+    std_end = theta[:, -1, :].std(axis=0, ddof=1)
+    ratio = {name: float(std_end[i] / std_start[i]) if std_start[i] > 0 else float("nan")
+             for i, name in enumerate(PARAMETER_NAMES)}
+    per_run = [run_metrics(r, fan_throttle_series(scenario, r.time_s)) for r in results]
+    force_start, force_end = _predicted_force_spread(scenario, results, theta)
+    return {
+        # what the data identify: the force each run's theta-hat predicts at the final operating
+        # point (collinear parameters may wander; their combination should not)
+        "predicted_force_std_start_mps2": force_start,
+        "predicted_force_std_end_mps2": force_end,
+        "predicted_force_std_ratio": force_end / force_start if force_start > 0 else float("nan"),
+        "scenario": scenario.name, "runs": len(results),
+        "param_std_ratio": ratio,
+        "theta_hat_final_mean_scaled": dict(zip(PARAMETER_NAMES, theta[:, -1, :].mean(axis=0).tolist())),
+        "theta_hat_final_std_scaled": dict(zip(PARAMETER_NAMES, std_end.tolist())),
+        "theta_true_scaled": dict(zip(PARAMETER_NAMES, results[0].metadata["theta_true_scaled"])),
+        "vel_err_rms_mps_per_run": [m["vel_err_rms_mps"] for m in per_run],
+        "pred_err_p95_g_per_run": [m.get("pred_err_p95_g", float("nan")) for m in per_run],
+    }
+
+
+def _predicted_force_spread(scenario: Scenario, results: list[SimulationResult], theta: np.ndarray):
+    """Norm of the across-run std of ``Phi(v_i, u) theta-hat`` at the runs' mean final operating
+    point, with theta-hat at the start and at the end (m/s^2)."""
+    from ..models import regressor
+
+    vehicle = scenario.load_vehicle()
+    last = np.array([r.data[-1] for r in results])
+    idx = {n: i for i, n in enumerate(results[0].columns)}
+    v_i = last[:, [idx["ctrl_v_i_x_mps"], idx["ctrl_v_i_y_mps"], idx["ctrl_v_i_z_mps"]]].mean(axis=0)
+    u_x = 100.0 * last[:, idx["cmd_u_x_frac"]].mean()
+    u_z = 100.0 * last[:, idx["cmd_u_z_frac"]].mean()
+    Phi = regressor(v_i, u_x, u_z, vehicle)
+    f_start = theta[:, 0, :] @ Phi.T
+    f_end = theta[:, -1, :] @ Phi.T
+    return (float(np.linalg.norm(f_start.std(axis=0, ddof=1))),
+            float(np.linalg.norm(f_end.std(axis=0, ddof=1))))

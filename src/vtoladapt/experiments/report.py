@@ -1,0 +1,263 @@
+"""report.md and report.html from the experiments' metrics, and every file the experiments write.
+
+The report is first built as plain data (:class:`Report`: title, paragraphs, tables of words and
+numbers, figures); two Jinja2 templates (``templates/report.md.j2``, ``templates/report.html.j2``)
+render that same data as Markdown and as a standalone HTML page with the figures inline. Table
+headers and row labels come from :data:`vtoladapt.metrics.METRIC_INFO` (words with units), and
+every path shown is relative to the output folder, so a report says nothing about the machine
+that made it.
+
+All output files go through the small ``_write_*`` / ``_save_figure`` helpers at the end of this
+module, the one place to change how files are written.
+"""
+from __future__ import annotations
+
+import base64
+import json
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Optional
+
+from ..control.registry import CONTROLLERS
+from ..metrics import METRIC_INFO, metric_display_value
+from ..vehicle import PARAMETER_NAMES
+
+TEMPLATE_DIR = Path(__file__).with_name("templates")
+PACKAGE_DIR = Path(__file__).resolve().parents[1]
+
+COMPARISON_COLUMNS = ("vel_err_rms_mps", "vel_err_max_mps", "vel_err_rms_high_wind_mps",
+                      "overshoot_after_fan_off_mps", "pred_err_rms_g", "pred_err_p95_g",
+                      "mixer_saturated_fraction")
+"""Metrics of the comparison table, in this order (one row each, one column per controller)."""
+
+
+# --- the report as data ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Cell:
+    """One table cell: its text, whether it is a number (right-aligned) and whether it stands out
+    (a claim that does not hold)."""
+
+    text: str
+    numeric: bool = False
+    strong: bool = False
+
+
+@dataclass(frozen=True)
+class Table:
+    """A table with a caption (a sentence above it), column headers in words and rows of cells."""
+
+    caption: str
+    headers: tuple[str, ...]
+    rows: tuple[tuple[Cell, ...], ...]
+
+
+Paragraph = tuple[tuple[str, bool], ...]
+"""A paragraph as segments ``(text, is_code)``: code segments are file names, commands, keys."""
+
+
+@dataclass(frozen=True)
+class Section:
+    """A headed part of the report: paragraphs, then tables."""
+
+    heading: str
+    paragraphs: tuple[Paragraph, ...] = ()
+    tables: tuple[Table, ...] = ()
+
+
+@dataclass(frozen=True)
+class FigureRef:
+    """A figure of the report: its file, relative to the output folder, and a caption."""
+
+    file: str
+    caption: str
+
+
+@dataclass(frozen=True)
+class Report:
+    """Everything report.md and report.html show, in reading order."""
+
+    title: str
+    intro: tuple[Paragraph, ...] = ()
+    sections: tuple[Section, ...] = ()
+    figures: tuple[FigureRef, ...] = field(default_factory=tuple)
+
+
+def paragraph(text: str) -> Paragraph:
+    """A paragraph from text in which `backticks` mark code (the only markup notes use)."""
+    parts = text.split("`")
+    if len(parts) % 2 == 0:          # a stray backtick (e.g. in a user's description): plain text
+        return ((text, False),)
+    return tuple((p, i % 2 == 1) for i, p in enumerate(parts) if p)
+
+
+def fmt_number(x) -> str:
+    """Four significant figures; ``n/a`` for NaN or a missing value."""
+    if x is None:
+        return "n/a"
+    if isinstance(x, float):
+        return "n/a" if not math.isfinite(x) else f"{x:.4g}"
+    return str(x)
+
+
+def _num(x) -> Cell:
+    return Cell(fmt_number(x), numeric=True)
+
+
+def _unit_text(unit: str) -> str:
+    return "–" if unit in ("-", "") else unit
+
+
+def run_metrics_table(run: dict) -> Table:
+    """Every metric of one run: quantity, value, unit (rows in :data:`METRIC_INFO` order)."""
+    keys = [k for k in METRIC_INFO if k in run] + [k for k in run if k not in METRIC_INFO]
+    rows = []
+    for k in keys:
+        label, unit = METRIC_INFO.get(k, (k, ""))
+        rows.append((Cell(label), _num(metric_display_value(k, run[k])), Cell(_unit_text(unit))))
+    return Table("", ("quantity", "value", "unit"), tuple(rows))
+
+
+def comparison_table(comparison: dict) -> Table:
+    """One row per metric (label and unit in words), one column per controller."""
+    ctrl = comparison["controllers"]
+    headers = ("quantity", "unit") + tuple(CONTROLLERS[c].label if c in CONTROLLERS else c for c in ctrl)
+    rows = []
+    for key in COMPARISON_COLUMNS:
+        label, unit = METRIC_INFO[key]
+        cells = [Cell(label), Cell(_unit_text(unit))]
+        for m in ctrl.values():
+            cells.append(_num(metric_display_value(key, m[key])) if key in m else Cell("–", numeric=True))
+        rows.append(tuple(cells))
+    return Table("", headers, tuple(rows))
+
+
+def convergence_section(conv: dict) -> Section:
+    """The spread of theta-hat and of the force it predicts across the random-start runs."""
+    from .metrics import THETA_SCALED_UNITS
+
+    text = (f"{conv['runs']} runs from random initial θ̂. The force the runs' θ̂ predict at the final "
+            f"operating point spreads {fmt_number(conv['predicted_force_std_start_mps2'])} m/s² across "
+            f"runs at the start and {fmt_number(conv['predicted_force_std_end_mps2'])} m/s² at the end "
+            f"(ratio {fmt_number(conv['predicted_force_std_ratio'])}).")
+    rows = tuple((Cell(n), Cell(_unit_text(THETA_SCALED_UNITS[n])), _num(conv["param_std_ratio"][n]),
+                  _num(conv["theta_hat_final_mean_scaled"][n]), _num(conv["theta_true_scaled"][n]))
+                 for n in PARAMETER_NAMES)
+    table = Table("Spread of each parameter across runs at the end over that at the start; θ̂ in the "
+                  "adaptation scaling (throttle u ∈ [0, 1], forces per unit mass):",
+                  ("parameter", "unit", "spread at end / at start", "final mean θ̂",
+                   "plant's linear part"), rows)
+    return Section("Parameter convergence", (paragraph(text),), (table,))
+
+
+def claims_table(claims: dict) -> Table:
+    """Each claim: statement, measured value, threshold, unit and verdict."""
+    from .claims import CLAIM_UNITS
+
+    rows = tuple((Cell(c["statement"]), _num(c["value"]), _num(c["threshold"]),
+                  Cell(CLAIM_UNITS.get(name, "")), Cell("yes" if c["holds"] else "no", strong=not c["holds"]))
+                 for name, c in claims.items())
+    return Table("", ("claim", "measured", "threshold", "unit", "holds"), rows)
+
+
+def build_report(title: str, metrics: dict, figures: Iterable[FigureRef], notes: Iterable[str]) -> Report:
+    """The report of ``metrics`` (the content of metrics.json) with its figures and notes
+    (paragraphs; `backticks` mark code)."""
+    sections = []
+    if "run" in metrics:
+        sections.append(Section("Metrics of the run", tables=(run_metrics_table(metrics["run"]),)))
+    if "comparison" in metrics:
+        sections.append(Section("Controller comparison", tables=(comparison_table(metrics["comparison"]),)))
+    if "convergence" in metrics:
+        sections.append(convergence_section(metrics["convergence"]))
+    if metrics.get("claims"):
+        sections.append(Section("The paper's claims, checked in simulation",
+                                tables=(claims_table(metrics["claims"]),)))
+    return Report(title, tuple(paragraph(n) for n in notes), tuple(sections), tuple(figures))
+
+
+# --- rendering -------------------------------------------------------------------------------------------
+def _environment(autoescape: bool):
+    import jinja2
+
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(TEMPLATE_DIR), autoescape=autoescape,
+                             undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True,
+                             keep_trailing_newline=True)
+    env.filters["md_cell"] = lambda s: str(s).replace("|", "\\|")
+    return env
+
+
+def render_markdown(report: Report) -> str:
+    """report.md's text."""
+    return _environment(False).get_template("report.md.j2").render(report=report)
+
+
+def render_html(report: Report, out: Path) -> str:
+    """report.html's text: a standalone page, the figures (read from ``out``) inline."""
+    images = {f.file: "data:image/png;base64," + base64.b64encode((Path(out) / f.file).read_bytes()).decode()
+              for f in report.figures}
+    return _environment(True).get_template("report.html.j2").render(report=report, images=images)
+
+
+def write_report(out: Path, report: Report) -> tuple[Path, Path]:
+    """Write report.md and report.html into ``out``."""
+    out = Path(out)
+    return (_write_text(out / "report.md", render_markdown(report)),
+            _write_text(out / "report.html", render_html(report, out)))
+
+
+# --- paths as the report shows them ---------------------------------------------------------------------
+def display_path(path, out: Path) -> str:
+    """``path`` as a reader of the output folder should see it: a shipped file as
+    ``vtoladapt/...``, a nearby file relative to the output folder, anything else by its name."""
+    if not str(path):
+        return "(not from a file)"
+    p = Path(path).resolve()
+    try:
+        return "vtoladapt/" + p.relative_to(PACKAGE_DIR).as_posix()
+    except ValueError:
+        pass
+    rel = os.path.relpath(p, Path(out).resolve())
+    if rel.split(os.sep)[:3].count("..") == 3:   # far away: its location tells the reader nothing
+        return p.name
+    return Path(rel).as_posix()
+
+
+_ABS_PATH = re.compile(r"(?<![\w.~])/(?:[^\s/'\"`,;()]+/)*[^\s/'\"`,;()]+")
+
+
+def display_paths_in(text: str, out: Path) -> str:
+    """``text`` with every absolute path in it replaced by :func:`display_path`."""
+    return _ABS_PATH.sub(lambda m: display_path(m.group(0), out), text)
+
+
+# --- writing files (the one place outputs are written) ---------------------------------------------------
+def _write_text(path: Path, text: str) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _write_bytes(path: Path, data: bytes) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(data)
+    return path
+
+
+def _write_json(path: Path, data: dict) -> Path:
+    return _write_text(path, json.dumps(data, indent=2, allow_nan=True))
+
+
+def _copy_file(src: Path, dst: Path) -> Path:
+    return _write_bytes(dst, Path(src).read_bytes())
+
+
+def _save_figure(fig, path: Path, dpi: Optional[float] = None) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi if dpi is not None else fig.dpi)
+    return path

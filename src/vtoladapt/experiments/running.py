@@ -1,0 +1,255 @@
+"""Running the experiments: one scenario (``vtoladapt run``) or both of the paper's
+(``vtoladapt reproduce``), with a progress bar, writing logs, metrics.json, figures and the report.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from ..metrics import run_metrics
+from ..results import SimulationResult
+from ..scenario import SCENARIO_DIR, Scenario, load_scenario
+from .claims import check_claims
+from .figures import (CONTROLLER_LABELS, figure_parameter_convergence, figure_single_run,
+                      figure_tracking_axes, figure_tracking_comparison)
+from .metrics import comparison_metrics, convergence_metrics, fan_throttle_series
+from .report import (FigureRef, _copy_file, _write_json, build_report, display_path, display_paths_in,
+                     write_report)
+
+FIGURE_CAPTIONS = {
+    "fig_run.png": "Airspeed, velocity error, θ̂ and prediction error of the run",
+    "fig_tracking_comparison.png": "Measured airspeed, velocity-error norm and prediction-error norm "
+                                   "of every controller",
+    "fig_tracking_axes.png": "Velocity error per NED axis and prediction error per body axis",
+    "fig_parameter_convergence.png": "θ̂ of every random-start run over time, with the fan wind",
+}
+EXPERIMENT_WORDS = {"single": "one run", "comparison": "controller comparison",
+                    "convergence": "parameter convergence"}
+
+
+# --- progress ------------------------------------------------------------------------------------
+class _Progress:
+    """A tqdm bar over simulated seconds of all runs, or nothing when quiet."""
+
+    def __init__(self, total_s: float, show: bool, desc: str):
+        self.bar = None
+        if show:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=round(total_s, 1), unit="sim s", desc=desc, file=sys.stderr,
+                            bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.0f}/{total:.0f} sim s "
+                                       "[{elapsed}<{remaining}]")
+        self.done = 0.0
+
+    def callback(self):
+        start = self.done
+
+        def cb(sim_s, _total):
+            if self.bar is not None:
+                self.bar.update(round(start + sim_s - self.bar.n, 3))
+        return cb
+
+    def finish_run(self, duration_s: float):
+        self.done += duration_s
+
+    def set(self, desc: str):
+        if self.bar is not None:
+            self.bar.set_description(desc)
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _note(msg: str, show: bool) -> None:
+    if show:
+        print(msg, file=sys.stderr, flush=True)
+
+
+def _warm_up(scenario: Scenario, show: bool) -> None:
+    """Compile (or load from the on-disk cache) the kernels, telling the user."""
+    from ..simulate import load_kernels
+
+    t0 = time.perf_counter()
+    _note("Loading compiled kernels (the first run on a machine compiles them: under a minute)...", show)
+    load_kernels(replace(scenario, experiment=replace(scenario.experiment, kind="single")))
+    _note(f"  kernels ready in {time.perf_counter() - t0:.1f} s", show)
+
+
+# --- running ---------------------------------------------------------------------------------------
+def run_comparison(scenario: Scenario, progress: Optional[_Progress] = None) -> dict[str, SimulationResult]:
+    """The same scenario flown by each controller of ``[experiment] controllers`` (runs in parallel)."""
+    ids = scenario.experiment.controllers
+    runs = [replace(scenario, controller=replace(scenario.controller, kind=cid)) for cid in ids]
+    return dict(zip(ids, _run_all(runs, progress, f"comparison of {len(ids)} controllers")))
+
+
+def run_convergence(scenario: Scenario, progress: Optional[_Progress] = None) -> list[SimulationResult]:
+    """``[experiment] runs`` runs from random initial theta-hat, seeds spawned from the scenario seed."""
+    seeds = np.random.SeedSequence(scenario.seed).generate_state(scenario.experiment.runs)
+    prior = replace(scenario.controller_prior, initial_theta="random")
+    runs = [replace(scenario, seed=int(seed), controller_prior=prior) for seed in seeds]
+    return _run_all(runs, progress, f"convergence: {len(runs)} runs")
+
+
+def _run_all(runs: list[Scenario], progress: Optional[_Progress], desc: str) -> list[SimulationResult]:
+    """Every run side by side, one thread per core (bit-identical to running them one by one)."""
+    from ..simulate import simulate_many
+
+    if progress is not None:
+        progress.set(desc)
+    results = simulate_many(runs, progress=progress.callback() if progress else None)
+    if progress is not None:
+        progress.finish_run(sum(sc.duration_s for sc in runs))
+    return results
+
+
+def _scenario_notes(scenario: Scenario, result: SimulationResult, out: Path) -> list[str]:
+    meta = result.metadata
+    notes = [f"Scenario `{scenario.name}` (`{display_path(scenario.source_path, out)}`), "
+             f"{scenario.duration_s:g} s, seed {scenario.seed}"
+             + (f": {scenario.description}" if scenario.description else ".")]
+    notes.append(f"Vehicle `{meta['vehicle']}`; controller model from "
+                 f"{display_paths_in(str(meta['controller_prior']), out)}; airflow probe: "
+                 f"{display_paths_in(str(meta['probe_model']), out)}.")
+    return notes
+
+
+def _experiment_title(scenario: Scenario) -> str:
+    kind = scenario.experiment.kind
+    if kind == "single":
+        what = f"one run with {CONTROLLER_LABELS.get(scenario.controller.kind, scenario.controller.kind)}"
+    elif kind == "comparison":
+        what = f"comparison of {len(scenario.experiment.controllers)} controllers"
+    else:
+        what = f"parameter convergence over {scenario.experiment.runs} runs"
+    return f"vtoladapt: scenario {scenario.name}, {what}"
+
+
+def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, warm: bool = True) -> dict:
+    """Run one scenario per its ``[experiment]`` kind; write logs, figures, metrics.json, report."""
+    from ..simulate import simulate
+
+    out.mkdir(parents=True, exist_ok=True)
+    if warm:
+        _warm_up(scenario, show_progress)
+    kind = scenario.experiment.kind
+    n_runs = {"single": 1, "convergence": scenario.experiment.runs,
+              "comparison": len(scenario.experiment.controllers)}[kind]
+    progress = _Progress(n_runs * scenario.duration_s, show_progress, scenario.name)
+    metrics: dict = {}
+    figures: list[Path] = []
+    try:
+        if kind == "single":
+            res = simulate(scenario, progress.callback())
+            res.to_parquet(out / "log.parquet")
+            metrics["run"] = run_metrics(res, fan_throttle_series(scenario, res.time_s))
+            figures.append(figure_single_run(scenario, res, out / "fig_run.png"))
+            notes = _scenario_notes(scenario, res, out)
+            notes.append("The full log is `log.parquet` (one column per signal, units in the names).")
+        elif kind == "comparison":
+            results = run_comparison(scenario, progress)
+            for cid, res in results.items():
+                res.to_parquet(out / "runs" / f"{scenario.name}_{cid}.parquet")
+            metrics["comparison"] = comparison_metrics(scenario, results)
+            figures.append(figure_tracking_comparison(scenario, results, out / "fig_tracking_comparison.png"))
+            figures.append(figure_tracking_axes(scenario, results, out / "fig_tracking_axes.png"))
+            notes = _scenario_notes(scenario, next(iter(results.values())), out)
+            notes.append("The log of each controller's run is in `runs/`.")
+        else:
+            results = run_convergence(scenario, progress)
+            for i, res in enumerate(results):
+                res.to_parquet(out / "runs" / f"{scenario.name}_run{i + 1}.parquet")
+            metrics["convergence"] = convergence_metrics(scenario, results)
+            figures.append(figure_parameter_convergence(scenario, results,
+                                                        out / "fig_parameter_convergence.png"))
+            notes = _scenario_notes(scenario, results[0], out)
+            notes.append("The log of each run is in `runs/`.")
+    finally:
+        progress.close()
+    metrics["claims"] = check_claims(metrics.get("comparison"), metrics.get("convergence"))
+    _write_json(out / "metrics.json", metrics)
+    write_report(out, build_report(_experiment_title(scenario), metrics, _figure_refs(figures), notes))
+    return metrics
+
+
+def _figure_refs(figures: list[Path]) -> list[FigureRef]:
+    return [FigureRef(p.name, FIGURE_CAPTIONS.get(p.name, p.stem)) for p in figures]
+
+
+def run_scenario_file(path, out: Path, duration_s: Optional[float] = None, seed: Optional[int] = None,
+                      controller: Optional[str] = None, show_progress: bool = True) -> dict:
+    """``vtoladapt run``: load, apply command-line overrides (validated), run, write outputs."""
+    from ..config import ConfigError
+
+    scenario = load_scenario(path)
+    if duration_s is not None:
+        if not duration_s > 0:
+            raise ConfigError(f"--duration = {duration_s}: must be > 0 s")
+        scenario = replace(scenario, duration_s=duration_s)
+    if seed is not None:
+        if seed < 0:
+            raise ConfigError(f"--seed = {seed}: must be >= 0")
+        scenario = replace(scenario, seed=seed)
+    if controller is not None:
+        if controller not in CONTROLLER_LABELS:
+            raise ConfigError(f"--controller = {controller!r}: unknown; allowed: {', '.join(CONTROLLER_LABELS)}")
+        scenario = replace(scenario, controller=replace(scenario.controller, kind=controller))
+        if scenario.experiment.kind == "comparison":  # compare just this one
+            scenario = replace(scenario, experiment=replace(scenario.experiment, controllers=(controller,)))
+    metrics = run_experiment(scenario, Path(out), show_progress)
+    _note(f"wrote {out}/metrics.json, report.md, report.html and figures", show_progress)
+    return metrics
+
+
+def reproduce(out: Path, duration_scale: float = 1.0, show_progress: bool = True) -> dict:
+    """Both paper experiments, one combined metrics.json and report."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    conv = load_scenario(SCENARIO_DIR / "paper_convergence.toml")
+    comp = load_scenario(SCENARIO_DIR / "paper_comparison.toml")
+    if duration_scale != 1.0:
+        if not 0 < duration_scale <= 10:
+            raise ValueError(f"duration_scale = {duration_scale}: must be in (0, 10]")
+        conv = _scaled(conv, duration_scale)
+        comp = _scaled(comp, duration_scale)
+    t0 = time.perf_counter()
+    _warm_up(comp, show_progress)
+    m_conv = run_experiment(conv, out / "convergence", show_progress, warm=False)
+    m_comp = run_experiment(comp, out / "comparison", show_progress, warm=False)
+    metrics = {"convergence": m_conv["convergence"], "comparison": m_comp["comparison"]}
+    metrics["claims"] = check_claims(metrics["comparison"], metrics["convergence"])
+    figures = []
+    for sub, name in (("convergence", "fig_parameter_convergence.png"),
+                      ("comparison", "fig_tracking_comparison.png"), ("comparison", "fig_tracking_axes.png")):
+        figures.append(_copy_file(out / sub / name, out / name))
+    _write_json(out / "metrics.json", metrics)
+    from ..simulate import controller_prior
+
+    notes = [f"Generated by `vtoladapt reproduce` in {time.perf_counter() - t0:.0f} s "
+             f"(duration scale {duration_scale:g}).",
+             f"Convergence: `{display_path(conv.source_path, out)}`, {conv.experiment.runs} runs of "
+             f"{conv.duration_s:g} s. Comparison: `{display_path(comp.source_path, out)}`, "
+             f"{comp.duration_s:g} s per controller.",
+             f"Controller model: {display_paths_in(controller_prior(comp, comp.load_vehicle())[-1], out)}; "
+             f"airflow probe: {display_paths_in(comp.sensors.probe.describe(), out)}.",
+             "Per-experiment logs (Parquet), figures and metrics are in `convergence/` and `comparison/`."]
+    write_report(out, build_report("vtoladapt: reproduction of Shi et al., ICRA 2020, in simulation",
+                                   metrics, _figure_refs(figures), notes))
+    holds = sum(c["holds"] for c in metrics["claims"].values())
+    _note(f"Reproduction done: {holds}/{len(metrics['claims'])} claims hold. "
+          f"See {out / 'report.md'} (and report.html).", show_progress)
+    for name, c in metrics["claims"].items():
+        _note(f"  [{'holds' if c['holds'] else 'FAILS'}] {c['statement']}: {c['value']:.3g} "
+              f"(threshold {c['threshold']:g})", show_progress)
+    return metrics
+
+
+def _scaled(scenario: Scenario, scale: float) -> Scenario:
+    """The scenario with its duration and wind schedule times scaled (quick looks and tests)."""
+    return replace(scenario, duration_s=scenario.duration_s * scale, wind=scenario.wind.time_scaled(scale))
