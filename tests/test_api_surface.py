@@ -24,7 +24,6 @@ from numba.core.dispatcher import Dispatcher
 import vtoladapt
 
 EXCLUDED = (
-    "vtoladapt.experiments",  # being rewritten (reports)
     "vtoladapt.cli",          # being rewritten (CLI helper)
     "vtoladapt.campaign",     # being rewritten (campaign helper)
 )
