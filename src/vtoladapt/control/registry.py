@@ -54,6 +54,9 @@ CONTROLLERS: dict[str, ControllerInfo] = {c.id: c for c in (
                    "PX4-style velocity PID with the same force allocation, theta-hat = theta_0 (IV)", "pid"),
     ControllerInfo("pd", "PD", "C3", False, False,
                    "the PID without its integral (V)", "pd"),
+    ControllerInfo("indi", "INDI", "C5", False, False,
+                   "incremental nonlinear dynamic inversion of the force loop on the filtered accelerometer, "
+                   "theta-hat = theta_0 (Smeur et al. 2018)", "indi"),
 )}
 
 CONTROLLER_IDS: tuple[str, ...] = tuple(CONTROLLERS)
