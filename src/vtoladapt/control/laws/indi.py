@@ -49,7 +49,9 @@ change of command ``f_0 - R a_mf`` would report the filter's lag as an unmodelle
 is fed straight back into the command -- an oscillating, lag-driven loop rather than a
 disturbance estimate. Filtered alike (same cutoff, same start, same frame: body, rotated by the
 current ``R`` together), the two differ only by the force model's error; with the plant equal to
-the model the increment is zero at every instant, not only at rest.
+the model the increment is zero at every instant, not only at rest -- once the front end's
+motor-lag estimate, which starts from the first command, has caught up with the motors' true
+state (a start-up transient of ~0.3 s when the motors start elsewhere).
 
 Fault handling, start-up and saturation
 ---------------------------------------
