@@ -56,6 +56,9 @@ CONTROLLERS: dict[str, ControllerInfo] = {c.id: c for c in (
                    "the PID without its integral (V)", "pd"),
     ControllerInfo("nominal", "Nominal (no adapt)", "C7", False, False,
                    "the composite law with adaptation off, theta-hat = theta_0", "nominal"),
+    ControllerInfo("indi", "INDI", "C5", False, False,
+                   "incremental nonlinear dynamic inversion of the force loop on the filtered accelerometer, "
+                   "theta-hat = theta_0 (Smeur et al. 2018)", "indi"),
 )}
 
 CONTROLLER_IDS: tuple[str, ...] = tuple(CONTROLLERS)
