@@ -1,8 +1,13 @@
-"""Stacked kernel arrays of a batch of episodes, and the one call that steps them.
+"""Stacked kernel arrays of a batch of episodes, and the one call per thread that steps them.
 
 :class:`RunBatch` is shared by the single environment (a batch of one) and the vector
 environment, so both step through the same compiled :func:`~vtoladapt.gym.kernel.step_batch` and
 an environment of a batch is, draw for draw, the single environment with the same seed.
+
+Each thread owns a :class:`_Chunk`: its own allocation of every array, the shared tables
+included. Numba counts references to an array's buffer atomically whenever the kernel takes a row
+of it, so two threads taking rows of one allocation would bounce that counter's cache line
+between the cores at every row.
 """
 from __future__ import annotations
 
@@ -25,6 +30,64 @@ from .spaces import ACTION_SIZE, OBS_SIZE
 
 _PER_RUN = ("plant_params", "mixer_params", "controller_params", "controller_state", "wind_params",
             "wind_state", "sensor_params", "sensor_state")
+
+
+class _Chunk:
+    """Rows ``lo .. hi-1`` of a batch in arrays of their own, and the argument tuple of their kernel call."""
+
+    def __init__(self, batch: "RunBatch", lo: int, hi: int, template: PreparedRun):
+        m = hi - lo
+        self.lo, self.hi = lo, hi
+        self.arrays = {name: np.zeros((m, getattr(template, name).size)) for name in _PER_RUN}
+        self.X = np.zeros((m, X_SIZE))
+        self.K = np.zeros(m, dtype=np.int64)
+        self.op = np.zeros(m, dtype=np.int64)
+        self.actions = np.zeros((m, ACTION_SIZE))
+        self.obs = np.zeros((m, OBS_SIZE), dtype=np.float32)
+        self.reward = np.zeros(m)
+        self.terminated = np.zeros(m, dtype=np.bool_)
+        self.truncated = np.zeros(m, dtype=np.bool_)
+        self.scratch = [np.zeros((m, size)) for size in (3, 3, 3, MEAS_SIZE, CMD_SIZE, CMD_SIZE, DIAG_SIZE,
+                                                         N_MOTORS, RK4_WORK_SIZE)]
+        # Python keeps each generator alive; the typed list holds their unboxed form, so a call
+        # does not unbox them again (a tuple of generators costs tens of microseconds each)
+        self.generators = [template.rng] * m
+        self.rngs = typed.List()
+        for _ in range(m):
+            self.rngs.append(template.rng)
+        ref_table = batch.ref_table.copy()
+        tau_max = batch.tau_max.copy()
+        cfg = batch.cfg
+        a = self.arrays
+        v_wind, f_B, v_i, meas, cmd, base, diag, motor, work = self.scratch
+        # every array is updated in place, so the arguments are bound once
+        self.args = (0, m, self.rngs, self.op, self.actions, batch.mode, cfg.residual_scale, batch.u_max,
+                     tau_max, cfg.max_position_error_m, batch.cos_tilt_max, cfg.action_cost, ref_table,
+                     batch.dt, batch.n_sub, batch.n_ticks,
+                     self.X, a["plant_params"], a["mixer_params"], a["controller_params"], a["controller_state"],
+                     a["wind_params"], a["wind_state"], a["sensor_params"], a["sensor_state"],
+                     v_wind, f_B, v_i, meas, cmd, base, diag, motor, work, self.K,
+                     self.obs, self.reward, self.terminated, self.truncated)
+
+    def load(self, j: int, run: PreparedRun, name: str) -> None:
+        for key in _PER_RUN:
+            value = getattr(run, key)
+            row = self.arrays[key][j]
+            if value.size != row.size:
+                raise ValueError(f"episode scenario {name!r}: {key} has {value.size} entries, the batch "
+                                 f"{row.size}; the randomisation must not change array sizes")
+            row[:] = value
+        self.X[j] = run.x0
+        for a in self.scratch:
+            a[j] = 0.0
+        self.K[j] = 0
+        self.generators[j] = run.rng
+        self.rngs[j] = run.rng
+        self.op[j] = OP_BEGIN
+
+    def run(self) -> None:
+        step_batch(*self.args)
+        self.op[:] = OP_SKIP
 
 
 class RunBatch:
@@ -50,100 +113,58 @@ class RunBatch:
         self.u_max = float(template.controller_params[P_U_MAX])
         self.tau_max = np.array(template.controller_params[P_TAU_MAX:P_TAU_MAX + 3], dtype=float)
         self.cos_tilt_max = math.cos(math.radians(cfg.max_tilt_deg))
-        self.arrays = {name: np.zeros((n, getattr(template, name).size)) for name in _PER_RUN}
-        self.X = np.zeros((n, X_SIZE))
-        self.V_WIND = np.zeros((n, 3))
-        self.F_B = np.zeros((n, 3))
-        self.V_I = np.zeros((n, 3))
-        self.MEAS = np.zeros((n, MEAS_SIZE))
-        self.CMD = np.zeros((n, CMD_SIZE))
-        self.BASE = np.zeros((n, CMD_SIZE))
-        self.DIAG = np.zeros((n, DIAG_SIZE))
-        self.MOTOR = np.zeros((n, N_MOTORS))
-        self.WORK = np.zeros((n, RK4_WORK_SIZE))
-        self.K = np.zeros(n, dtype=np.int64)
-        self.op = np.zeros(n, dtype=np.int64)
-        self.actions = np.zeros((n, ACTION_SIZE))
-        self.obs = np.zeros((n, OBS_SIZE), dtype=np.float32)
-        self.reward = np.zeros(n)
-        self.terminated = np.zeros(n, dtype=np.bool_)
-        self.truncated = np.zeros(n, dtype=np.bool_)
         self.scenarios: list[Optional[Scenario]] = [None] * n
         workers = max(1, min(int(workers), n))
         edges = np.linspace(0, n, workers + 1).round().astype(int)
-        self.chunks = [(int(edges[c]), int(edges[c + 1])) for c in range(workers)]
-        # Python keeps each generator alive; the typed lists hold their unboxed form
-        self._generators = [template.rng] * n
-        self._lists = []
-        for lo, hi in self.chunks:
-            lst = typed.List()
-            for _ in range(lo, hi):
-                lst.append(template.rng)
-            self._lists.append(lst)
+        self.chunks = [_Chunk(self, int(edges[c]), int(edges[c + 1]), template) for c in range(workers)]
+        self._chunk_of = np.repeat(np.arange(workers), np.diff(edges))
         self._pool = ThreadPoolExecutor(max_workers=workers - 1) if workers > 1 else None
-        self._bind()
 
     def load(self, i: int, scenario: Scenario) -> PreparedRun:
         """Put a fresh run of ``scenario`` in row ``i``; the next :meth:`advance` senses its tick 0."""
         run = prepare(scenario)
-        for name in _PER_RUN:
-            value = getattr(run, name)
-            row = self.arrays[name][i]
-            if value.size != row.size:
-                raise ValueError(f"episode scenario {scenario.name!r}: {name} has {value.size} entries, the "
-                                 f"batch {row.size}; the randomisation must not change array sizes")
-            row[:] = value
-        self.X[i] = run.x0
-        for a in (self.V_WIND, self.F_B, self.V_I, self.MEAS, self.CMD, self.BASE, self.DIAG, self.MOTOR,
-                  self.WORK):
-            a[i] = 0.0
-        self.K[i] = 0
+        chunk = self.chunks[self._chunk_of[i]]
+        chunk.load(i - chunk.lo, run, scenario.name)
         self.scenarios[i] = scenario
-        self._generators[i] = run.rng
-        for c, (lo, hi) in enumerate(self.chunks):
-            if lo <= i < hi:
-                self._lists[c][i - lo] = run.rng
-        self.op[i] = OP_BEGIN
         return run
 
     def set_actions(self, actions: np.ndarray, mask: Optional[np.ndarray] = None) -> None:
-        """Step every row (or the rows of ``mask``) with ``actions`` at the next :meth:`advance`."""
-        self.actions[:] = actions
-        if mask is None:
-            self.op[:] = OP_STEP
-        else:
-            self.op[mask] = OP_STEP
-
-    def _bind(self) -> None:
-        # The arrays are updated in place, so each chunk's argument tuple is built once: a call
-        # then costs Numba's dispatch alone (about 40 arguments), not 40 attribute look-ups too.
-        a = self.arrays
-        shared = (self.op, self.actions, self.mode, self.cfg.residual_scale, self.u_max, self.tau_max,
-                  self.cfg.max_position_error_m, self.cos_tilt_max, self.cfg.action_cost, self.ref_table,
-                  self.dt, self.n_sub, self.n_ticks,
-                  self.X, a["plant_params"], a["mixer_params"], a["controller_params"], a["controller_state"],
-                  a["wind_params"], a["wind_state"], a["sensor_params"], a["sensor_state"],
-                  self.V_WIND, self.F_B, self.V_I, self.MEAS, self.CMD, self.BASE, self.DIAG, self.MOTOR,
-                  self.WORK, self.K, self.obs, self.reward, self.terminated, self.truncated)
-        self._args = [(lo, hi, self._lists[c]) + shared for c, (lo, hi) in enumerate(self.chunks)]
-
-    def _run_chunk(self, c: int) -> None:
-        step_batch(*self._args[c])
+        """Step every row (or the rows of ``mask``) with ``actions`` (``(n, 5)``) at the next :meth:`advance`."""
+        for c in self.chunks:
+            c.actions[:] = actions[c.lo:c.hi]
+            if mask is None:
+                c.op[:] = OP_STEP
+            else:
+                c.op[mask[c.lo:c.hi]] = OP_STEP
 
     def advance(self) -> None:
-        """Apply :attr:`op` to every row (other chunks in the pool, the first here), then clear it."""
+        """Apply the pending operations to every row (other chunks in the pool, the first here)."""
         if self._pool is None:
-            self._run_chunk(0)
+            for c in self.chunks:
+                c.run()
         else:
-            futures = [self._pool.submit(self._run_chunk, c) for c in range(1, len(self.chunks))]
-            self._run_chunk(0)
+            futures = [self._pool.submit(c.run) for c in self.chunks[1:]]
+            self.chunks[0].run()
             for f in futures:
                 f.result()
-        self.op[:] = OP_SKIP
+
+    def outputs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """New arrays ``(obs, reward, terminated, truncated)`` of every row, from the last :meth:`advance`."""
+        if len(self.chunks) == 1:
+            c = self.chunks[0]
+            return c.obs.copy(), c.reward.copy(), c.terminated.copy(), c.truncated.copy()
+        return tuple(np.concatenate([getattr(c, name) for c in self.chunks])
+                     for name in ("obs", "reward", "terminated", "truncated"))
+
+    def position_error(self, i: int) -> tuple[float, np.ndarray]:
+        """``(t_s, p - p_ref)`` of row ``i``: its time and true position error, NED, m."""
+        c = self.chunks[self._chunk_of[i]]
+        j = i - c.lo
+        k = int(c.K[j])
+        return k * self.dt, c.X[j, 0:3] - self.ref_table[k, 0:3]
 
     def close(self) -> None:
         """Stop the worker threads."""
         if self._pool is not None:
             self._pool.shutdown(wait=True)
             self._pool = None
-

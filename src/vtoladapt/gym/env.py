@@ -33,7 +33,6 @@ from ..config import ConfigError
 from ..scenario import Scenario
 from .batch import RunBatch
 from .config import ENV_ID, HoldEnvConfig, episode_scenario, make_config
-from .kernel import OP_STEP
 from .spaces import ACTION_SIZE, action_space, observation_space
 
 
@@ -76,7 +75,7 @@ class HoldEnv(gym.Env):
         self._batch.load(0, self.episode_scenario)
         self._batch.advance()
         self._over = False
-        return self._batch.obs[0].copy(), self._info()
+        return self._batch.outputs()[0][0], self._info()
 
     def step(self, action):
         """Apply ``action`` over one controller tick; return the observation at the next tick."""
@@ -86,18 +85,15 @@ class HoldEnv(gym.Env):
         if a.shape != (ACTION_SIZE,) or not np.isfinite(a).all():
             raise ValueError(f"{ENV_ID}: action {action!r}: must be {ACTION_SIZE} finite numbers in [-1, 1]")
         b = self._batch
-        b.actions[0] = a
-        b.op[0] = OP_STEP
+        b.set_actions(a[None, :])
         b.advance()
-        terminated = bool(b.terminated[0])
-        truncated = bool(b.truncated[0])
-        self._over = terminated or truncated
-        return b.obs[0].copy(), float(b.reward[0]), terminated, truncated, self._info()
+        obs, reward, terminated, truncated = b.outputs()
+        self._over = bool(terminated[0] or truncated[0])
+        return obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]), self._info()
 
     def _info(self) -> dict:
-        b = self._batch
-        k = int(b.K[0])
-        return {"t_s": k * b.dt, "p_err_true_m": b.X[0, 0:3] - b.ref_table[k, 0:3]}
+        t_s, p_err = self._batch.position_error(0)
+        return {"t_s": t_s, "p_err_true_m": p_err}
 
     def close(self) -> None:
         self._batch.close()

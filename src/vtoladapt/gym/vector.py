@@ -87,7 +87,7 @@ class HoldVectorEnv(VectorEnv):
         self._batch.advance()
         self._autoreset[:] = False
         self._started = True
-        return self._batch.obs.copy(), {}
+        return self._batch.outputs()[0], {}
 
     def step(self, actions):
         """One controller tick in every environment (autoreset on the step after an episode ends)."""
@@ -106,8 +106,9 @@ class HoldVectorEnv(VectorEnv):
         else:
             b.set_actions(a)
         b.advance()
-        np.logical_or(b.terminated, b.truncated, out=self._autoreset)
-        return b.obs.copy(), b.reward.copy(), b.terminated.copy(), b.truncated.copy(), {}
+        obs, reward, terminated, truncated = b.outputs()
+        np.logical_or(terminated, truncated, out=self._autoreset)
+        return obs, reward, terminated, truncated, {}
 
     def close_extras(self, **kwargs: Any) -> None:
         self._batch.close()
