@@ -139,6 +139,8 @@ def test_vector_env_matches_single_envs_through_autoreset():
             done[i] = term or trunc
     assert n_resets >= 2 * n
     assert [s.seed for s in venv.episode_scenarios] == [env.episode_scenario.seed for env in singles]
+    v_obs, _ = venv.reset()  # unseeded: every environment continues its own generator
+    np.testing.assert_array_equal(v_obs, np.array([env.reset()[0] for env in singles]))
     venv.close()
 
 

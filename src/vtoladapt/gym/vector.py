@@ -6,7 +6,8 @@ per thread (``workers`` threads, default one per core, each a contiguous chunk o
 the GIL released while they run).
 
 Seeding: environment ``i`` has its own generator, seeded ``seed + i`` by ``reset(seed=seed)`` (or
-``seed[i]`` from a list), so it is the single environment reset with that seed, draw for draw.
+``seed[i]`` from a list), so it is the single environment reset with that seed, draw for draw;
+``reset()`` without a seed continues each environment's generator, as the single environment's does.
 Autoreset follows Gymnasium 1.x's default ``AutoresetMode.NEXT_STEP``: an environment that
 terminated or truncated is reset by the next ``step`` (its action ignored; observation of the new
 episode, reward 0, not terminated, not truncated), drawing its new episode from its own generator.
@@ -82,7 +83,8 @@ class HoldVectorEnv(VectorEnv):
         """Start a new episode in every environment (``seed + i`` seeds environment ``i``)."""
         check_options(options)
         for i, s in enumerate(self._seeds(seed)):
-            self._rngs[i], _ = seeding.np_random(s)
+            if s is not None or self._rngs[i] is None:  # unseeded: continue the environment's stream
+                self._rngs[i], _ = seeding.np_random(s)
             self._batch.load(i, episode_scenario(self.config, self.config.scenario, self._rngs[i]))
         self._batch.advance()
         self._autoreset[:] = False
