@@ -72,7 +72,7 @@ class HoldEnvConfig:
     max_tilt_deg: float = setting("deg", "the episode terminates when the body z axis tilts more "
                                   "than this from the vertical", default=80.0, gt=0.0, le=180.0)
     action_cost: float = setting(
-        "-", "weight c_a of the action penalty c_a |a|^2 / 5 in the reward", default=0.01, ge=0.0,
+        "-", "weight c_a of the action penalty c_a sum(a^2) / 5 in the reward", default=0.01, ge=0.0,
         le=100.0)
 
     def _check(self, source: str) -> None:
