@@ -8,6 +8,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 import vtoladapt.gym as vgym
 from vtoladapt.config import ConfigError
@@ -238,3 +241,32 @@ def test_shipped_scenario_is_the_default_and_runs_as_written():
     sc = load_scenario("gym_hold")
     assert HoldEnv().config.scenario == sc
     assert sc.n_ticks == 5000 and sc.controller.kind == "composite"
+
+
+_RESIDUAL_ENV = {}
+
+
+@settings(max_examples=25)
+@given(actions=hnp.arrays(np.float64, (12, 5), elements=st.floats(-1.0, 1.0)), seed=st.integers(0, 2**31))
+def test_residual_command_and_reward_bounds_hold_for_any_action(actions, seed):
+    """Residual mode: the applied command is the controller's plus the scaled residual, clipped;
+    observations stay in the space and the reward in [-c_a, 1], whatever the actions."""
+    if "env" not in _RESIDUAL_ENV:
+        _RESIDUAL_ENV["env"] = HoldEnv(scenario=short_hold(0.2), residual=True, residual_scale=0.5,
+                                       action_cost=0.3)
+    env = _RESIDUAL_ENV["env"]
+    obs, _ = env.reset(seed=seed)
+    b = env._batch
+    applied = b.chunks[0].scratch[4]  # the CMD rows: the command of the tick just stepped
+    for a in actions:
+        u_ctrl = (obs[OBS_CMD:OBS_CMD + 2].astype(float) + 1.0) / 2.0 * b.u_max
+        tau_ctrl = obs[OBS_CMD + 2:OBS_CMD + 5].astype(float) * b.tau_max
+        obs, reward, terminated, truncated, _ = env.step(a)
+        expected_u = np.clip(u_ctrl + a[:2] * 0.5 * b.u_max, 0.0, b.u_max)
+        expected_tau = np.clip(tau_ctrl + a[2:] * 0.5 * b.tau_max, -b.tau_max, b.tau_max)
+        np.testing.assert_allclose(applied[0, :2], expected_u, atol=1e-6 * b.u_max)
+        np.testing.assert_allclose(applied[0, 2:], expected_tau, atol=1e-6 * b.tau_max.max())
+        assert env.observation_space.contains(obs)
+        assert -0.3 - 1e-12 <= reward <= 1.0
+        if terminated or truncated:
+            break
