@@ -10,7 +10,9 @@ Per controller tick ``k`` (time ``t = k dt``), in this order:
 5. one log row is written;
 6. the plant advances by ``dt`` with ``n_sub`` fixed RK4 substeps (default 1 kHz).
 
-The loop sees only kernel arrays; :mod:`vtoladapt.simulate` builds them from a scenario.
+Steps 1-3 are :func:`tick_sense`, steps 4-6 :func:`tick_actuate`; :func:`run_closed_loop` calls
+the two in turn, and the Gymnasium environment (:mod:`vtoladapt.gym`) acts between them. The loop
+sees only kernel arrays; :mod:`vtoladapt.simulate` builds them from a scenario.
 """
 from __future__ import annotations
 
@@ -74,35 +76,33 @@ assert N_LOG == len(LOG_COLUMNS)
 
 
 @njit(cache=True, nogil=True)
-def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state,
-                    ref_table, t0, dt, n_sub, rng, theta_true, gamma, log) -> None:
-    """Simulate ``ref_table.shape[0]`` controller ticks from time ``t0``, one row of ``log`` per tick.
+def tick_sense(x, plant_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state, ref, t, dt, rng,
+               run_controller, v_wind, f_B, v_i, meas, cmd, diag, work) -> None:
+    """First half of controller tick at time ``t``: steps 1-3 of the module docstring.
 
-    ``x``, ``ctrl_state``, ``wind_state`` and ``sens_state`` are advanced in place, so a run
-    can be continued. The loop releases the GIL: runs with their own arrays and generators
-    advance in parallel threads (:func:`vtoladapt.simulate.simulate_many`). ``theta_true`` (the plant's linear-model coefficients) is used only for
-    the Lyapunov function in the log, never by the controller.
+    Advances the wind, evaluates the plant's first RK4 stage (true specific force ``f_B`` and
+    incident flow ``v_i``, kept in ``work`` for :func:`tick_actuate`), samples the sensors into
+    ``meas`` and, if ``run_controller``, runs the controller on ``meas`` and ``ref`` into ``cmd``
+    and ``diag``. A caller that supplies the command itself (the Gymnasium environment's direct
+    mode) passes ``run_controller=False`` and fills ``cmd`` before :func:`tick_actuate`.
     """
-    n_ticks = ref_table.shape[0]
-    v_wind = np.zeros(3)
-    f_B = np.empty(3)
-    v_i = np.empty(3)
-    meas = np.empty(MEAS_SIZE)
-    cmd = np.zeros(CMD_SIZE)
-    diag = np.zeros(N_DIAG)
-    motor_cmd = np.zeros(N_MOTORS)
-    work = np.empty(RK4_WORK_SIZE)
-    h = dt / n_sub
-    for k in range(n_ticks):
-        t = t0 + k * dt
-        wind_step(wind_p, wind_state, t, dt, x[X_P_W:X_P_W + 3], rng, v_wind)
-        plant_first_stage(x, v_wind, plant_p, f_B, v_i, work)
-        sensors_step(sens_p, sens_state, t, dt, x, f_B, v_i, rng, meas)
-        ref = ref_table[k]
+    wind_step(wind_p, wind_state, t, dt, x[X_P_W:X_P_W + 3], rng, v_wind)
+    plant_first_stage(x, v_wind, plant_p, f_B, v_i, work)
+    sensors_step(sens_p, sens_state, t, dt, x, f_B, v_i, rng, meas)
+    if run_controller:
         controller_step(ctrl_p, ctrl_state, meas, ref, dt, cmd, diag)
-        saturated = mix(cmd, mixer_p, motor_cmd)
 
-        row = log[k]
+
+@njit(cache=True, nogil=True)
+def tick_actuate(x, plant_p, mixer_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag,
+                 motor_cmd, work, theta_true, gamma, row) -> None:
+    """Second half of the tick at time ``t``: steps 4-6 (mix ``cmd``, log, advance the plant by ``dt``).
+
+    ``row`` is the tick's log row (length :data:`N_LOG`), or an empty array to skip logging.
+    ``work`` must hold the first RK4 stage :func:`tick_sense` evaluated at this ``x``.
+    """
+    saturated = mix(cmd, mixer_p, motor_cmd)
+    if row.shape[0] > 0:
         row[0] = t
         for i in range(X_SIZE):
             row[_C_STATE + i] = x[i]
@@ -128,5 +128,34 @@ def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state,
         row[_C_LYAP] = lyapunov_function(
             diag[DIAG_V_TILDE:DIAG_V_TILDE + 3], diag[DIAG_Q_TILDE],
             state_theta_hat(ctrl_state), state_P_inv(ctrl_state), theta_true, gamma)
+    plant_advance(x, motor_cmd, v_wind, plant_p, dt / n_sub, n_sub, True, work)
 
-        plant_advance(x, motor_cmd, v_wind, plant_p, h, n_sub, True, work)
+
+@njit(cache=True, nogil=True)
+def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state,
+                    ref_table, t0, dt, n_sub, rng, theta_true, gamma, log) -> None:
+    """Simulate ``ref_table.shape[0]`` controller ticks from time ``t0``, one row of ``log`` per tick.
+
+    ``x``, ``ctrl_state``, ``wind_state`` and ``sens_state`` are advanced in place, so a run
+    can be continued. The loop releases the GIL: runs with their own arrays and generators
+    advance in parallel threads (:func:`vtoladapt.simulate.simulate_many`). ``theta_true`` (the
+    plant's linear-model coefficients) is used only for the Lyapunov function in the log, never
+    by the controller. Each tick is :func:`tick_sense` then :func:`tick_actuate`, the two halves
+    the Gymnasium environment (:mod:`vtoladapt.gym`) also steps.
+    """
+    n_ticks = ref_table.shape[0]
+    v_wind = np.zeros(3)
+    f_B = np.empty(3)
+    v_i = np.empty(3)
+    meas = np.empty(MEAS_SIZE)
+    cmd = np.zeros(CMD_SIZE)
+    diag = np.zeros(N_DIAG)
+    motor_cmd = np.zeros(N_MOTORS)
+    work = np.empty(RK4_WORK_SIZE)
+    for k in range(n_ticks):
+        t = t0 + k * dt
+        ref = ref_table[k]
+        tick_sense(x, plant_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state, ref, t, dt, rng,
+                   True, v_wind, f_B, v_i, meas, cmd, diag, work)
+        tick_actuate(x, plant_p, mixer_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag,
+                     motor_cmd, work, theta_true, gamma, log[k])

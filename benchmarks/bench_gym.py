@@ -1,0 +1,123 @@
+"""Speed of the Gymnasium environment vtoladapt/Hold-v0: environment steps per wall-clock second.
+
+The shipped ``gym_hold`` scenario (plant RK4 at 250 Hz, pressure probe, Dryden turbulence), in
+residual mode (so every step also runs the composite controller) unless said otherwise:
+
+* for reference, the compiled loop itself (``simulate`` of the same scenario): ticks per second;
+* single environment (``HoldEnv``, the raw class, no wrappers), direct and residual mode;
+* vector environment (``HoldVectorEnv``): 64 and 256 environments on one thread per core, 256 on
+  one thread, and 256 with the plant at 1 kHz; steady state (no episode ends in the timed steps);
+* a whole 20 s episode of 256 environments, the autoreset of all of them included;
+* the reset cost per episode (drawing and preparing its scenario, sensing tick 0).
+
+Each rate is the best of three timed repeats: the machine is shared, and the best repeat is the
+one least disturbed. Rates per CPU-second (this process's CPU time, all threads) say what a core
+does while it runs; on a busy machine the wall-clock rates are lower. Actions are small random residuals drawn before the clock starts.
+"""
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+
+REPEATS = 3
+
+
+def _best_rate(step, n_steps: int, per_step: int, setup=None) -> tuple[float, float]:
+    """Best of :data:`REPEATS` timings of ``n_steps`` calls of ``step(k)``: env-steps per second of
+    wall-clock time and per second of this process's CPU time (all its threads).
+
+    ``setup()``, if given, runs untimed before each repeat (a reset).
+    """
+    best_wall = best_cpu = 0.0
+    for _ in range(REPEATS):
+        if setup is not None:
+            setup()
+        t0, c0 = time.perf_counter(), time.process_time()
+        for k in range(n_steps):
+            step(k)
+        best_wall = max(best_wall, n_steps * per_step / (time.perf_counter() - t0))
+        best_cpu = max(best_cpu, n_steps * per_step / max(time.process_time() - c0, 1e-9))
+    return best_wall, best_cpu
+
+
+def _loop_rows() -> list[tuple[str, float, str]]:
+    from vtoladapt.scenario import load_scenario
+    from vtoladapt.simulate import simulate
+
+    sc = load_scenario("gym_hold")
+    simulate(sc.replace(duration_s=0.5))
+    wall, cpu = _best_rate(lambda k: simulate(sc), 1, sc.n_ticks)
+    return [("compiled loop (simulate gym_hold, composite, 1 thread): ticks per s", wall, "1/s"),
+            ("compiled loop: ticks per CPU-second", cpu, "1/s")]
+
+
+def _single_rows() -> list[tuple[str, float, str]]:
+    from vtoladapt.gym import HoldEnv
+    from vtoladapt.gym.spaces import OBS_CMD
+
+    rows = []
+    n = 1000
+    # direct mode flies open loop: hold the controller's first command, in a box wide enough
+    # that the episode does not end within n steps of a reset
+    hover = HoldEnv(residual=True).reset(seed=0)[0][OBS_CMD:OBS_CMD + 5]
+    for residual in (False, True):
+        env = HoldEnv(residual=residual, max_position_error_m=100.0, max_tilt_deg=180.0)
+        actions = np.random.default_rng(0).uniform(-0.1, 0.1, (n, 5))
+        if not residual:
+            actions = np.tile(hover, (n, 1))
+        rate, _ = _best_rate(lambda k: env.step(actions[k]), n, 1, setup=lambda: env.reset(seed=0))
+        rows.append((f"single env, {'residual' if residual else 'direct'} mode: env-steps per s", rate, "1/s"))
+        env.close()
+    return rows
+
+
+def _vector_rows() -> list[tuple[str, float, str]]:
+    from vtoladapt.gym import HoldVectorEnv
+    from vtoladapt.scenario import load_scenario
+
+    cores = os.cpu_count() or 1
+    rows = []
+    khz = load_scenario("gym_hold").replace(plant_substeps=4)
+    for num_envs, workers, steps, scenario, label in (
+            (64, cores, 1000, "gym_hold", ""), (256, cores, 400, "gym_hold", ""),
+            (256, 1, 200, "gym_hold", ""), (256, cores, 200, khz, ", plant at 1 kHz")):
+        venv = HoldVectorEnv(num_envs=num_envs, workers=workers, residual=True, scenario=scenario)
+        venv.reset(seed=0)
+        actions = np.random.default_rng(1).uniform(-0.1, 0.1, (steps, num_envs, 5)).astype(np.float32)
+        for a in actions[:10]:
+            venv.step(a)
+        wall, cpu = _best_rate(lambda k: venv.step(actions[k]), steps, num_envs)
+        name = f"vector env, {num_envs} envs on {workers} thread(s){label}"
+        rows.append((f"{name}: env-steps per s", wall, "1/s"))
+        if num_envs == 256 and not label:
+            rows.append((f"{name}: env-steps per CPU-second", cpu, "1/s"))
+        venv.close()
+
+    num_envs = 256
+    venv = HoldVectorEnv(num_envs=num_envs, workers=cores, residual=True)
+    t0 = time.perf_counter()
+    venv.reset(seed=1)
+    reset_wall = time.perf_counter() - t0
+    steps = venv.max_steps + 1  # the last step autoresets every environment
+    zero = np.zeros((num_envs, 5), dtype=np.float32)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        venv.step(zero)
+    wall = time.perf_counter() - t0
+    venv.close()
+    rows.append((f"vector env, {num_envs} envs, whole 20 s episode incl. autoreset: env-steps per s",
+                 steps * num_envs / wall, "1/s"))
+    rows.append(("reset cost per episode (draw, prepare, sense tick 0)", reset_wall / num_envs * 1e3, "ms"))
+    return rows
+
+
+def run() -> list[tuple[str, float, str]]:
+    """Rows ``(name, value, unit)`` for ``benchmarks/run_benchmarks.py``."""
+    return _loop_rows() + _single_rows() + _vector_rows()
+
+
+if __name__ == "__main__":
+    for name, value, unit in run():
+        print(f"{name:90s} {value:12.4g} {unit}")

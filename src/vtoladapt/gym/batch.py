@@ -1,0 +1,170 @@
+"""Stacked kernel arrays of a batch of episodes, and the one call per thread that steps them.
+
+:class:`RunBatch` is shared by the single environment (a batch of one) and the vector
+environment, so both step through the same compiled :func:`~vtoladapt.gym.kernel.step_batch` and
+an environment of a batch is, draw for draw, the single environment with the same seed.
+
+Each thread owns a :class:`_Chunk`: its own allocation of every array, the shared tables
+included. Numba counts references to an array's buffer atomically whenever the kernel takes a row
+of it, so two threads taking rows of one allocation would bounce that counter's cache line
+between the cores at every row.
+"""
+from __future__ import annotations
+
+import math
+from concurrent.futures import ThreadPoolExecutor
+from typing import Optional
+
+import numpy as np
+from numba import typed
+
+from ..control.kernel import DIAG_SIZE, P_TAU_MAX, P_U_MAX
+from ..control.trajectory import trajectory_from_reference
+from ..layout import CMD_SIZE, MEAS_SIZE, N_MOTORS, X_SIZE
+from ..plant import RK4_WORK_SIZE
+from ..scenario import Scenario
+from ..simulate import PreparedRun, prepare
+from .config import HoldEnvConfig
+from .kernel import MODE_DIRECT, MODE_RESIDUAL, OP_BEGIN, OP_SKIP, OP_STEP, step_batch
+from .spaces import ACTION_SIZE, OBS_SIZE
+
+_PER_RUN = ("plant_params", "mixer_params", "controller_params", "controller_state", "wind_params",
+            "wind_state", "sensor_params", "sensor_state")
+
+
+class _Chunk:
+    """Rows ``lo .. hi-1`` of a batch in arrays of their own, and the argument tuple of their kernel call."""
+
+    def __init__(self, batch: "RunBatch", lo: int, hi: int, template: PreparedRun):
+        m = hi - lo
+        self.lo, self.hi = lo, hi
+        self.arrays = {name: np.zeros((m, getattr(template, name).size)) for name in _PER_RUN}
+        self.X = np.zeros((m, X_SIZE))
+        self.K = np.zeros(m, dtype=np.int64)
+        self.op = np.zeros(m, dtype=np.int64)
+        self.actions = np.zeros((m, ACTION_SIZE))
+        self.obs = np.zeros((m, OBS_SIZE), dtype=np.float32)
+        self.reward = np.zeros(m)
+        self.terminated = np.zeros(m, dtype=np.bool_)
+        self.truncated = np.zeros(m, dtype=np.bool_)
+        self.scratch = [np.zeros((m, size)) for size in (3, 3, 3, MEAS_SIZE, CMD_SIZE, CMD_SIZE, DIAG_SIZE,
+                                                         N_MOTORS, RK4_WORK_SIZE)]
+        # Python keeps each generator alive; the typed list holds their unboxed form, so a call
+        # does not unbox them again (a tuple of generators costs tens of microseconds each)
+        self.generators = [template.rng] * m
+        self.rngs = typed.List()
+        for _ in range(m):
+            self.rngs.append(template.rng)
+        ref_table = batch.ref_table.copy()
+        tau_max = batch.tau_max.copy()
+        cfg = batch.cfg
+        a = self.arrays
+        v_wind, f_B, v_i, meas, cmd, base, diag, motor, work = self.scratch
+        # every array is updated in place, so the arguments are bound once
+        self.args = (0, m, self.rngs, self.op, self.actions, batch.mode, cfg.residual_scale, batch.u_max,
+                     tau_max, cfg.max_position_error_m, batch.cos_tilt_max, cfg.action_cost, ref_table,
+                     batch.dt, batch.n_sub, batch.n_ticks,
+                     self.X, a["plant_params"], a["mixer_params"], a["controller_params"], a["controller_state"],
+                     a["wind_params"], a["wind_state"], a["sensor_params"], a["sensor_state"],
+                     v_wind, f_B, v_i, meas, cmd, base, diag, motor, work, self.K,
+                     self.obs, self.reward, self.terminated, self.truncated)
+
+    def load(self, j: int, run: PreparedRun, name: str) -> None:
+        for key in _PER_RUN:
+            value = getattr(run, key)
+            row = self.arrays[key][j]
+            if value.size != row.size:
+                raise ValueError(f"episode scenario {name!r}: {key} has {value.size} entries, the batch "
+                                 f"{row.size}; the randomisation must not change array sizes")
+            row[:] = value
+        self.X[j] = run.x0
+        for a in self.scratch:
+            a[j] = 0.0
+        self.K[j] = 0
+        self.generators[j] = run.rng
+        self.rngs[j] = run.rng
+        self.op[j] = OP_BEGIN
+
+    def run(self) -> None:
+        step_batch(*self.args)
+        self.op[:] = OP_SKIP
+
+
+class RunBatch:
+    """``n`` closed-loop runs of one base scenario, stacked row by row, stepped in ``workers`` threads.
+
+    Row ``i`` holds run ``i``'s plant state, kernel parameters and states (from
+    :func:`vtoladapt.simulate.prepare` of its episode's scenario), the scratch the two halves of a
+    tick hand each other, its tick counter and its generator. Threads take contiguous chunks of
+    rows; the compiled step releases the GIL.
+    """
+
+    def __init__(self, cfg: HoldEnvConfig, n: int, workers: int = 1):
+        base: Scenario = cfg.scenario
+        self.cfg = cfg
+        self.n = n
+        self.dt = base.dt_control_s
+        self.n_sub = base.plant_substeps
+        self.n_ticks = base.n_ticks
+        self.mode = MODE_RESIDUAL if cfg.residual else MODE_DIRECT
+        times = np.arange(self.n_ticks + 1) * self.dt
+        self.ref_table = np.ascontiguousarray(trajectory_from_reference(base.reference).reference_table(times))
+        template = prepare(base.replace(duration_s=base.dt_control_s))
+        self.u_max = float(template.controller_params[P_U_MAX])
+        self.tau_max = np.array(template.controller_params[P_TAU_MAX:P_TAU_MAX + 3], dtype=float)
+        self.cos_tilt_max = math.cos(math.radians(cfg.max_tilt_deg))
+        self.scenarios: list[Optional[Scenario]] = [None] * n
+        workers = max(1, min(int(workers), n))
+        edges = np.linspace(0, n, workers + 1).round().astype(int)
+        self.chunks = [_Chunk(self, int(edges[c]), int(edges[c + 1]), template) for c in range(workers)]
+        self._chunk_of = np.repeat(np.arange(workers), np.diff(edges))
+        self._pool = ThreadPoolExecutor(max_workers=workers - 1) if workers > 1 else None
+
+    def load(self, i: int, scenario: Scenario) -> PreparedRun:
+        """Put a fresh run of ``scenario`` in row ``i``; the next :meth:`advance` senses its tick 0."""
+        run = prepare(scenario)
+        chunk = self.chunks[self._chunk_of[i]]
+        chunk.load(i - chunk.lo, run, scenario.name)
+        self.scenarios[i] = scenario
+        return run
+
+    def set_actions(self, actions: np.ndarray, mask: Optional[np.ndarray] = None) -> None:
+        """Step every row (or the rows of ``mask``) with ``actions`` (``(n, 5)``) at the next :meth:`advance`."""
+        for c in self.chunks:
+            c.actions[:] = actions[c.lo:c.hi]
+            if mask is None:
+                c.op[:] = OP_STEP
+            else:
+                c.op[mask[c.lo:c.hi]] = OP_STEP
+
+    def advance(self) -> None:
+        """Apply the pending operations to every row (other chunks in the pool, the first here)."""
+        if self._pool is None:
+            for c in self.chunks:
+                c.run()
+        else:
+            futures = [self._pool.submit(c.run) for c in self.chunks[1:]]
+            self.chunks[0].run()
+            for f in futures:
+                f.result()
+
+    def outputs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """New arrays ``(obs, reward, terminated, truncated)`` of every row, from the last :meth:`advance`."""
+        if len(self.chunks) == 1:
+            c = self.chunks[0]
+            return c.obs.copy(), c.reward.copy(), c.terminated.copy(), c.truncated.copy()
+        return tuple(np.concatenate([getattr(c, name) for c in self.chunks])
+                     for name in ("obs", "reward", "terminated", "truncated"))
+
+    def position_error(self, i: int) -> tuple[float, np.ndarray]:
+        """``(t_s, p - p_ref)`` of row ``i``: its time and true position error, NED, m."""
+        c = self.chunks[self._chunk_of[i]]
+        j = i - c.lo
+        k = int(c.K[j])
+        return k * self.dt, c.X[j, 0:3] - self.ref_table[k, 0:3]
+
+    def close(self) -> None:
+        """Stop the worker threads."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
