@@ -54,6 +54,9 @@ CONTROLLERS: dict[str, ControllerInfo] = {c.id: c for c in (
                    "PX4-style velocity PID with the same force allocation, theta-hat = theta_0 (IV)", "pid"),
     ControllerInfo("pd", "PD", "C3", False, False,
                    "the PID without its integral (V)", "pd"),
+    ControllerInfo("l1", "L1 adaptive", "C6", True, False,
+                   "L1 adaptive control: eq:f_ctrl with theta-hat = theta_0 minus the low-passed estimate of a "
+                   "velocity predictor's piecewise-constant adaptation (Hovakimyan & Cao 2010)", "l1"),
 )}
 
 CONTROLLER_IDS: tuple[str, ...] = tuple(CONTROLLERS)
