@@ -26,9 +26,13 @@ from scipy.linalg import expm
 from vtoladapt import forces
 from vtoladapt import layout as L
 from vtoladapt.config import ConfigError
-from vtoladapt.control import Controller, ControllerConfig, Measurement, Reference, controller_arrays, \
-    controller_config_from_mapping, controller_step
-from vtoladapt.control.kernel import CONTROLLER_DIAG_COLUMNS, DIAG_SIZE, FAULT_VELOCITY, P_ACC_MAX
+from vtoladapt.control import (
+    Controller, ControllerConfig, Measurement, Reference, controller_arrays, controller_config_from_mapping,
+    controller_step,
+)
+from vtoladapt.control.kernel import (
+    CONTROLLER_DIAG_COLUMNS, DIAG_SIZE, FAULT_ADAPTATION, FAULT_VELOCITY, P_ACC_MAX,
+)
 from vtoladapt.control.laws import l1
 from vtoladapt.control.registry import CONTROLLERS, law_index
 from vtoladapt.frames import GRAVITY_MPS2, quat_to_rotmat
@@ -79,7 +83,7 @@ def test_piecewise_constant_gains_are_the_matrix_formulas(a_s, dt):
 @given(a_s=st.floats(0.05, 100.0), dt=st.floats(1e-4, 0.1), x0=st.floats(-50.0, 50.0),
        v=st.floats(-50.0, 50.0), c=st.floats(-100.0, 100.0))
 def test_predictor_step_is_the_exact_solution_for_constant_inputs(a_s, dt, x0, v, c):
-    """``x' = -a_s (x - v) + c`` over one tick: the augmented system ``[x, 1]' = [[-a_s, a_s v + c], [0, 0]] [x, 1]``."""
+    """``x' = -a_s (x - v) + c`` over one tick, from expm of ``[x, 1]' = [[-a_s, a_s v + c], [0, 0]] [x, 1]``."""
     M = np.array([[-a_s, a_s * v + c], [0.0, 0.0]])
     exact = (expm(M * dt) @ np.array([x0, 1.0]))[0]
     decay, phi = l1.piecewise_constant_gains(a_s, dt)
@@ -249,6 +253,21 @@ def test_nan_everything_gives_finite_commands(caltech):
         controller_step(params, state, np.full(L.MEAS_SIZE, np.nan), np.full(L.REF_SIZE, np.nan), dt, cmd, diag)
         assert np.all(np.isfinite(cmd)) and np.all(np.isfinite(diag))
         assert np.all(np.isfinite(state))
+
+
+def test_corrupted_memory_restarts_the_law_and_is_flagged(caltech):
+    """A non-finite value in the law's memory (not reachable from sanitised inputs) restarts it, flagged."""
+    params, state = _arrays(caltech)
+    _accelerating(params, state, 50, 0.5)
+    _field(state, "V_HAT")[1] = np.nan
+    cmd = np.zeros(L.CMD_SIZE)
+    diag = np.zeros(DIAG_SIZE)
+    v = (0.7, 0.0, 0.0)
+    controller_step(params, state, _hover_meas(v), L.pack_reference((0.0, 0.0, -1.5)), DT_S, cmd, diag)
+    assert int(diag[COL["fault_flags"]]) & FAULT_ADAPTATION
+    np.testing.assert_array_equal(_field(state, "V_HAT"), v)
+    np.testing.assert_array_equal(_field(state, "SIGMA_LPF"), 0.0)
+    assert np.all(np.isfinite(state)) and np.all(np.isfinite(cmd))
 
 
 def test_gains_follow_dt(caltech):

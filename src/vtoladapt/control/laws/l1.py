@@ -97,13 +97,14 @@ from ...frames import GRAVITY_MPS2
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
 from ..frontend import prediction_error, rows_times
-from ..layouts import DIAG_INTEGRATOR, FAULT_ADAPTATION, N_THETA, P_ACC_MAX, P_K_V, P_LAW, S_LAW, S_THETA, \
-    law_offsets
+from ..layouts import (
+    DIAG_INTEGRATOR, FAULT_ADAPTATION, N_THETA, P_ACC_MAX, P_K_V, P_LAW, S_LAW, S_THETA, law_offsets,
+)
 from ..tracking import force_command, limit_norm
 from . import LawContext
 
 A_S_DT_MAX = 0.5
-"""Largest ``a_s dt`` accepted: the piecewise-constant estimate keeps ``e^{-a_s dt}`` (61 %) of a constant uncertainty."""
+"""Largest ``a_s dt`` accepted: the estimate keeps ``e^{-a_s dt}`` (61 %) of a constant uncertainty."""
 
 
 @dataclass(frozen=True)
@@ -244,8 +245,8 @@ def l1_estimate(params, state, v_W, f_now) -> int:
     state[S_SIGMA_LPF], state[S_SIGMA_LPF + 1], state[S_SIGMA_LPF + 2] = s
     ok = True
     for i in range(3):
-        ok = ok and np.isfinite(state[S_V_HAT + i]) and np.isfinite(state[S_SIGMA_LPF + i]) \
-            and np.isfinite(state[S_SIGMA_HAT + i]) and np.isfinite(state[S_F_PREV + i])
+        ok = (ok and np.isfinite(state[S_V_HAT + i]) and np.isfinite(state[S_SIGMA_LPF + i])
+              and np.isfinite(state[S_SIGMA_HAT + i]) and np.isfinite(state[S_F_PREV + i]))
     if not ok:
         faults |= FAULT_ADAPTATION
         for i in range(3):
