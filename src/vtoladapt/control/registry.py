@@ -59,6 +59,9 @@ CONTROLLERS: dict[str, ControllerInfo] = {c.id: c for c in (
     ControllerInfo("indi", "INDI", "C5", False, False,
                    "incremental nonlinear dynamic inversion of the force loop on the filtered accelerometer, "
                    "theta-hat = theta_0 (Smeur et al. 2018)", "indi"),
+    ControllerInfo("l1", "L1 adaptive", "C6", True, False,
+                   "L1 adaptive control: eq:f_ctrl with theta-hat = theta_0 minus the low-passed estimate of a "
+                   "velocity predictor's piecewise-constant adaptation (Hovakimyan & Cao 2010)", "l1"),
 )}
 
 CONTROLLER_IDS: tuple[str, ...] = tuple(CONTROLLERS)
