@@ -4,6 +4,7 @@ import math
 
 from PIL import Image
 
+from vtoladapt.control.registry import PAPER_ADAPTIVE_IDS
 from vtoladapt.experiments import ADAPTIVE_IDS, COMPOSITE_IDS
 from vtoladapt.vehicle import PARAMETER_NAMES
 
@@ -33,7 +34,8 @@ def test_metrics_schema(reproduced):
     for name, claim in m["claims"].items():
         assert set(claim) >= {"holds", "value", "threshold"}, name
         assert isinstance(claim["holds"], bool)
-    assert len(ADAPTIVE_IDS) == 3
+    assert PAPER_ADAPTIVE_IDS == ("composite", "composite_pconst", "tracking_only")
+    assert set(PAPER_ADAPTIVE_IDS) < set(ADAPTIVE_IDS)
 
 
 def test_report_lists_claims_and_embeds_figures(reproduced):

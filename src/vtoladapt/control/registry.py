@@ -16,10 +16,12 @@ from types import ModuleType
 class ControllerInfo:
     """What the rest of the package needs to know about one control law.
 
-    ``adaptive``: it adapts theta-hat online; ``composite``: it predicts the measured specific
+    ``adaptive``: it adapts online (theta-hat, or an estimate of the unmodelled force, as L1 does);
+    ``composite``: it predicts the measured specific
     force with an adapted theta-hat (so its prediction error is one of the composite metrics);
     ``label`` and ``colour`` (a Matplotlib colour) are used in every figure and table;
-    ``module``: the law's module, relative to :mod:`vtoladapt.control.laws` or absolute.
+    ``module``: the law's module, relative to :mod:`vtoladapt.control.laws` or absolute;
+    ``paper``: its number in the paper's comparison (I to V), empty for laws the paper did not fly.
     """
 
     id: str
@@ -29,6 +31,7 @@ class ControllerInfo:
     composite: bool
     description: str
     module: str
+    paper: str = ""
 
     @property
     def law(self) -> ModuleType:
@@ -44,16 +47,16 @@ class ControllerInfo:
 
 CONTROLLERS: dict[str, ControllerInfo] = {c.id: c for c in (
     ControllerInfo("composite", "C. Adapt", "C0", True, True,
-                   "the paper's composite adaptive law (eq:th_adapt, eq:P_adapt)", "composite"),
+                   "the paper's composite adaptive law (eq:th_adapt, eq:P_adapt)", "composite", paper="I"),
     ControllerInfo("composite_pconst", "C. Adapt, P const", "C2", True, True,
-                   "the composite law with P held at P0 (the paper's controller II)", "composite_pconst"),
+                   "the composite law with P held at P0 (the paper's controller II)", "composite_pconst", paper="II"),
     ControllerInfo("tracking_only", "Tracking-error adapt", "C4", True, False,
                    "adaptation on the tracking error only, theta-hat' = P0 Phi^T R^T v-tilde (III)",
-                   "tracking_only"),
+                   "tracking_only", paper="III"),
     ControllerInfo("pid", "PID", "C1", False, False,
-                   "PX4-style velocity PID with the same force allocation, theta-hat = theta_0 (IV)", "pid"),
+                   "PX4-style velocity PID with the same force allocation, theta-hat = theta_0 (IV)", "pid", paper="IV"),
     ControllerInfo("pd", "PD", "C3", False, False,
-                   "the PID without its integral (V)", "pd"),
+                   "the PID without its integral (V)", "pd", paper="V"),
     ControllerInfo("nominal", "Nominal (no adapt)", "C7", False, False,
                    "the composite law with adaptation off, theta-hat = theta_0", "nominal"),
     ControllerInfo("indi", "INDI", "C5", False, False,
@@ -67,6 +70,8 @@ CONTROLLERS: dict[str, ControllerInfo] = {c.id: c for c in (
 CONTROLLER_IDS: tuple[str, ...] = tuple(CONTROLLERS)
 ADAPTIVE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if c.adaptive)
 COMPOSITE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if c.composite)
+PAPER_ADAPTIVE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if c.adaptive and c.paper)
+"""The paper's adaptive controllers (I to III), which its comparison claims are about."""
 
 
 def controller_info(controller_id: str) -> ControllerInfo:
