@@ -72,6 +72,8 @@ ADAPTIVE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if c.ada
 COMPOSITE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if c.composite)
 PAPER_ADAPTIVE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if c.adaptive and c.paper)
 """The paper's adaptive controllers (I to III), which its comparison claims are about."""
+PAPER_BASELINE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if not c.adaptive and c.paper)
+"""The paper's baselines (IV PID and V PD)."""
 
 
 def controller_info(controller_id: str) -> ControllerInfo:

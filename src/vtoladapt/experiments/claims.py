@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 from typing import Optional
 
-from ..control.registry import COMPOSITE_IDS, PAPER_ADAPTIVE_IDS
+from ..control.registry import COMPOSITE_IDS, PAPER_ADAPTIVE_IDS, PAPER_BASELINE_IDS
 
 CLAIM_UNITS: dict[str, str] = {
     "pd_large_errors_at_high_wind": "ratio",
@@ -33,7 +33,7 @@ def check_claims(comparison: Optional[dict], convergence: Optional[dict]) -> dic
             claims["pid_overshoots_when_fan_stops"] = _claim(
                 v, 1.0, v > 1.0, "PID's peak velocity error after the fan stops exceeds every "
                                  "adaptive controller's (ratio to the worst adaptive)")
-        baselines = [k for k in ("pid", "pd") if k in c]
+        baselines = [k for k in PAPER_BASELINE_IDS if k in c]
         if adaptive and baselines:
             v = max(c[k]["vel_err_rms_mps"] for k in adaptive) / min(c[k]["vel_err_rms_mps"] for k in baselines)
             claims["adaptive_track_best"] = _claim(

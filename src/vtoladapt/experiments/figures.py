@@ -30,7 +30,8 @@ MEAS_V_I_COLUMNS = ("meas_v_i_x_mps", "meas_v_i_y_mps", "meas_v_i_z_mps")
 PLOT_FILTER_HZ = 1.0
 """Prediction errors are low-passed at this cutoff for the figures only (as the paper's are)."""
 
-_LINESTYLES = ("-", (0, (5, 2)), (0, (6, 2, 1, 2)), (0, (2, 1)), (0, (1, 1)))
+_LINESTYLES = ("-", (0, (5, 2)), (0, (6, 2, 1, 2)), (0, (2, 1)), (0, (1, 1)), (0, (8, 2, 1, 2, 1, 2)),
+               (0, (3, 3)), (0, (4, 1, 1, 1, 1, 1)), (0, (10, 3)), (0, (1, 2, 4, 2)))
 FIGURE_DPI = 130
 
 
@@ -40,7 +41,7 @@ def controller_style(controller_id: str) -> dict:
     same curve leaves the earlier one visible around it."""
     i = CONTROLLER_IDS.index(controller_id) if controller_id in CONTROLLER_IDS else len(CONTROLLER_IDS)
     return {"color": CONTROLLER_COLORS.get(controller_id, f"C{i % 10}"),
-            "ls": _LINESTYLES[i % len(_LINESTYLES)], "lw": max(1.2, 2.2 - 0.35 * i),
+            "ls": _LINESTYLES[i % len(_LINESTYLES)], "lw": max(0.9, 2.2 - 0.2 * i),
             "label": CONTROLLER_LABELS.get(controller_id, controller_id), "zorder": 2 + i}
 
 
