@@ -100,3 +100,55 @@ def test_no_other_list_of_controllers_exists_in_the_package():
     assert found <= KNOWN_ID_LISTS, f"lists of controllers outside the registry: {sorted(found - KNOWN_ID_LISTS)}"
     # the check itself finds such a list
     assert _literal_id_lists(ast.parse(f"x = {CONTROLLER_IDS[:2]!r}")) == [CONTROLLER_IDS[:2]]
+
+
+def _imports(path: Path, package: str) -> set[str]:
+    """Modules that ``path`` imports, at module level or inside a function (relative imports resolved)."""
+    tree = ast.parse(path.read_text())
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            out.add(mod)
+            out.update(f"{mod}.{a.name}" for a in node.names)
+        elif isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+    return out
+
+
+def test_the_control_package_has_no_import_cycle():
+    """Imports between the modules of vtoladapt.control, deferred ones included, form no cycle.
+
+    (``config`` importing ``kernel`` inside a method while ``kernel`` imported ``config`` was one.)
+    """
+    root = SRC / "control"
+    modules = {}
+    for path in root.rglob("*.py"):
+        rel = path.relative_to(SRC.parent).with_suffix("")
+        name = ".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts)
+        package = name if rel.name == "__init__" else name.rsplit(".", 1)[0]
+        modules[name] = (path, package)
+    graph = {name: {m for m in _imports(path, package) if m in modules and m != name}
+             for name, (path, package) in modules.items()}
+    # a package's __init__ importing its own submodules is not a cycle of the design
+    for name in graph:
+        graph[name] = {m for m in graph[name] if not (m.startswith(name + ".") and (SRC.parent / Path(*name.split("."))).is_dir())}
+    state: dict[str, int] = {}
+
+    def visit(node, stack):
+        state[node] = 1
+        for nxt in graph[node]:
+            if state.get(nxt) == 1:
+                raise AssertionError("import cycle: " + " -> ".join(stack[stack.index(nxt):] + [nxt]))
+            if nxt not in state:
+                visit(nxt, stack + [nxt])
+        state[node] = 2
+
+    for name in sorted(graph):
+        if name not in state:
+            visit(name, [name])
+    assert graph["vtoladapt.control.kernel"] >= {"vtoladapt.control.registry"}     # the graph is read

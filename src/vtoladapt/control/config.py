@@ -14,7 +14,7 @@ The paper gives none of its gains; the defaults below are chosen for the 250 Hz 
 They are checked by ``tests/test_control_gains.py`` (discrete-time closed-loop eigenvalues of the
 linearised attitude and velocity loops, with the motor lag and the one-tick hold).
 
-* **Velocity and position loops (all five controllers).** ``K_v = (1.8, 1.8, 4.0) 1/s`` and
+* **Velocity and position loops (every law).** ``K_v = (1.8, 1.8, 4.0) 1/s`` and
   ``Lambda_p = (0.95, 0.95, 1.0) 1/s`` are PX4's ``MPC_XY_VEL_P_ACC``, ``MPC_Z_VEL_P_ACC``,
   ``MPC_XY_P``, ``MPC_Z_P`` defaults. They are the "equivalent gains" of the paper's comparison:
   the adaptive controllers' ``K_v`` and ``Lambda_p`` *are* the PID's velocity and position P
