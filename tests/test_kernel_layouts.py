@@ -114,3 +114,32 @@ def test_probe_and_mixer_arrays_follow_their_declarations(caltech):
     m = mixer.mixer_params(caltech)
     assert m.size == mixer.MX_SIZE
     assert m[mixer.MX_TOTAL_UNIT] == pytest.approx(4.0 * m[mixer.MX_T_UNIT])
+
+
+def _prefix(module, lay, prefix, rename=None, base=0):
+    """``{constant name: (bound value, declared offset)}`` for a layout bound as ``prefix + NAME``."""
+    rename = rename or {}
+    return {rename.get(f.name, prefix + f.name): (getattr(module, rename.get(f.name, prefix + f.name)),
+                                                  base + lay.offset(f.name)) for f in lay.fields}
+
+
+def test_bound_offsets_are_their_fields():
+    # the constants kernels use are bound by name; a constant bound to the wrong field fails here
+    pairs = {}
+    pairs.update(_prefix(plant, plant.PLANT_PARAMS, "P_"))
+    pairs.update(_prefix(plant, plant.RK4_WORK, "_W_"))
+    pairs.update(_prefix(layout, layout.STATE, "X_"))
+    pairs.update(_prefix(layout, layout.MEASUREMENT, "MEAS_"))
+    pairs.update(_prefix(layout, layout.REFERENCE, "REF_"))
+    pairs.update(_prefix(layout, layout.COMMAND, "CMD_"))
+    pairs.update(_prefix(sensors, sensors.SENSOR_STATE, "_ST_"))
+    P = sensors.SENSOR_PARAMS
+    pairs.update(_prefix(sensors, sensors.IMU_PARAMS, "_", {"IDEAL": "_IMU_IDEAL"}, P.offset("IMU")))
+    pairs.update(_prefix(sensors, sensors.MOCAP_PARAMS, "_MOCAP_", base=P.offset("MOCAP")))
+    pairs.update(_prefix(sensors, sensors.ATTITUDE_PARAMS, "_ATT_", base=P.offset("ATTITUDE")))
+    pairs.update(_prefix(sensors, sensors.PROBE_PARAMS, "_PROBE_", base=P.offset("PROBE")))
+    pairs.update(_prefix(sensors, sensors.PRESSURE_PROBE_PARAMS, "_PP_", base=sensors.SENSORS_KERNEL_SIZE))
+    pairs.update(_prefix(mixer, mixer.MIXER_PARAMS, "MX_"))
+    wrong = {name: v for name, v in pairs.items() if v[0] != v[1]}
+    assert wrong == {}
+    assert len(pairs) > 100

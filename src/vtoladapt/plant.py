@@ -201,7 +201,11 @@ PLANT_PARAMS = BlockLayout("plant parameters", [
 (P_MASS, P_FORCE_MASS, P_J, P_JINV, P_THETA, P_K1, P_K2, P_RHO, P_S, P_SPAN, P_CHORD, P_STALL_ON,
  P_ALPHA_STALL, P_STALL_M, P_STALL_EXP, P_CY_BETA, P_PUSH_J_ON, P_CT_A1, P_CT_A2, P_PUSH_NMAX, P_PUSH_D,
  P_LAG_ON, P_TAU_LIFT, P_TAU_PUSH, P_ROTOR_X, P_ROTOR_Y, P_ROTOR_SPIN, P_KM, P_KM_PUSHER, P_DAMP_ON,
- P_CLP, P_CMQ, P_CNR) = PLANT_PARAMS.offsets(*(f.name for f in PLANT_PARAMS.fields))
+ P_CLP, P_CMQ, P_CNR) = PLANT_PARAMS.offsets(
+    "MASS", "FORCE_MASS", "J", "JINV", "THETA", "K1", "K2", "RHO", "S", "SPAN", "CHORD", "STALL_ON",
+    "ALPHA_STALL", "STALL_M", "STALL_EXP", "CY_BETA", "PUSH_J_ON", "CT_A1", "CT_A2", "PUSH_NMAX", "PUSH_D",
+    "LAG_ON", "TAU_LIFT", "TAU_PUSH", "ROTOR_X", "ROTOR_Y", "ROTOR_SPIN", "KM", "KM_PUSHER", "DAMP_ON",
+    "CLP", "CMQ", "CNR")
 P_SIZE = PLANT_PARAMS.size
 PUSHER_J_MAX = 0.8  # edge of the UIUC data; the quadratic is not extrapolated beyond
 N_BODY = X_MOTOR    # the rigid-body part of the state: p, v, q, omega (the motors follow)
