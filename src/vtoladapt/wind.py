@@ -167,7 +167,7 @@ class FanArrayConfig:
         "-", "'linear': ramps between breakpoints (repeat a time for a step); 'hold': steps",
         default="linear", choices=("linear", "hold"))
     max_speed_mps: float = setting("m/s", "mean wind speed at 100 % throttle (CAST: 12.9)",
-                                   default=FAN_MAX_SPEED_MPS, gt=0.0)
+                                   default=FAN_MAX_SPEED_MPS, gt=0.0, le=60.0)
     array_bearing_deg: float = setting(
         "deg", "compass bearing of the array seen from the vehicle = where the wind comes from "
         "(0: north, so v_w = (-V, 0, 0); 90: east)", default=0.0, ge=-360.0, le=360.0)
@@ -246,9 +246,9 @@ class TurbulenceConfig:
     enabled: bool = setting("-", "add Dryden turbulence", default=False)
     w20_mps: float | None = setting(
         "m/s", "wind speed at 20 ft (light 7.7, moderate 15.4, severe 23.2 m/s)", default=None,
-        ge=0.0)
+        ge=0.0, le=60.0)
     sigma_mps: tuple[float, ...] | None = setting(
-        "m/s", "intensities sigma_u, sigma_v, sigma_w", default=None, ge=0.0, length=3)
+        "m/s", "intensities sigma_u, sigma_v, sigma_w", default=None, ge=0.0, le=30.0, length=3)
     mean_wind_fraction: tuple[float, ...] | None = setting(
         "-", "intensities as fractions of the mean wind speed (u, v, w)", default=None, ge=0.0,
         le=1.0, length=3)
@@ -257,13 +257,13 @@ class TurbulenceConfig:
         default=2.0, gt=0.0, le=1000.0 * FT_M)
     length_scale_m: tuple[float, ...] | None = setting(
         "m", "length scales L_u, L_v, L_w (overrides the altitude model)", default=None, gt=0.0,
-        length=3)
+        le=10000.0, length=3)
     convection_speed_mps: float | None = setting(
         "m/s", "airspeed at which the frozen field is convected (default: |mean wind|)",
-        default=None, ge=0.0)
+        default=None, ge=0.0, le=100.0)
     min_convection_speed_mps: float = setting(
         "m/s", "floor on |mean wind| as convection speed (0: turbulence freezes in still air)",
-        default=0.5, ge=0.0)
+        default=0.5, ge=0.0, le=100.0)
 
     def _check(self, source: str) -> None:
         given = [k for k in ("w20_mps", "sigma_mps", "mean_wind_fraction")
@@ -296,9 +296,9 @@ class GustConfig:
 
     shape: str = setting("-", "'one_minus_cosine' (up to A and back to zero) or 'step'",
                          choices=GUST_SHAPES)
-    start_s: float = setting("s", "start time", ge=0.0)
-    duration_s: float = setting("s", "duration", gt=0.0)
-    amplitude_mps: tuple[float, ...] = setting("m/s", "peak wind vector, NED", length=3)
+    start_s: float = setting("s", "start time", ge=0.0, le=3600.0)
+    duration_s: float = setting("s", "duration", gt=0.0, le=3600.0)
+    amplitude_mps: tuple[float, ...] = setting("m/s", "peak wind vector, NED", ge=-60.0, le=60.0, length=3)
 
 
 @dataclass(frozen=True)
@@ -306,7 +306,7 @@ class WindConfig:
     """All the wind of a scenario; the parts add up. Load with :meth:`from_mapping`."""
 
     constant_mps: tuple[float, ...] = setting("m/s", "constant wind vector, NED",
-                                              default=(0.0, 0.0, 0.0), length=3)
+                                              default=(0.0, 0.0, 0.0), ge=-60.0, le=60.0, length=3)
     fan_array: FanArrayConfig = setting("-", "fan-array wind", default=FanArrayConfig())
     turbulence: TurbulenceConfig = setting("-", "Dryden turbulence", default=TurbulenceConfig())
     gusts: tuple[GustConfig, ...] = setting("-", "discrete gusts ([[wind.gusts]] entries)",
