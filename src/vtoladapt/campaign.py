@@ -160,6 +160,19 @@ def connect_scheduler(address: str):
                           f"{SCHEDULER_CONNECT_TIMEOUT_S:g} s ({reason[:200]})") from None
 
 
+def local_cluster(n_workers: Optional[int] = None, listen: str = LOOPBACK):
+    """The campaign's local Dask cluster: one single-threaded worker process per core.
+
+    Scheduler, workers (and their nannies) and the status page all listen on ``listen``
+    (loopback by default, so nothing is reachable from the network), each on a free port so two
+    campaigns can run at once.
+    """
+    from dask.distributed import LocalCluster
+
+    return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, host=listen,
+                        dashboard_address=f"{listen}:0")
+
+
 def _check_scheduler(address: str) -> None:
     if address in ("local", "none"):
         return
@@ -196,14 +209,11 @@ def run_campaign(specs: list[RunSpec], out: Path, scheduler: Optional[str] = "lo
             # on an error or Ctrl-C no queued run starts; running ones finish their chunk
             pool.shutdown(wait=False, cancel_futures=True)
     else:
-        from dask.distributed import Client, LocalCluster, as_completed
+        from dask.distributed import Client, as_completed
 
         cluster = None
         if scheduler == "local":
-            # every socket on loopback unless asked otherwise; any free port: two campaigns may
-            # run at once
-            cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                                   host=listen, dashboard_address=f"{listen}:0")
+            cluster = local_cluster(n_workers, listen)
             client = Client(cluster)
         else:
             client = connect_scheduler(scheduler)

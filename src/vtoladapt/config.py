@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import math
 import os
 import re
@@ -54,7 +55,7 @@ def check_value(cls: type, name: str, value: Any, where: str) -> Any:
     same range and the same messages (``where`` is the flag, e.g. ``"--duration"``).
     """
     f = {f.name: f for f in dataclasses.fields(cls)}[name]
-    hints = typing.get_type_hints(cls)
+    hints = _type_hints(cls)
     return _convert(value, hints[name], f.metadata, where, where)
 
 
@@ -106,8 +107,16 @@ def _shown(value: Any) -> str:
     return text if len(text) <= 60 else text[:45] + "..." + text[-12:]
 
 
+def _key_text(key: Any) -> str:
+    """A key as the user would type it, quoted when it is not a plain TOML bare key."""
+    text = str(key)
+    if re.fullmatch(r"[A-Za-z0-9_-]{1,64}", text):
+        return text
+    return _shown(text)
+
+
 def _where(source: str, section: str, key: str) -> str:
-    return f"{source}: [{section}] {key}" if section else f"{source}: {key}"
+    return f"{source}: [{section}] {_key_text(key)}" if section else f"{source}: {_key_text(key)}"
 
 
 def _allowed_text(meta: Mapping[str, Any]) -> str:
@@ -122,9 +131,19 @@ def _allowed_text(meta: Mapping[str, Any]) -> str:
     return f"{text} ({unit})" if unit and unit != "-" else text
 
 
+MAGNITUDE_MAX = 1e9
+"""Every number with no declared bound on a side is still bounded there by this magnitude, so no
+setting is unbounded (fields should declare their physical range; this is the safety net)."""
+
+
 def _check_scalar(value: float, meta: Mapping[str, Any], where: str) -> None:
     if not math.isfinite(value):
         raise ConfigError(f"{where} = {_shown(value)}: must be finite; allowed: {_allowed_text(meta)}")
+    no_upper = meta.get("lt") is None and meta.get("le") is None
+    no_lower = meta.get("gt") is None and meta.get("ge") is None
+    if (no_upper and value > MAGNITUDE_MAX) or (no_lower and value < -MAGNITUDE_MAX):
+        raise ConfigError(f"{where} = {_shown(value)}: out of range; allowed: {_allowed_text(meta)}"
+                          f" and magnitude <= {MAGNITUDE_MAX:g}")
     bad = ((meta.get("gt") is not None and not value > meta["gt"])
            or (meta.get("ge") is not None and not value >= meta["ge"])
            or (meta.get("lt") is not None and not value < meta["lt"])
@@ -197,6 +216,12 @@ def _build_table_list(tp: Any, value: Any, where: str, source: str, section: str
                  for i, item in enumerate(value))
 
 
+@functools.lru_cache(maxsize=None)
+def _type_hints(cls: type) -> dict[str, Any]:
+    """``typing.get_type_hints(cls)``, once per class (it dominated the cost of a build)."""
+    return typing.get_type_hints(cls)
+
+
 def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", section: str = "") -> Any:
     """Build and validate dataclass ``cls`` from a mapping (e.g. a parsed TOML table).
 
@@ -209,12 +234,12 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
     if not isinstance(data, Mapping):
         raise ConfigError(f"{source}: [{section}] must be a table, got {data!r}")
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
-    hints = typing.get_type_hints(cls)
+    hints = _type_hints(cls)
     unknown = [k for k in data if k not in fields]
     if unknown:
         key = unknown[0]
         close = difflib.get_close_matches(key, list(fields), n=1)
-        hint = f"; did you mean '{close[0]}'?" if close else ""
+        hint = f"; did you mean '{close[0]}'?" if close and isinstance(key, str) else ""
         shown = _shown(data[key])
         raise ConfigError(
             f"{_where(source, section, key)} = {shown}: unknown key{hint} "

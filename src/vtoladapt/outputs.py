@@ -194,6 +194,7 @@ class OutputDir:
         self._created: Optional[Path] = None
         self._entered = False
         self._stale: list[str] = []
+        self._was_ours = False
         self.check()
 
     # --- checks ---------------------------------------------------------------------------------
@@ -205,6 +206,7 @@ class OutputDir:
             raise OutputError(f"{flag} {str(path)!r}: is a file, not a folder; give a folder name")
         _check_parents(path, flag)
         self._stale = []
+        self._was_ours = False
         if not path.is_dir():
             return
         if not os.access(path, os.W_OK | os.X_OK):
@@ -226,6 +228,7 @@ class OutputDir:
                     f"'vtoladapt {self.command}' would mix with or replace them; choose a new "
                     "folder, or add --force")
             return
+        self._was_ours = True
         for rel, sig in manifest["files"].items():
             if not _safe_relative(rel):
                 continue
@@ -304,7 +307,7 @@ class OutputDir:
                 _remove_empty_parents((self._root / rel).parent, self._root)
         self._files = {rel: sig for rel, sig in self._files.items() if (self._root / rel).exists()}
         status = "interrupted" if issubclass(exc_type, KeyboardInterrupt) else "failed"
-        if self._files or self._before:
+        if self._files or self._was_ours:
             self._write_manifest(status)
         else:  # nothing of this run survived: leave the disk as it was
             (self._root / MANIFEST_NAME).unlink(missing_ok=True)

@@ -259,6 +259,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
         changes["min_steps"] = min(settings.min_steps, args.max_steps)
     if changes:
         settings = dataclasses.replace(settings, **changes)
+    check_fit_size(settings.n_walkers, settings.max_steps + settings.n_burn, 0, "--walkers/--max-steps")
     data = read_force_balance_csv(check_input_file(args.data, "force-balance CSV"))
     check_fit_size(settings.n_walkers, settings.max_steps + settings.n_burn, data.n_rows,
                    "--walkers/--max-steps")
