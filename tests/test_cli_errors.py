@@ -251,3 +251,26 @@ def test_internal_error_is_one_line_and_debug_shows_the_traceback(tmp_path, caps
     assert not (tmp_path / "o").exists()
     assert main(["run", str(path), "--out", str(tmp_path / "o"), "--debug"]) == ExitCode.RUN_FAILED
     assert "Traceback" in capsys.readouterr().err
+
+
+def test_a_real_ctrl_c_exits_130_in_one_line(tmp_path):
+    """SIGINT to a real ``vtoladapt run`` process once it has claimed its folder."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "o"
+    proc = subprocess.Popen([sys.executable, "-m", "vtoladapt.cli", "run", str(_scenario(tmp_path)),
+                             "--out", str(out), "--quiet"], stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not (out / MANIFEST_NAME).exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    lines = [ln for ln in err.splitlines() if ln.strip() and "sim s" not in ln]
+    assert proc.returncode == ExitCode.INTERRUPTED, err
+    assert "Traceback" not in err and len(lines) == 1 and "interrupted" in lines[0], err
+    leftovers = [p for p in out.rglob("*") if p.is_file()] if out.exists() else []
+    assert all(p.name == MANIFEST_NAME or p.stat().st_size > 0 for p in leftovers)
+    assert not any(p.name.startswith(".partial-") for p in leftovers)

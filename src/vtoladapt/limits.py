@@ -86,3 +86,76 @@ def check_fit_size(walkers: int, max_steps: int, n_rows: int, where: str) -> Non
 def ceiling(n_bytes_per_unit: float) -> int:
     """How many units of ``n_bytes_per_unit`` the budget holds."""
     return int(math.floor(MEMORY_BUDGET_BYTES / n_bytes_per_unit))
+
+
+ROW_CHECKS = {
+    "wind.fan_array.schedule": "rows [t_s, throttle_pct]: t_s >= 0 and non-decreasing, "
+                               "throttle_pct 0 to 100",
+    "geometry.lift_rotor_spin": "+1 or -1 for each of the four rotors",
+    "reference.waypoints": "rows [t_s, north_m, east_m, down_m], each within +-10000, t_s "
+                           "increasing",
+}
+"""Keys whose range is checked per row by the settings class rather than per element."""
+
+
+def _range_text(meta) -> str:
+    from .config import MAGNITUDE_MAX
+
+    parts = []
+    for name, sym in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")):
+        v = meta.get(name)
+        if v is not None:
+            parts.append(f"{sym} {v:g}" if abs(v) < 2**62 else f"{sym} 2^63-1")
+    if meta.get("gt") is None and meta.get("ge") is None:
+        parts.insert(0, f">= {-MAGNITUDE_MAX:g}")
+    if meta.get("lt") is None and meta.get("le") is None:
+        parts.append(f"<= {MAGNITUDE_MAX:g}")
+    unit = meta.get("unit")
+    text = ", ".join(parts)
+    return f"{text} ({unit})" if unit and unit != "-" else text
+
+
+def _settings_rows(cls: type, prefix: str = "") -> list[tuple[str, str, str]]:
+    """(dotted key, unit, allowed values) of every numeric setting under ``cls``."""
+    import dataclasses
+    import types
+    import typing
+
+    from .config import _type_hints
+
+    rows = []
+    hints = _type_hints(cls)
+    for f in dataclasses.fields(cls):
+        tp = hints[f.name]
+        inner = tp
+        while True:  # unwrap Optional[...] and tuple[...]
+            origin = typing.get_origin(inner)
+            if origin is typing.Union or origin is types.UnionType or origin is tuple:
+                args = [a for a in typing.get_args(inner) if a is not type(None) and a is not Ellipsis]
+                if not args:
+                    break
+                inner = args[0]
+                continue
+            break
+        key = prefix + f.name
+        if dataclasses.is_dataclass(inner):
+            sub = f"{key}[]." if typing.get_origin(tp) is tuple else f"{key}."
+            rows += _settings_rows(inner, sub)
+        elif inner in (int, float):
+            rows.append((key, f.metadata.get("unit", ""), _range_text(f.metadata)))
+    return rows
+
+
+def ranges_markdown() -> str:
+    """The README's table of every numeric key of a scenario and a vehicle file and its range."""
+    from .scenario import Scenario
+    from .vehicle import Vehicle
+
+    lines = ["| file | key | allowed (unit) |", "|---|---|---|"]
+    for name, cls in (("scenario", Scenario), ("vehicle", Vehicle)):
+        for key, unit, text in _settings_rows(cls):
+            if key == "source_path":
+                continue
+            text = ROW_CHECKS.get(key, text)
+            lines.append(f"| {name} | `{key}` | {text.replace('|', '/')} |")
+    return "\n".join(lines)
