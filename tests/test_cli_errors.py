@@ -274,3 +274,15 @@ def test_a_real_ctrl_c_exits_130_in_one_line(tmp_path):
     leftovers = [p for p in out.rglob("*") if p.is_file()] if out.exists() else []
     assert all(p.name == MANIFEST_NAME or p.stat().st_size > 0 for p in leftovers)
     assert not any(p.name.startswith(".partial-") for p in leftovers)
+
+
+@pytest.mark.slow
+def test_fit_no_figures_into_an_old_fit_folder_leaves_no_old_figures(tmp_path, capsys):
+    csv = tmp_path / "d.csv"
+    assert main(["tunnel", "--out", str(csv)]) == 0
+    out = tmp_path / "fit"
+    assert main(["fit", str(csv), "--out", str(out), "--fast"]) == 0
+    assert (out / "corner.png").exists()
+    assert main(["fit", str(csv), "--out", str(out), "--fast", "--no-figures"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == [MANIFEST_NAME, "posterior.json", "table1.md"]
+    capsys.readouterr()

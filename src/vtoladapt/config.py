@@ -181,7 +181,7 @@ def _convert(value: Any, tp: Any, meta: Mapping[str, Any], where: str, source: s
             raise ConfigError(f"{where} = {_shown(value)}: must be a whole number; allowed: {_allowed_text(meta)}")
         if abs(value) >= 2**63:
             raise ConfigError(f"{where} = {_shown(value)}: out of range; allowed: {_allowed_text(meta)}")
-        _check_scalar(float(value), meta, where)
+        _check_scalar(value, meta, where)
         return value
     if tp is bool:
         if not isinstance(value, bool):
