@@ -159,8 +159,10 @@ def test_scenario_that_is_a_folder_or_binary_or_missing(tmp_path, capsys):
 
 def test_very_long_vehicle_string(tmp_path, capsys):
     line = _check(["tunnel", "--vehicle", "x" * 5000, "--out", tmp_path / "d.csv"], capsys,
-                  ExitCode.BAD_INPUT, "File name too long")
+                  ExitCode.BAD_INPUT, "--vehicle", "at most 4096")
     assert len(line) < 700
+    _check(["tunnel", "--vehicle", "x" * 300, "--out", tmp_path / "d.csv"], capsys,
+           ExitCode.BAD_INPUT, "--vehicle", "over 255 characters")
     path = _scenario(tmp_path, text=SINGLE.replace('"caltech_vtol"', '"' + "v" * 5000 + '"'))
     _check(["run", path, "--out", tmp_path / "o"], capsys, ExitCode.BAD_INPUT, "vehicle", "at most 4096")
 

@@ -60,7 +60,8 @@ EDGE_FLOATS = st.sampled_from([0.0, -0.0, 1e-300, -1e-300, 1e-9, 1.0, -1.0, 1e9,
 NUMBERS = st.one_of(EDGE_FLOATS, st.floats(allow_nan=True, allow_infinity=True),
                     st.integers(-2**70, 2**70), st.integers(-5, 5))
 SCALARS = st.one_of(NUMBERS, st.booleans(), st.text(max_size=12),
-                    st.sampled_from(["", "\x00", "composite", "pid", "hold", "../../x", "nan"]))
+                    st.sampled_from(["", "\x00", "a\x00b", "x" * 300, "composite", "pid", "hold",
+                                     "../../x", "nan"]))
 VALUES = st.recursive(SCALARS, lambda inner: st.one_of(st.lists(inner, max_size=5),
                                                        st.dictionaries(st.text(max_size=6), inner,
                                                                        max_size=3)),

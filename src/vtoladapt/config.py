@@ -100,6 +100,13 @@ def setting(
 MAX_STRING_CHARS = 4096
 """Longest text value of a setting (names, paths, descriptions)."""
 
+PATH_PATTERN = r"(?!.*[^/]{256})[^\x00]{1,4096}"
+"""``setting(pattern=...)`` of a file path: no NUL, no name in it longer than 255 characters."""
+NAME_PATTERN = r"[A-Za-z0-9_.-]{1,64}"
+"""``setting(pattern=...)`` of a name used in file names."""
+_PATTERN_TEXT = {PATH_PATTERN: "a file path (no NUL character, no name in it over 255 characters)",
+                 NAME_PATTERN: "1 to 64 letters, digits, '_', '.' or '-'"}
+
 
 def _shown(value: Any) -> str:
     """``repr(value)`` cut to 60 characters for messages."""
@@ -190,12 +197,14 @@ def _convert(value: Any, tp: Any, meta: Mapping[str, Any], where: str, source: s
     if tp is str:
         if not isinstance(value, str):
             raise ConfigError(f"{where} = {_shown(value)}: must be a string")
+        if "\x00" in value:
+            raise ConfigError(f"{where} = {_shown(value)}: contains a NUL character")
         if len(value) > MAX_STRING_CHARS:
             raise ConfigError(f"{where} = {_shown(value)}: {len(value)} characters; allowed: at "
                               f"most {MAX_STRING_CHARS}")
         if meta.get("pattern") and not re.fullmatch(meta["pattern"], value):
-            raise ConfigError(f"{where} = {_shown(value)}: not allowed; allowed: text matching "
-                              f"{meta['pattern']}")
+            allowed = _PATTERN_TEXT.get(meta["pattern"], f"text matching {meta['pattern']}")
+            raise ConfigError(f"{where} = {_shown(value)}: not allowed; allowed: {allowed}")
         if meta.get("choices") and value not in meta["choices"]:
             raise ConfigError(f"{where} = {_shown(value)}: unknown; allowed: {_allowed_text(meta)}")
         return value

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from .config import ConfigError, build, read_toml, setting
+from .config import NAME_PATTERN, PATH_PATTERN, ConfigError, build, read_toml, setting
 from .control.config import ControllerConfig
 from .control.registry import CONTROLLER_IDS
 from .plant import PlantConfig
@@ -75,7 +75,7 @@ class ControllerPrior:
 
     posterior: Optional[str] = setting(
         "-", "posterior.json from `vtoladapt fit` (path relative to the scenario); default: the "
-        "vehicle's Table I", default=None)
+        "vehicle's Table I", default=None, pattern=PATH_PATTERN)
     initial_theta: str = setting(
         "-", "theta-hat(0): 'theta0' (= theta_0), or 'random' (uniform within +-random_fraction of "
         "theta_0, clipped to the bounds, drawn from the scenario seed)", default="theta0",
@@ -108,8 +108,8 @@ class ExperimentConfig:
 class Scenario:
     """A validated scenario (see the module docstring)."""
 
-    name: str = setting("-", "short identifier, used in output file names", pattern=r"[A-Za-z0-9_.-]{1,64}")
-    vehicle: str = setting("-", "shipped vehicle name or path to a vehicle TOML")
+    name: str = setting("-", "short identifier, used in output file names", pattern=NAME_PATTERN)
+    vehicle: str = setting("-", "shipped vehicle name or path to a vehicle TOML", pattern=PATH_PATTERN)
     duration_s: float = setting("s", "simulated time", gt=0.0, le=3600.0)
     seed: int = setting("-", "seed of every random draw in the run", default=0, ge=0, le=2**63 - 1)
     description: str = setting("-", "what the scenario is for", default="")

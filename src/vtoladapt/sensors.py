@@ -59,7 +59,7 @@ import numpy as np
 from numba import njit
 
 from . import layout
-from .config import build, setting
+from .config import PATH_PATTERN, build, setting
 from .frames import GRAVITY_MPS2
 from .probe import (ProbeTip, SDP33Sensor, calibrate_tip, incident_velocity_from_pressures,
                     load_calibration, probe_differential_pressures, sdp33_sensor_step)
@@ -230,7 +230,7 @@ class ProbeConfig:
                                choices=("single_k", "calibrated"))
     calibration_file: Optional[str] = setting(
         "-", "calibration.json from `vtoladapt probe calibrate` (pressure); default: fitted to the "
-        "simulated tip", default=None)
+        "simulated tip", default=None, pattern=PATH_PATTERN)
 
     def describe(self) -> str:
         """One line on the probe model, for logs and reports."""

@@ -144,6 +144,13 @@ def register_cli(subparsers) -> dict[str, argparse.ArgumentParser]:
     return parsers
 
 
+def _vehicle(name: str):
+    """``--vehicle``: checked as a scenario's ``vehicle`` key is, then loaded."""
+    from ..scenario import Scenario
+
+    return load_vehicle(check_value(Scenario, "vehicle", name, "--vehicle"))
+
+
 def _seed(value: int, flag: str = "--seed") -> int:
     return check_flag(flag, value, ge=0, le=SEED_MAX, integer=True)
 
@@ -173,7 +180,7 @@ def cmd_tunnel(args: argparse.Namespace) -> int:
     from .tunnel import BalanceNoise, design_points, make_design, run_virtual_tunnel, \
         truth_path_for, write_tunnel_run
 
-    veh = load_vehicle(args.vehicle)
+    veh = _vehicle(args.vehicle)
     seed = _seed(args.seed)
     noise_abs = check_flag("--noise-abs-N", args.noise_abs_N, unit="N", ge=0.0, le=100.0)
     noise_rel = check_flag("--noise-rel", args.noise_rel, ge=0.0, lt=1.0)
@@ -241,7 +248,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
     from .report import write_fit_outputs
 
-    veh = load_vehicle(args.vehicle)
+    veh = _vehicle(args.vehicle)
     seed = _seed(args.seed)
     mass = wing = rho = None
     if args.mass_kg is not None:
@@ -293,7 +300,7 @@ def cmd_fit_realdata(args: argparse.Namespace) -> int:
     """Handler of ``vtoladapt fit-realdata``; returns the exit code."""
     from .report import realdata_outputs
 
-    veh = load_vehicle(args.vehicle)
+    veh = _vehicle(args.vehicle)
     seed = _seed(args.seed)
     if args.data_dir is not None and not Path(args.data_dir).is_dir():
         raise ConfigError(f"--data-dir {str(args.data_dir)!r}: not a folder")
@@ -318,7 +325,7 @@ def cmd_fit_validate(args: argparse.Namespace) -> int:
 
     from .report import validation_report
 
-    veh = load_vehicle(args.vehicle)
+    veh = _vehicle(args.vehicle)
     seed = _seed(args.seed)
     n_seeds = check_flag("--seeds", args.seeds, ge=2, le=SEEDS_MAX, integer=True)
     target = OutputDir(args.out, "fit-validate", force=args.force)
