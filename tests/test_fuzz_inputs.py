@@ -6,7 +6,8 @@ line naming the file) or acceptance; an accepted scenario flies a short run whos
 commands stay finite. Anything else (another exception, a hang, a message without the file name)
 fails and Hypothesis shrinks it to a minimal input.
 
-The default run draws a few thousand cases (about a minute on two cores). Scale them with
+The default run draws about two thousand cases (about a minute on two cores once the kernels
+are compiled). Scale them with
 ``VTOLADAPT_FUZZ_SCALE`` (e.g. 10 for a long night); the draws are derandomised, so a run is
 reproducible and CI does not flake.
 """
@@ -180,7 +181,7 @@ BASE_VEHICLE_TEXT = (VEHICLE_DIR / "caltech_vtol.toml").read_text()
 BASE_VEHICLE = tomllib.loads(BASE_VEHICLE_TEXT)
 
 
-@fuzz_settings(400)
+@fuzz_settings(300)
 @given(mapping=mutated_mapping(BASE_SCENARIO, Scenario))
 def test_mutated_scenarios_are_accepted_or_refused_cleanly(mapping):
     try:
@@ -255,7 +256,7 @@ def in_range_mutation(draw):
     return mapping
 
 
-@fuzz_settings(6)
+@fuzz_settings(8)
 @given(mapping=in_range_mutation())
 def test_accepted_physical_mutations_fly_with_finite_state(mapping):
     from vtoladapt.simulate import simulate
@@ -286,7 +287,7 @@ def tunnel_files(tmp_path_factory):
     return Text(short), Text(side.read_text())
 
 
-@fuzz_settings(500)
+@fuzz_settings(400)
 @given(data=st.data())
 def test_mutated_force_balance_csv(tmp_path_factory, tunnel_files, data):
     from vtoladapt.fitting.data import read_force_balance_csv
@@ -341,7 +342,7 @@ def _json_text(doc) -> str:
     return json.dumps(doc, allow_nan=True)
 
 
-@fuzz_settings(250)
+@fuzz_settings(200)
 @given(data=st.data())
 def test_mutated_truth_side_file(tmp_path_factory, tunnel_files, data):
     from vtoladapt.fitting.cli import read_truth_checked
