@@ -361,15 +361,16 @@ def test_mutated_truth_side_file(tmp_path_factory, tunnel_files, data):
 # --- calibration, posterior and NASA PCF files -----------------------------------------------------------
 @pytest.fixture(scope="module")
 def probe_files(tmp_path_factory):
-    from vtoladapt.probe import ProbeTip, simulate_calibration_sweep
+    from vtoladapt.probe import ProbeTip, simulate_calibration_sweep, write_probe_csv
     from vtoladapt.probe.calibration import calibrate, save_calibration
 
     folder = tmp_path_factory.mktemp("probe")
     data = simulate_calibration_sweep(ProbeTip(), np.random.default_rng(1), n_rings=4, n_test=4)
     cal = save_calibration(folder / "calibration.json", calibrate(data, smoothing=1e-3))
+    csv_text = write_probe_csv(folder / "probe.csv", data).read_text()
     pcf_lines = (REPO_DATA_DIR / "nasa-multihole-probe" / "16328-1_M050.csv").read_text().splitlines()
     pcf = "\n".join(pcf_lines[:14] + pcf_lines[14::25]) + "\n"
-    return Text(cal.read_text()), Text(pcf)
+    return Text(cal.read_text()), Text(pcf), Text(csv_text)
 
 
 @fuzz_settings(60)
@@ -424,6 +425,20 @@ def test_mutated_nasa_pcf(tmp_path_factory, probe_files, data):
     path = _write(tmp_path_factory, "probe.pcf", data.draw(mutated_text(probe_files[1])))
     try:
         table = read_probe_data(path, "nasa")
+    except Exception as exc:  # noqa: BLE001
+        assert_clean(exc, str(path))
+        return
+    assert np.all(np.isfinite(table.alpha_deg)) and np.all(np.isfinite(table.beta_deg))
+
+
+@fuzz_settings(200)
+@given(data=st.data())
+def test_mutated_probe_csv(tmp_path_factory, probe_files, data):
+    from vtoladapt.probe.data import read_probe_data
+
+    path = _write(tmp_path_factory, "probe.csv", data.draw(mutated_text(probe_files[2])))
+    try:
+        table = read_probe_data(path, "csv")
     except Exception as exc:  # noqa: BLE001
         assert_clean(exc, str(path))
         return

@@ -64,7 +64,7 @@ def _temporary_name(path: Path) -> Path:
 _JSON_REPAIR_MAX_BYTES = 64 * 2**20
 
 __all__ = ["MANIFEST_NAME", "OutputDir", "OutputError", "add_force_argument", "atomic_path",
-           "output_path",
+           "output_path", "read_manifest",
            "check_output_files",
            "json_safe", "save_figure", "staged_files", "write_bytes", "write_json",
            "write_parquet", "write_text"]
