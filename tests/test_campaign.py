@@ -46,7 +46,7 @@ def test_bad_variation_fails_before_anything_runs(scenario_file, tmp_path):
         Variation.parse("plant.stall_angle_deg")
     with pytest.raises(ConfigError, match="LOW <= HIGH"):
         Variation.parse("plant.stall_angle_deg=12:10")
-    with pytest.raises(ConfigError, match=r"--workers = 0: must be >= 1"):
+    with pytest.raises(ConfigError, match=r"--workers = 0: out of range; allowed: >= 1"):
         run_campaign(plan_campaign(scenario_file, 1, []), tmp_path / "out", "none", n_workers=0)
     assert not (tmp_path / "out").exists()
 

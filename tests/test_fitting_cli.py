@@ -1,13 +1,10 @@
 """End to end through the CLI handlers: tunnel -> fit -> posterior.json -> controller prior."""
-import argparse
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import vtoladapt
-from vtoladapt.fitting.cli import register_cli
 from vtoladapt.fitting.posterior import controller_prior, load_posterior
 from conftest import REPO_DATA_DIR
 
@@ -15,11 +12,10 @@ DATA = REPO_DATA_DIR
 
 
 def run(argv) -> int:
-    parser = argparse.ArgumentParser(prog="vtoladapt")
-    sub = parser.add_subparsers(dest="command", required=True)
-    register_cli(sub)
-    args = parser.parse_args([str(a) for a in argv])
-    return args.handler(args)
+    """The command through ``vtoladapt.cli.main`` (errors: one line, exit code 2)."""
+    from vtoladapt.cli import main
+
+    return main([str(a) for a in argv])
 
 
 def test_tunnel_fit_posterior_end_to_end(tmp_path, capsys):
@@ -55,14 +51,14 @@ def test_fit_reports_malformed_csv(tmp_path, capsys):
     bad = tmp_path / "bad.csv"
     bad.write_text("airspeed_mps,alpha_deg,beta_deg,throttle_x_pct,throttle_z_pct,force_x_N,force_y_N,force_z_N\n"
                    "5,0,0,0,0,1,0,2\n5,0,0,150,0,1,0,2\n")
-    assert run(["fit", bad, "--out", tmp_path / "o"]) == 1
+    assert run(["fit", bad, "--out", tmp_path / "o"]) == 2
     err = capsys.readouterr().err
     assert "line 3" in err and "column 'throttle_x_pct'" in err and "vtoladapt fit: error" in err
     assert not (tmp_path / "o" / "posterior.json").exists()
 
 
 def test_tunnel_rejects_unknown_vehicle(tmp_path, capsys):
-    assert run(["tunnel", "--vehicle", "nope", "--out", tmp_path / "x.csv"]) == 1
+    assert run(["tunnel", "--vehicle", "nope", "--out", tmp_path / "x.csv"]) == 2
     assert "unknown name" in capsys.readouterr().err
 
 

@@ -3,24 +3,21 @@ from __future__ import annotations
 
 from conftest import REPO_DATA_DIR
 
-import argparse
 import json
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from vtoladapt.probe import ProbeTip, simulate_calibration_sweep, write_probe_csv
-from vtoladapt.probe.cli import register_cli
 
 NASA = REPO_DATA_DIR / "nasa-multihole-probe"
 
 
 def run_cli(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="vtoladapt")
-    register_cli(parser.add_subparsers(dest="command"))
-    args = parser.parse_args(argv)
-    return args.handler(args)
+    """The command through ``vtoladapt.cli.main`` (errors: one line, exit code 2)."""
+    from vtoladapt.cli import main
+
+    return main(argv)
 
 
 def _check_metrics(path: Path, points: str) -> dict:

@@ -5,8 +5,13 @@
 ``[lo, hi]`` for a dotted scenario key), validates every variant before anything runs, then runs
 them on a Dask cluster: a local one by default (one process per core), or an existing scheduler
 (``--scheduler tcp://host:8786``) when a campaign outgrows one machine, or in this process
-on one thread per core (``--scheduler none``: no worker processes to start). It writes ``campaign.parquet`` (one row per run: the drawn values and the
-run's metrics), ``summary.json`` and a histogram figure.
+on one thread per core (``--scheduler none``: no worker processes to start). It writes
+``campaign.parquet`` (one row per run: the drawn values and the run's metrics),
+``summary.json`` and a histogram figure.
+
+The local cluster's scheduler, workers and status page listen on ``127.0.0.1`` only (another
+address with ``--listen``); connecting to a given scheduler gives up after
+:data:`SCHEDULER_CONNECT_TIMEOUT_S` with a one-line error.
 
 All draws come from ``numpy.random.default_rng(scenario seed)``: the same command gives the same
 campaign, whatever the cluster.
@@ -14,7 +19,6 @@ campaign, whatever the cluster.
 from __future__ import annotations
 
 import copy
-import json
 import math
 import os
 import sys
@@ -24,7 +28,13 @@ from typing import Optional
 
 import numpy as np
 
-from .config import ConfigError, read_toml
+from .config import ConfigError, check_flag, read_toml
+from .outputs import OutputDir, add_force_argument, output_path, write_json, write_parquet
+
+SCHEDULER_CONNECT_TIMEOUT_S = 5.0
+"""How long ``--scheduler ADDRESS`` waits for the scheduler to answer."""
+LOOPBACK = "127.0.0.1"
+SCHEDULER_SCHEMES = ("tcp://", "tls://", "ucx://", "inproc://", "ws://", "wss://")
 
 
 @dataclass(frozen=True)
@@ -41,6 +51,8 @@ class Variation:
         try:
             key, rng = text.split("=", 1)
             low, high = (float(v) for v in rng.split(":"))
+            if not key.strip() or any(not part for part in key.strip().split(".")):
+                raise ValueError(key)
         except ValueError:
             raise ConfigError(f"--vary {text!r}: expected KEY=LOW:HIGH, e.g. plant.coefficients.CL1=2.8:3.6") \
                 from None
@@ -70,15 +82,36 @@ def _set_dotted(mapping: dict, key: str, value) -> None:
 
 
 def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variation],
-                  seed: Optional[int] = None) -> list[RunSpec]:
-    """Draw and validate every run before any runs (a bad key or value fails here, naming it)."""
-    if runs < 1:
-        raise ConfigError(f"--runs = {runs}: must be >= 1")
-    from .scenario import scenario_from_mapping
+                  seed: Optional[int] = None, controller: Optional[str] = None) -> list[RunSpec]:
+    """Draw and validate every run before any runs (a bad key or value fails here, naming it).
 
+    A campaign flies single runs of one controller: a scenario whose ``[experiment]`` is a
+    comparison or convergence study needs ``controller`` (``--controller``), rather than
+    silently flying only its ``[controller] kind``.
+    """
+    from .config import check_value
+    from .control.config import ControllerConfig
+    from .limits import check_campaign_runs, check_run_size
+    from .scenario import Scenario, scenario_from_mapping
+
+    runs = check_flag("--runs", runs, ge=1, integer=True)
+    if seed is not None:
+        seed = check_value(Scenario, "seed", seed, "--seed")
     path = Path(scenario_path)
     base = read_toml(path)
     base_scenario = scenario_from_mapping(base, str(path))
+    if controller is not None:
+        controller = check_value(ControllerConfig, "kind", controller, "--controller")
+        base = copy.deepcopy(base)
+        base.setdefault("controller", {})["kind"] = controller
+        base_scenario = scenario_from_mapping(base, str(path))
+    elif base_scenario.experiment.kind != "single":
+        raise ConfigError(
+            f"{path}: [experiment] kind = {base_scenario.experiment.kind!r}: a campaign flies "
+            f"single runs of one controller and would fly only [controller] kind = "
+            f"{base_scenario.controller.kind!r}; pass --controller ID to say which")
+    check_campaign_runs(runs, base)
+    check_run_size(base_scenario, f"{path} (each campaign run)", n_runs=os.cpu_count() or 1)
     rng = np.random.default_rng(base_scenario.seed if seed is None else seed)
     specs = []
     for i in range(runs):
@@ -109,67 +142,120 @@ def run_one(spec: RunSpec) -> dict:
     return row
 
 
+MAX_WORKERS = 1024
+"""Most local worker processes or threads (each holds one run's log)."""
+
+
+def connect_scheduler(address: str):
+    """A Dask client of the scheduler at ``address``; a one-line ``ConfigError`` if none answers
+    within :data:`SCHEDULER_CONNECT_TIMEOUT_S`."""
+    from dask.distributed import Client
+
+    _check_scheduler(address)
+    try:
+        return Client(address, timeout=SCHEDULER_CONNECT_TIMEOUT_S)
+    except (OSError, TimeoutError, ValueError) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise ConfigError(f"--scheduler {address!r}: no Dask scheduler answered within "
+                          f"{SCHEDULER_CONNECT_TIMEOUT_S:g} s ({reason[:200]})") from None
+
+
+def local_cluster(n_workers: Optional[int] = None, listen: str = LOOPBACK):
+    """The campaign's local Dask cluster: one single-threaded worker process per core.
+
+    Scheduler, workers (and their nannies) and the status page all listen on ``listen``
+    (loopback by default, so nothing is reachable from the network), each on a free port so two
+    campaigns can run at once.
+    """
+    from dask.distributed import LocalCluster
+
+    return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, host=listen,
+                        dashboard_address=f"{listen}:0")
+
+
+def _check_scheduler(address: str) -> None:
+    if address in ("local", "none"):
+        return
+    if not address.startswith(SCHEDULER_SCHEMES) and ":" not in address:
+        raise ConfigError(f"--scheduler {address!r}: expected 'local', 'none' or an address such "
+                          "as tcp://host:8786")
+
+
 def run_campaign(specs: list[RunSpec], out: Path, scheduler: Optional[str] = "local",
-                 n_workers: Optional[int] = None, show_progress: bool = True) -> list[dict]:
+                 n_workers: Optional[int] = None, show_progress: bool = True,
+                 listen: str = LOOPBACK) -> list[dict]:
     """Run the planned campaign and write ``campaign.parquet``, ``summary.json``, ``fig_campaign.png``.
 
-    ``scheduler``: ``"local"`` (a LocalCluster, one single-threaded process per core),
-    ``"none"`` (in this process, ``n_workers`` threads, default one per core), or a scheduler
-    address.
+    ``scheduler``: ``"local"`` (a LocalCluster, one single-threaded process per core, every
+    socket on ``listen``), ``"none"`` (in this process, ``n_workers`` threads, default one per
+    core), or a scheduler address.
     """
-    if n_workers is not None and n_workers < 1:
-        raise ConfigError(f"--workers = {n_workers}: must be >= 1 (or left out: one per core)")
+    if n_workers is not None:
+        check_flag("--workers", n_workers, ge=1, le=MAX_WORKERS, integer=True)
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    bar = None
-    if show_progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(specs), unit="run", desc="campaign", file=sys.stderr)
-    rows = []
+    rows: list[dict] = []
     if scheduler in (None, "none"):
         # the compiled loop releases the GIL: threads give every core a run without new processes
-        from concurrent.futures import ThreadPoolExecutor
+        from concurrent.futures import ThreadPoolExecutor, as_completed
 
-        with ThreadPoolExecutor(max_workers=n_workers if n_workers is not None else os.cpu_count() or 1) as pool:
-            for row in pool.map(run_one, specs):
-                rows.append(row)
-                if bar is not None:
-                    bar.update(1)
+        pool = ThreadPoolExecutor(max_workers=n_workers if n_workers is not None else os.cpu_count() or 1)
+        bar = _progress(len(specs), show_progress)
+        try:
+            for fut in as_completed([pool.submit(run_one, spec) for spec in specs]):
+                rows.append(fut.result())
+                bar.update(1)
+        finally:
+            bar.close()
+            # on an error or Ctrl-C no queued run starts; running ones finish their chunk
+            pool.shutdown(wait=False, cancel_futures=True)
     else:
-        from dask.distributed import Client, LocalCluster, as_completed
+        from dask.distributed import Client, as_completed
 
         cluster = None
         if scheduler == "local":
-            cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=":0")  # any free port: two campaigns may run at once
+            cluster = local_cluster(n_workers, listen)
             client = Client(cluster)
         else:
-            client = Client(scheduler)
+            client = connect_scheduler(scheduler)
+        bar = _progress(len(specs), show_progress)
         try:
             futures = client.map(run_one, specs, pure=False)
             for fut in as_completed(futures):
                 rows.append(fut.result())
-                if bar is not None:
-                    bar.update(1)
+                bar.update(1)
         finally:
+            bar.close()
             client.close()
             if cluster is not None:
                 cluster.close()
-    if bar is not None:
-        bar.close()
     rows.sort(key=lambda r: r["run"])
+    out.mkdir(parents=True, exist_ok=True)
     _write_outputs(rows, out, tuple(k for k in specs[0].drawn if k != "seed") if specs else ())
     return rows
 
 
+class _NoProgress:
+    def update(self, n: int) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+def _progress(total: int, show: bool):
+    if not show:
+        return _NoProgress()
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="run", desc="campaign", file=sys.stderr)
+
+
 def _write_outputs(rows: list[dict], out: Path, varied: tuple[str, ...] = ()) -> None:
     import pyarrow as pa
-    import pyarrow.parquet as pq
 
     keys = list(rows[0])
     table = pa.table({k: [r.get(k, float("nan")) for r in rows] for k in keys})
-    pq.write_table(table, out / "campaign.parquet")
+    write_parquet(table, out / "campaign.parquet")
     summary = {}
     for k in keys:
         vals = np.array([r.get(k, np.nan) for r in rows], dtype=float)
@@ -178,7 +264,7 @@ def _write_outputs(rows: list[dict], out: Path, varied: tuple[str, ...] = ()) ->
         summary[k] = {"mean": float(np.nanmean(vals)), "std": float(np.nanstd(vals)),
                       "min": float(np.nanmin(vals)), "p95": float(np.nanpercentile(vals, 95)),
                       "max": float(np.nanmax(vals))}
-    (out / "summary.json").write_text(json.dumps({"runs": len(rows), "columns": summary}, indent=2))
+    write_json(out / "summary.json", {"runs": len(rows), "columns": summary})
     figure_campaign_png(rows, out / "fig_campaign.png", varied)
 
 
@@ -220,19 +306,46 @@ def register_cli(subparsers) -> None:
     p.add_argument("--runs", type=int, required=True, help="number of runs")
     p.add_argument("--vary", action="append", default=[], metavar="KEY=LOW:HIGH",
                    help="draw this dotted scenario key uniformly per run (repeatable)")
-    p.add_argument("--out", type=Path, required=True, help="output directory")
+    p.add_argument("--out", type=output_path, required=True, help="output directory")
     p.add_argument("--scheduler", default="local",
                    help="'local' (default: a local Dask cluster), 'none' (this process, threads) or an address")
+    p.add_argument("--listen", default=LOOPBACK, metavar="HOST",
+                   help=f"address the local cluster's scheduler, workers and status page listen on "
+                        f"(default {LOOPBACK}: this machine only)")
+    p.add_argument("--controller", default=None,
+                   help="controller to fly (required for a comparison or convergence scenario)")
     p.add_argument("--workers", type=int, default=None,
                    help="local cluster processes or in-process threads (default: cores)")
     p.add_argument("--seed", type=int, default=None, help="campaign seed (default: the scenario's)")
     p.add_argument("--quiet", action="store_true")
+    add_force_argument(p)
     p.set_defaults(handler=_cmd_campaign)
 
 
+def _check_listen(host: str) -> None:
+    import ipaddress
+    import re
+
+    try:
+        ipaddress.ip_address(host)
+        return
+    except ValueError:
+        pass
+    if not re.fullmatch(r"[A-Za-z0-9]([A-Za-z0-9.-]{0,251}[A-Za-z0-9])?", host):
+        raise ConfigError(f"--listen {host!r}: not an IP address or host name")
+
+
 def _cmd_campaign(args) -> int:
-    specs = plan_campaign(args.scenario, args.runs, [Variation.parse(v) for v in args.vary], args.seed)
-    rows = run_campaign(specs, args.out, args.scheduler, args.workers, not args.quiet)
+    variations = [Variation.parse(v) for v in args.vary]
+    _check_listen(args.listen)
+    _check_scheduler(args.scheduler)
+    target = OutputDir(args.out, "campaign", force=args.force)
+    if args.workers is not None:
+        check_flag("--workers", args.workers, ge=1, le=MAX_WORKERS, integer=True)
+    specs = plan_campaign(args.scenario, args.runs, variations, args.seed, args.controller)
+    with target:
+        rows = run_campaign(specs, target.path, args.scheduler, args.workers, not args.quiet,
+                            listen=args.listen)
     v = np.array([r["vel_err_rms_mps"] for r in rows])
     print(f"{len(rows)} runs: RMS velocity error mean {v.mean():.4f} m/s, max {v.max():.4f} m/s; "
           f"wrote {args.out}/campaign.parquet, summary.json, fig_campaign.png")

@@ -8,17 +8,27 @@
     vtoladapt probe calibrate / evaluate    airflow-probe calibration
     vtoladapt replay LOG --vehicle NAME     replay a real PX4 flight log (open-loop adaptation)
 
-Every command validates its input before writing anything and exits with status 2 and a message
-naming the bad file, key and value on a configuration error.
+Every command validates its input before writing anything. Exit status (one convention for all,
+:class:`vtoladapt.errors.ExitCode`): 0 done, 1 the run failed, 2 bad input (a one-line message
+naming the file, key and value), 3 fit not converged (``--require-converged``), 130
+interrupted. ``--debug`` (anywhere on the line) adds the traceback. Outputs follow
+:mod:`vtoladapt.outputs`: no foreign file is overwritten, no file is left truncated.
+
+A sub-command registers itself with a function ``register(subparsers)`` in
+:func:`build_parser`; its handler ``handler(args) -> int`` returns the exit code and raises
+for errors (``ConfigError`` for bad input), which :func:`main` reports.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
-from pathlib import Path
+import traceback
 
-from .config import ConfigError
+from .config import check_value
+from .errors import ExitCode, exit_code_for, one_line
+from .outputs import OutputDir, add_force_argument, output_path
 
 
 def _add_run(sub) -> None:
@@ -26,12 +36,13 @@ def _add_run(sub) -> None:
                        description="Run a scenario and write log.parquet (per run), metrics.json and "
                                    "figures into --out.")
     p.add_argument("scenario", help="scenario TOML (or the name of a shipped scenario)")
-    p.add_argument("--out", required=True, type=Path, help="output directory")
+    p.add_argument("--out", required=True, type=output_path, help="output directory")
     p.add_argument("--duration", type=float, default=None, help="override duration_s (s)")
     p.add_argument("--seed", type=int, default=None, help="override the seed")
     p.add_argument("--controller", default=None,
                    help="override [controller] kind: an id of vtoladapt.control.registry (that controller only)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_force_argument(p)
     p.set_defaults(handler=_cmd_run)
 
 
@@ -39,10 +50,12 @@ def _add_reproduce(sub) -> None:
     p = sub.add_parser("reproduce", help="reproduce the paper's experiments, figures and report",
                        description="Run the convergence and comparison experiments of the paper and "
                                    "write figures, metrics.json, report.md and report.html into --out.")
-    p.add_argument("--out", required=True, type=Path, help="output directory")
+    p.add_argument("--out", required=True, type=output_path, help="output directory")
     p.add_argument("--duration-scale", type=float, default=1.0,
-                   help="scale every experiment's duration (e.g. 0.1 for a quick look)")
+                   help="scale every experiment's duration (e.g. 0.1 for a quick look; "
+                        f"{DURATION_SCALE_MIN:g} to {DURATION_SCALE_MAX:g})")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_force_argument(p)
     p.set_defaults(handler=_cmd_reproduce)
 
 
@@ -55,19 +68,75 @@ def _add_vehicle(sub) -> None:
     show.set_defaults(handler=_cmd_vehicle_show)
 
 
-def _cmd_run(args) -> int:
-    from .experiments import run_scenario_file
+def load_run_scenario(path, duration_s=None, seed=None, controller=None):
+    """The scenario of ``vtoladapt run`` with its command-line overrides, fully validated.
 
-    run_scenario_file(args.scenario, args.out, duration_s=args.duration, seed=args.seed,
-                      controller=args.controller, show_progress=not args.quiet)
-    return 0
+    The overrides go through the same checks as the file's keys (``--duration`` has
+    ``duration_s``'s range), and the logs must fit the memory budget (:mod:`vtoladapt.limits`).
+    """
+    from dataclasses import replace
+
+    from .control.config import ControllerConfig
+    from .limits import check_run_size
+    from .scenario import Scenario, load_scenario
+
+    scenario = load_scenario(path)
+    if duration_s is not None:
+        scenario = replace(scenario, duration_s=check_value(Scenario, "duration_s", duration_s,
+                                                            "--duration"))
+    if seed is not None:
+        scenario = replace(scenario, seed=check_value(Scenario, "seed", seed, "--seed"))
+    if controller is not None:
+        kind = check_value(ControllerConfig, "kind", controller, "--controller")
+        scenario = replace(scenario, controller=replace(scenario.controller, kind=kind))
+        if scenario.experiment.kind == "comparison":  # compare just this one
+            scenario = replace(scenario, experiment=replace(scenario.experiment, controllers=(kind,)))
+    where = f"{scenario.source_path}" + (" with --duration" if duration_s is not None else "")
+    check_run_size(scenario, where)
+    return scenario
+
+
+def _cmd_run(args) -> int:
+    from .experiments import run_experiment
+
+    scenario = load_run_scenario(args.scenario, args.duration, args.seed, args.controller)
+    target = OutputDir(args.out, "run", force=args.force)
+    with target:
+        run_experiment(scenario, target.path, show_progress=not args.quiet)
+    if not args.quiet:
+        print(f"wrote {args.out}/metrics.json, report.md, report.html and figures", file=sys.stderr)
+    return ExitCode.OK
+
+
+DURATION_SCALE_MIN = 0.02
+"""Shortest ``reproduce --duration-scale``: the comparison's wind schedule keeps whole control
+ticks in every phase and the metrics' windows (e.g. 5 s after the fan stops) stay non-empty."""
+DURATION_SCALE_MAX = 10.0
 
 
 def _cmd_reproduce(args) -> int:
+    from .config import check_flag
     from .experiments import reproduce
 
-    reproduce(args.out, duration_scale=args.duration_scale, show_progress=not args.quiet)
-    return 0
+    check_flag("--duration-scale", args.duration_scale, ge=DURATION_SCALE_MIN,
+               le=DURATION_SCALE_MAX)
+    _check_reproduce_size(args.duration_scale)
+    target = OutputDir(args.out, "reproduce", force=args.force)
+    with target:
+        reproduce(target.path, duration_scale=args.duration_scale, show_progress=not args.quiet)
+    return ExitCode.OK
+
+
+def _check_reproduce_size(scale: float) -> None:
+    from dataclasses import replace
+
+    from .limits import check_run_size
+    from .scenario import SCENARIO_DIR, load_scenario
+
+    for name in ("paper_convergence", "paper_comparison"):
+        sc = load_scenario(SCENARIO_DIR / f"{name}.toml")
+        check_run_size(replace(sc, duration_s=sc.duration_s * scale),
+                       f"--duration-scale {scale:g} ({name})")
 
 
 def _cmd_vehicle_list(args) -> int:
@@ -119,34 +188,60 @@ def format_vehicle(name_or_path) -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``vtoladapt`` parser: every sub-command registers itself here."""
     from .campaign import register_cli as register_campaign
     from .fitting.cli import register_cli as register_fitting
     from .probe.cli import register_cli as register_probe
     from .replay.cli import register_cli as register_replay
 
     parser = argparse.ArgumentParser(prog="vtoladapt", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--debug", action="store_true",
+                        help="show the traceback of an error (accepted anywhere on the line)")
     sub = parser.add_subparsers(dest="command", required=True)
-    _add_reproduce(sub)
-    _add_run(sub)
-    _add_vehicle(sub)
-    register_campaign(sub)
-    register_fitting(sub)
-    register_probe(sub)
-    register_replay(sub)
+    for register in (_add_reproduce, _add_run, _add_vehicle, register_campaign, register_fitting,
+                     register_probe, register_replay):
+        register(sub)
     return parser
 
 
+def _command_name(args: argparse.Namespace) -> str:
+    parts = [getattr(args, "command", None)]
+    for sub in ("vehicle_cmd", "probe_command"):
+        if getattr(args, sub, None):
+            parts.append(getattr(args, sub))
+    return " ".join(p for p in parts if p)
+
+
+_LABELS = {ExitCode.BAD_INPUT: "error", ExitCode.RUN_FAILED: "run failed",
+           ExitCode.INTERRUPTED: "interrupted"}
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    """Run the command line ``argv`` (default ``sys.argv[1:]``) and return the exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv or os.environ.get("VTOLADAPT_DEBUG", "") not in ("", "0")
+    argv = [a for a in argv if a != "--debug"]
+    name = "vtoladapt"
     try:
+        parser = build_parser()
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exc:  # --help (0) or a usage error (2, already printed)
+            return int(exc.code or 0) if not isinstance(exc.code, str) else ExitCode.BAD_INPUT
+        name = f"vtoladapt {_command_name(args)}"
         return int(args.handler(args) or 0)
-    except ConfigError as exc:
-        print(f"vtoladapt: configuration error: {exc}", file=sys.stderr)
-        return 2
-    except (FileNotFoundError, ValueError) as exc:
-        print(f"vtoladapt: error: {exc}", file=sys.stderr)
-        return 2
+    except KeyboardInterrupt:
+        if debug:
+            traceback.print_exc()
+        print(f"{name}: interrupted; outputs completed so far are kept, none is truncated",
+              file=sys.stderr)
+        return ExitCode.INTERRUPTED
+    except Exception as exc:  # every error becomes one line and an exit code
+        if debug:
+            traceback.print_exc()
+        code = exit_code_for(exc)
+        print(f"{name}: {_LABELS.get(code, 'error')}: {one_line(exc)}", file=sys.stderr)
+        return int(code)
 
 
 if __name__ == "__main__":

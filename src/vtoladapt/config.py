@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import math
+import os
+import re
 import tomllib
 import types
 import typing
@@ -20,6 +23,48 @@ from typing import Any, Mapping
 
 class ConfigError(ValueError):
     """A configuration file or mapping is invalid; the message says where and why."""
+
+
+MEMORY_BUDGET_BYTES = int(float(os.environ.get("VTOLADAPT_MEMORY_BUDGET_GB", "6")) * 2**30)
+"""The most memory one command may plan to hold in its large arrays (simulation logs, chains,
+tables): 6 GiB by default (a quarter of a 24 GiB machine, leaving room for copies made while
+computing metrics and figures); set ``VTOLADAPT_MEMORY_BUDGET_GB`` to change it. Size ceilings
+(``--duration`` x rate, ``--runs``, ``--repeats``, ``--walkers``) follow from it."""
+
+MAX_INPUT_FILE_BYTES = 256 * 2**20
+"""Configuration and data files larger than this are refused before they are read."""
+
+
+def check_memory(what: str, n_bytes: float, where: str, hint: str = "") -> None:
+    """Refuse a size whose arrays would exceed :data:`MEMORY_BUDGET_BYTES`.
+
+    ``what`` says how the bytes were counted (e.g. "5 runs x 900000 log rows x 122 columns x
+    8 bytes"); the message names ``where`` (the flag or key), the need and the budget.
+    """
+    if n_bytes > MEMORY_BUDGET_BYTES:
+        extra = f"; {hint}" if hint else ""
+        raise ConfigError(
+            f"{where}: needs {n_bytes / 2**30:.3g} GiB ({what}), over the memory budget of "
+            f"{MEMORY_BUDGET_BYTES / 2**30:.3g} GiB (VTOLADAPT_MEMORY_BUDGET_GB){extra}")
+
+
+def check_value(cls: type, name: str, value: Any, where: str) -> Any:
+    """Validate one value against field ``name`` of settings class ``cls``; return it converted.
+
+    Command-line flags that override a file key go through here, so a flag and the key have the
+    same range and the same messages (``where`` is the flag, e.g. ``"--duration"``).
+    """
+    f = {f.name: f for f in dataclasses.fields(cls)}[name]
+    hints = _type_hints(cls)
+    return _convert(value, hints[name], f.metadata, where, where)
+
+
+def check_flag(where: str, value: Any, *, unit: str = "-", ge: float | None = None,
+               gt: float | None = None, le: float | None = None, lt: float | None = None,
+               integer: bool = False) -> Any:
+    """Validate a command-line number that has no settings field (same rules and messages)."""
+    meta = {"unit": unit, "gt": gt, "ge": ge, "lt": lt, "le": le}
+    return _convert(value, int if integer else float, meta, where, where)
 
 
 _MISSING = dataclasses.MISSING
@@ -36,13 +81,15 @@ def setting(
     le: float | None = None,
     length: int | None = None,
     choices: tuple | None = None,
+    pattern: str | None = None,
 ) -> Any:
     """Declare a configuration field with its unit, meaning and allowed values.
 
-    Bounds apply to a scalar, or to every element of a tuple (and of nested tuples).
+    Bounds apply to a scalar, or to every element of a tuple (and of nested tuples). ``pattern``
+    is a regular expression a text value must match in full (e.g. names used in file names).
     """
     meta = {"unit": unit, "doc": doc, "gt": gt, "ge": ge, "lt": lt, "le": le,
-            "length": length, "choices": choices}
+            "length": length, "choices": choices, "pattern": pattern}
     if default is _MISSING:
         return dataclasses.field(metadata=meta)
     if isinstance(default, (list, dict, set)):
@@ -50,8 +97,33 @@ def setting(
     return dataclasses.field(default=default, metadata=meta)
 
 
+MAX_STRING_CHARS = 4096
+"""Longest text value of a setting (names, paths, descriptions)."""
+
+PATH_PATTERN = r"(?!.*[^/]{256})[^\x00]{1,4096}"
+"""``setting(pattern=...)`` of a file path: no NUL, no name in it longer than 255 characters."""
+NAME_PATTERN = r"[A-Za-z0-9_.-]{1,64}"
+"""``setting(pattern=...)`` of a name used in file names."""
+_PATTERN_TEXT = {PATH_PATTERN: "a file path (no NUL character, no name in it over 255 characters)",
+                 NAME_PATTERN: "1 to 64 letters, digits, '_', '.' or '-'"}
+
+
+def _shown(value: Any) -> str:
+    """``repr(value)`` cut to 60 characters for messages."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:45] + "..." + text[-12:]
+
+
+def _key_text(key: Any) -> str:
+    """A key as the user would type it, quoted when it is not a plain TOML bare key."""
+    text = str(key)
+    if re.fullmatch(r"[A-Za-z0-9_-]{1,64}", text):
+        return text
+    return _shown(text)
+
+
 def _where(source: str, section: str, key: str) -> str:
-    return f"{source}: [{section}] {key}" if section else f"{source}: {key}"
+    return f"{source}: [{section}] {_key_text(key)}" if section else f"{source}: {_key_text(key)}"
 
 
 def _allowed_text(meta: Mapping[str, Any]) -> str:
@@ -66,15 +138,25 @@ def _allowed_text(meta: Mapping[str, Any]) -> str:
     return f"{text} ({unit})" if unit and unit != "-" else text
 
 
+MAGNITUDE_MAX = 1e9
+"""Every number with no declared bound on a side is still bounded there by this magnitude, so no
+setting is unbounded (fields should declare their physical range; this is the safety net)."""
+
+
 def _check_scalar(value: float, meta: Mapping[str, Any], where: str) -> None:
     if not math.isfinite(value):
-        raise ConfigError(f"{where} = {value!r}: must be finite; allowed: {_allowed_text(meta)}")
+        raise ConfigError(f"{where} = {_shown(value)}: must be finite; allowed: {_allowed_text(meta)}")
+    no_upper = meta.get("lt") is None and meta.get("le") is None
+    no_lower = meta.get("gt") is None and meta.get("ge") is None
+    if (no_upper and value > MAGNITUDE_MAX) or (no_lower and value < -MAGNITUDE_MAX):
+        raise ConfigError(f"{where} = {_shown(value)}: out of range; allowed: {_allowed_text(meta)}"
+                          f" and magnitude <= {MAGNITUDE_MAX:g}")
     bad = ((meta.get("gt") is not None and not value > meta["gt"])
            or (meta.get("ge") is not None and not value >= meta["ge"])
            or (meta.get("lt") is not None and not value < meta["lt"])
            or (meta.get("le") is not None and not value <= meta["le"]))
     if bad:
-        raise ConfigError(f"{where} = {value!r}: out of range; allowed: {_allowed_text(meta)}")
+        raise ConfigError(f"{where} = {_shown(value)}: out of range; allowed: {_allowed_text(meta)}")
 
 
 def _convert(value: Any, tp: Any, meta: Mapping[str, Any], where: str, source: str) -> Any:
@@ -87,34 +169,44 @@ def _convert(value: Any, tp: Any, meta: Mapping[str, Any], where: str, source: s
     if origin is tuple:
         args = typing.get_args(tp)
         if not isinstance(value, (list, tuple)):
-            raise ConfigError(f"{where} = {value!r}: must be a list; allowed: {_allowed_text(meta)}")
+            raise ConfigError(f"{where} = {_shown(value)}: must be a list; allowed: {_allowed_text(meta)}")
         if meta.get("length") is not None and len(value) != meta["length"]:
             raise ConfigError(
-                f"{where} = {value!r}: must have exactly {meta['length']} elements, has {len(value)}")
+                f"{where} = {_shown(value)}: must have exactly {meta['length']} elements, has {len(value)}")
         inner = args[0] if args else Any
         inner_meta = dict(meta, length=None)
         return tuple(_convert(v, inner, inner_meta, f"{where}[{i}]", source)
                      for i, v in enumerate(value))
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"{where} = {value!r}: must be a number; allowed: {_allowed_text(meta)}")
+            raise ConfigError(f"{where} = {_shown(value)}: must be a number; allowed: {_allowed_text(meta)}")
         value = float(value)
         _check_scalar(value, meta, where)
         return value
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{where} = {value!r}: must be a whole number; allowed: {_allowed_text(meta)}")
-        _check_scalar(float(value), meta, where)
+            raise ConfigError(f"{where} = {_shown(value)}: must be a whole number; allowed: {_allowed_text(meta)}")
+        if abs(value) >= 2**63:
+            raise ConfigError(f"{where} = {_shown(value)}: out of range; allowed: {_allowed_text(meta)}")
+        _check_scalar(value, meta, where)
         return value
     if tp is bool:
         if not isinstance(value, bool):
-            raise ConfigError(f"{where} = {value!r}: must be true or false")
+            raise ConfigError(f"{where} = {_shown(value)}: must be true or false")
         return value
     if tp is str:
         if not isinstance(value, str):
-            raise ConfigError(f"{where} = {value!r}: must be a string")
+            raise ConfigError(f"{where} = {_shown(value)}: must be a string")
+        if "\x00" in value:
+            raise ConfigError(f"{where} = {_shown(value)}: contains a NUL character")
+        if len(value) > MAX_STRING_CHARS:
+            raise ConfigError(f"{where} = {_shown(value)}: {len(value)} characters; allowed: at "
+                              f"most {MAX_STRING_CHARS}")
+        if meta.get("pattern") and not re.fullmatch(meta["pattern"], value):
+            allowed = _PATTERN_TEXT.get(meta["pattern"], f"text matching {meta['pattern']}")
+            raise ConfigError(f"{where} = {_shown(value)}: not allowed; allowed: {allowed}")
         if meta.get("choices") and value not in meta["choices"]:
-            raise ConfigError(f"{where} = {value!r}: unknown; allowed: {_allowed_text(meta)}")
+            raise ConfigError(f"{where} = {_shown(value)}: unknown; allowed: {_allowed_text(meta)}")
         return value
     raise TypeError(f"unsupported configuration field type {tp!r} at {where}")
 
@@ -127,10 +219,16 @@ def _is_table_list(tp: Any) -> bool:
 
 def _build_table_list(tp: Any, value: Any, where: str, source: str, section: str) -> tuple:
     if not isinstance(value, (list, tuple)):
-        raise ConfigError(f"{where} = {value!r}: must be a list of tables ([[{section}]])")
+        raise ConfigError(f"{where} = {_shown(value)}: must be a list of tables ([[{section}]])")
     cls = typing.get_args(tp)[0]
     return tuple(build(cls, item, source=source, section=f"{section}[{i}]")
                  for i, item in enumerate(value))
+
+
+@functools.lru_cache(maxsize=None)
+def _type_hints(cls: type) -> dict[str, Any]:
+    """``typing.get_type_hints(cls)``, once per class (it dominated the cost of a build)."""
+    return typing.get_type_hints(cls)
 
 
 def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", section: str = "") -> Any:
@@ -146,17 +244,16 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
     if not isinstance(data, Mapping):
         raise ConfigError(f"{source}: [{section}] must be a table, got {data!r}")
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
-    hints = typing.get_type_hints(cls)
+    hints = _type_hints(cls)
     unknown = [k for k in data if k not in fields]
     if unknown:
         key = unknown[0]
         close = difflib.get_close_matches(key, list(fields), n=1)
-        hint = f"; did you mean '{close[0]}'?" if close else ""
-        shown = repr(data[key])
-        shown = shown if len(shown) <= 60 else shown[:57] + "..."
+        hint = f"; did you mean '{close[0]}'?" if close and isinstance(key, str) else ""
+        shown = _shown(data[key])
         # a class may say where a key it no longer has went (e.g. a gain moved to a sub-table)
         moved = getattr(cls, "moved_key", None)
-        moved_to = moved(key) if moved is not None else None
+        moved_to = moved(key) if moved is not None and isinstance(key, str) else None
         if moved_to:
             raise ConfigError(f"{_where(source, section, key)} = {shown}: {moved_to}")
         raise ConfigError(
@@ -185,16 +282,44 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
     return obj
 
 
-def read_toml(path: str | Path) -> dict[str, Any]:
-    """Parse a TOML file, turning a syntax error into a :class:`ConfigError` naming the file."""
+def check_input_file(path: str | Path, what: str = "file") -> Path:
+    """``path`` if it is a readable regular file within :data:`MAX_INPUT_FILE_BYTES`, else a
+    :class:`ConfigError` naming it (missing, a folder, unreadable, too large, name too long)."""
     path = Path(path)
+    shown = str(path) if len(str(path)) <= 120 else str(path)[:60] + "..." + str(path)[-40:]
     try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
+        st = path.stat()
     except FileNotFoundError:
-        raise ConfigError(f"{path}: file not found") from None
+        raise ConfigError(f"{shown}: {what} not found") from None
+    except OSError as exc:
+        raise ConfigError(f"{shown}: cannot read the {what}: {exc.strerror}") from None
+    if path.is_dir():
+        raise ConfigError(f"{shown}: is a folder; expected a {what}")
+    if not os.access(path, os.R_OK):
+        raise ConfigError(f"{shown}: no permission to read the {what}")
+    if st.st_size > MAX_INPUT_FILE_BYTES:
+        raise ConfigError(f"{shown}: {st.st_size / 2**20:.0f} MiB; a {what} may have at most "
+                          f"{MAX_INPUT_FILE_BYTES / 2**20:.0f} MiB")
+    return path
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """Parse a TOML file; a missing, unreadable, binary or invalid file is a :class:`ConfigError`
+    naming it."""
+    path = check_input_file(path, "TOML file")
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: not a text (UTF-8) file: byte {exc.start} is "
+                          f"0x{exc.object[exc.start]:02x}; expected TOML") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read: {exc.strerror}") from None
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: not valid TOML: nested too deeply") from None
 
 
 def describe(cls: type) -> list[tuple[str, str, str, str]]:

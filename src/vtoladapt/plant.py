@@ -58,17 +58,17 @@ UIUC_7X4_CT_RATIO_COEFFS = (-0.84419, -1.10227)
 class PlantCoefficients:
     """Optional overrides of the plant's true force-model coefficients (Table I units)."""
 
-    CTx: Optional[float] = setting("m/s^2 per %^2", "true pusher thrust coefficient", default=None, gt=0.0)
-    CTz: Optional[float] = setting("m/s^2 per %^2", "true lift thrust coefficient", default=None, gt=0.0)
+    CTx: Optional[float] = setting("m/s^2 per %^2", "true pusher thrust coefficient", default=None, gt=0.0, le=0.01)
+    CTz: Optional[float] = setting("m/s^2 per %^2", "true lift thrust coefficient", default=None, gt=0.0, le=0.01)
     CS: Optional[float] = setting("m/s^2 per (%^k1 (m/s)^(2-k1))", "true rotor side-force coefficient",
-                                  default=None, ge=0.0)
+                                  default=None, ge=0.0, le=0.01)
     k1: Optional[float] = setting("-", "true side-force exponent", default=None, gt=0.0, lt=2.0)
-    k2: Optional[float] = setting("rad", "true side-force offset", default=None, gt=math.pi / 2)
-    CD0: Optional[float] = setting("-", "true CD0", default=None, ge=0.0)
-    CD1: Optional[float] = setting("1/rad", "true CD1", default=None)
-    CD2: Optional[float] = setting("1/rad^2", "true CD2", default=None, ge=0.0)
-    CL0: Optional[float] = setting("-", "true CL0", default=None)
-    CL1: Optional[float] = setting("1/rad", "true CL1", default=None, gt=0.0)
+    k2: Optional[float] = setting("rad", "true side-force offset", default=None, gt=math.pi / 2, le=100.0)
+    CD0: Optional[float] = setting("-", "true CD0", default=None, ge=0.0, le=2.0)
+    CD1: Optional[float] = setting("1/rad", "true CD1", default=None, ge=-10.0, le=10.0)
+    CD2: Optional[float] = setting("1/rad^2", "true CD2", default=None, ge=0.0, le=20.0)
+    CL0: Optional[float] = setting("-", "true CL0", default=None, ge=-3.0, le=3.0)
+    CL1: Optional[float] = setting("1/rad", "true CL1", default=None, gt=0.0, le=10.0)
 
 
 @dataclass(frozen=True)
@@ -77,22 +77,22 @@ class PlantConfig:
 
     coefficients: PlantCoefficients = setting("-", "true coefficients (default: vehicle's Table I)",
                                               default=PlantCoefficients())
-    mass_kg: Optional[float] = setting("kg", "true mass (default: vehicle's)", default=None, gt=0.0)
+    mass_kg: Optional[float] = setting("kg", "true mass (default: vehicle's)", default=None, gt=0.0, le=150.0)
     inertia_kgm2: Optional[tuple[float, ...]] = setting(
-        "kg m^2", "true principal inertia (default: vehicle's)", default=None, gt=0.0, length=3)
-    air_density_kgpm3: Optional[float] = setting("kg/m^3", "true air density", default=None, gt=0.0)
+        "kg m^2", "true principal inertia (default: vehicle's)", default=None, gt=0.0, le=500.0, length=3)
+    air_density_kgpm3: Optional[float] = setting("kg/m^3", "true air density", default=None, gt=0.0, le=2.0)
     stall: bool = setting("-", "blend to flat-plate aerodynamics past stall", default=True)
     stall_angle_deg: float = setting("deg", "angle of attack where the blend is half way", default=16.0,
                                      gt=0.0, lt=60.0)
-    stall_blend_rate_per_rad: float = setting("1/rad", "sharpness M of the stall blend (Beard & McLain: 50)", default=50.0, gt=0.0)
+    stall_blend_rate_per_rad: float = setting("1/rad", "sharpness M of the stall blend (Beard & McLain: 50)", default=50.0, gt=0.0, le=1000.0)
     side_force: bool = setting("-", "aerodynamic side force C_Y(beta)", default=True)
-    CY_beta_per_rad: float = setting("1/rad", "side-force slope (fuselage and V-tail)", default=-0.3, le=0.0)
+    CY_beta_per_rad: float = setting("1/rad", "side-force slope (fuselage and V-tail)", default=-0.3, ge=-10.0, le=0.0)
     pusher_advance_ratio_loss: bool = setting("-", "pusher thrust falls with advance ratio (UIUC 7x4)",
                                               default=True)
-    pusher_static_CT: float = setting("-", "pusher static C_T (UIUC 7x4)", default=UIUC_7X4_STATIC_CT, gt=0.0)
+    pusher_static_CT: float = setting("-", "pusher static C_T (UIUC 7x4)", default=UIUC_7X4_STATIC_CT, gt=0.0, le=1.0)
     pusher_CT_ratio_coeffs: tuple[float, ...] = setting(
         "-", "a1, a2 of C_T(J)/C_T(0) = 1 + a1 J + a2 J^2 (UIUC 7x4)",
-        default=UIUC_7X4_CT_RATIO_COEFFS, length=2)
+        default=UIUC_7X4_CT_RATIO_COEFFS, ge=-10.0, le=10.0, length=2)
     motor_lag: bool = setting("-", "first-order motor lag (else motors follow commands instantly)",
                               default=True)
     lift_motor_time_constant_s: Optional[float] = setting("s", "true lift motor lag (default: vehicle's)",
@@ -103,9 +103,9 @@ class PlantConfig:
         "-", "the pusher's drag torque rolls the airframe (unmodelled by the controller); the lift "
         "rotors' yaw torques are always on: they are how the aircraft yaws", default=True)
     aero_rate_damping: bool = setting("-", "aerodynamic roll/pitch/yaw rate damping", default=True)
-    Clp: float = setting("-", "roll damping derivative", default=-0.4, le=0.0)
-    Cmq: float = setting("-", "pitch damping derivative (V-tail)", default=-6.0, le=0.0)
-    Cnr: float = setting("-", "yaw damping derivative", default=-0.15, le=0.0)
+    Clp: float = setting("-", "roll damping derivative", default=-0.4, ge=-100.0, le=0.0)
+    Cmq: float = setting("-", "pitch damping derivative (V-tail)", default=-6.0, ge=-100.0, le=0.0)
+    Cnr: float = setting("-", "yaw damping derivative", default=-0.15, ge=-100.0, le=0.0)
 
     def true_coefficients(self, vehicle: Vehicle) -> dict[str, float]:
         """The plant's coefficients in Table I units: vehicle's means with this config's overrides."""

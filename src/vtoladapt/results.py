@@ -118,9 +118,10 @@ class SimulationResult:
         meta = {b"vtoladapt_format": str(PARQUET_FORMAT_VERSION).encode(),
                 b"vtoladapt_metadata": json.dumps(self.metadata, default=_jsonable).encode()}
         table = table.replace_schema_metadata({**(table.schema.metadata or {}), **meta})
-        tmp = path.with_suffix(path.suffix + ".tmp")
-        pq.write_table(table, tmp)
-        tmp.replace(path)  # never leave a half-written log behind
+        from .outputs import atomic_path
+
+        with atomic_path(path) as tmp:  # never a half-written log; recorded in the folder's manifest
+            pq.write_table(table, tmp)
         return path
 
     @classmethod

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from .config import ConfigError, build, read_toml, setting
+from .config import NAME_PATTERN, PATH_PATTERN, ConfigError, build, read_toml, setting
 from .control.config import ControllerConfig
 from .control.registry import CONTROLLER_IDS
 from .plant import PlantConfig
@@ -30,9 +30,10 @@ SCENARIO_DIR = Path(__file__).with_name("scenarios")
 class InitialCondition:
     """Where the run starts; motors start at the plant's hover trim unless ``trimmed_motors`` is false."""
 
-    position_m: tuple[float, ...] = setting("m", "initial position, NED", default=(0.0, 0.0, -1.5), length=3)
+    position_m: tuple[float, ...] = setting("m", "initial position, NED", default=(0.0, 0.0, -1.5), ge=-1e4, le=1e4,
+                                          length=3)
     velocity_mps: tuple[float, ...] = setting("m/s", "initial velocity, NED", default=(0.0, 0.0, 0.0),
-                                              length=3)
+                                              ge=-100.0, le=100.0, length=3)
     yaw_deg: float = setting("deg", "initial heading (0 = north)", default=0.0, ge=-360.0, le=360.0)
     pitch_deg: float = setting("deg", "initial pitch", default=0.0, ge=-90.0, le=90.0)
     roll_deg: float = setting("deg", "initial roll", default=0.0, ge=-180.0, le=180.0)
@@ -46,12 +47,12 @@ class ReferenceConfig:
     kind: str = setting("-", "hold a point, or fly through timed waypoints", default="hold",
                         choices=("hold", "waypoints"))
     position_m: tuple[float, ...] = setting("m", "held position, NED (kind = hold)",
-                                            default=(0.0, 0.0, -1.5), length=3)
+                                            default=(0.0, 0.0, -1.5), ge=-1e4, le=1e4, length=3)
     yaw_deg: float = setting("deg", "held heading (0 = north, facing the fan array)", default=0.0,
                              ge=-360.0, le=360.0)
     waypoints: tuple[tuple[float, ...], ...] = setting(
         "s, m", "rows [t_s, north_m, east_m, down_m] (kind = waypoints); min-jerk between rows",
-        default=())
+        default=(), ge=-1e4, le=1e4)
 
     def _check(self, source: str) -> None:
         if self.kind != "waypoints":
@@ -74,7 +75,7 @@ class ControllerPrior:
 
     posterior: Optional[str] = setting(
         "-", "posterior.json from `vtoladapt fit` (path relative to the scenario); default: the "
-        "vehicle's Table I", default=None)
+        "vehicle's Table I", default=None, pattern=PATH_PATTERN)
     initial_theta: str = setting(
         "-", "theta-hat(0): 'theta0' (= theta_0), or 'random' (uniform within +-random_fraction of "
         "theta_0, clipped to the bounds, drawn from the scenario seed)", default="theta0",
@@ -107,12 +108,12 @@ class ExperimentConfig:
 class Scenario:
     """A validated scenario (see the module docstring)."""
 
-    name: str = setting("-", "short identifier, used in output file names")
-    vehicle: str = setting("-", "shipped vehicle name or path to a vehicle TOML")
+    name: str = setting("-", "short identifier, used in output file names", pattern=NAME_PATTERN)
+    vehicle: str = setting("-", "shipped vehicle name or path to a vehicle TOML", pattern=PATH_PATTERN)
     duration_s: float = setting("s", "simulated time", gt=0.0, le=3600.0)
-    seed: int = setting("-", "seed of every random draw in the run", default=0, ge=0)
+    seed: int = setting("-", "seed of every random draw in the run", default=0, ge=0, le=2**63 - 1)
     description: str = setting("-", "what the scenario is for", default="")
-    dt_control_s: float = setting("s", "controller period (250 Hz in the paper)", default=0.004, gt=0.0,
+    dt_control_s: float = setting("s", "controller period (250 Hz in the paper)", default=0.004, ge=1e-4,
                                   le=0.05)
     plant_substeps: int = setting("-", "RK4 plant steps per controller period (4 -> 1 kHz)", default=4,
                                   ge=1, le=100)

@@ -93,7 +93,7 @@ import numpy as np
 from numba import njit
 
 from . import layout
-from .config import build, setting
+from .config import PATH_PATTERN, build, setting
 from .frames import GRAVITY_MPS2
 from .probe import (ProbeTip, SDP33Sensor, calibrate_tip, incident_velocity_from_pressures,
                     load_calibration, probe_differential_pressures, sdp33_sensor_step)
@@ -227,23 +227,23 @@ class ImuConfig:
     ideal: bool = setting("-", "perfect IMU (true rate and specific force)", default=False)
     gyro_noise_density_dps_rtHz: float = setting(
         "deg/s/sqrt(Hz)", "gyro white-noise density (ICM-20689 / BMI088 class)", default=0.007,
-        ge=0.0)
+        ge=0.0, le=10.0)
     accel_noise_density_ug_rtHz: float = setting(
         "ug/sqrt(Hz)", "accelerometer white-noise density (ICM-20689 / BMI088 class)",
-        default=175.0, ge=0.0)
+        default=175.0, ge=0.0, le=1e5)
     gyro_bias_std_dps: float = setting(
         "deg/s", "std of the constant gyro bias left after start-up calibration", default=0.1,
-        ge=0.0)
+        ge=0.0, le=100.0)
     accel_bias_std_mps2: float = setting(
         "m/s^2", "std of the constant accelerometer bias left after calibration", default=0.05,
-        ge=0.0)
+        ge=0.0, le=10.0)
     gyro_bias_random_walk_dps_rts: float = setting(
-        "deg/s/sqrt(s)", "gyro bias random walk (0: constant bias)", default=0.0, ge=0.0)
+        "deg/s/sqrt(s)", "gyro bias random walk (0: constant bias)", default=0.0, ge=0.0, le=10.0)
     accel_bias_random_walk_mps2_rts: float = setting(
-        "m/s^2/sqrt(s)", "accelerometer bias random walk (0: constant bias)", default=0.0, ge=0.0)
-    gyro_range_dps: float = setting("deg/s", "gyro full-scale range", default=2000.0, gt=0.0)
+        "m/s^2/sqrt(s)", "accelerometer bias random walk (0: constant bias)", default=0.0, ge=0.0, le=10.0)
+    gyro_range_dps: float = setting("deg/s", "gyro full-scale range", default=2000.0, gt=0.0, le=1e4)
     accel_range_mps2: float = setting("m/s^2", "accelerometer full-scale range (16 g)",
-                                      default=16.0 * GRAVITY_MPS2, gt=0.0)
+                                      default=16.0 * GRAVITY_MPS2, gt=0.0, le=1e4)
 
 
 @dataclass(frozen=True)
@@ -252,15 +252,15 @@ class MocapConfig:
 
     ideal: bool = setting("-", "perfect, undelayed position and velocity", default=False)
     position_noise_std_m: float = setting("m", "position noise per axis (Vicon/OptiTrack ~0.5 mm)",
-                                          default=0.0005, ge=0.0)
+                                          default=0.0005, ge=0.0, le=10.0)
     velocity_from: str = setting(
         "-", "'direct': truth plus noise; 'differentiate': difference of the noisy positions, "
         "low-passed", default="direct", choices=VELOCITY_SOURCES)
     velocity_noise_std_mps: float = setting(
-        "m/s", "velocity noise per axis ('direct')", default=0.02, ge=0.0)
+        "m/s", "velocity noise per axis ('direct')", default=0.02, ge=0.0, le=10.0)
     velocity_lowpass_hz: float = setting(
         "Hz", "first-order low-pass cut-off on the differenced velocity ('differentiate'; "
-        "0: none)", default=20.0, ge=0.0)
+        "0: none)", default=20.0, ge=0.0, le=1e4)
     latency_s: float = setting(
         "s", "delay of position and velocity, rounded to whole control ticks", default=0.012,
         ge=0.0, le=0.25)
@@ -292,7 +292,7 @@ class ProbeConfig:
     ideal: bool = setting("-", "perfect, always valid incident velocity", default=False)
     model: str = setting("-", "'ideal_noise': truth, lag and noise; 'pressure': tip, SDP33 sensors and "
                          "calibration", default="ideal_noise", choices=PROBE_MODELS)
-    noise_std_mps: float = setting("m/s", "white noise per body axis (ideal_noise)", default=0.1, ge=0.0)
+    noise_std_mps: float = setting("m/s", "white noise per body axis (ideal_noise)", default=0.1, ge=0.0, le=10.0)
     time_constant_s: float = setting("s", "first-order lag (ideal_noise; SDP33 response < 3 ms)",
                                      default=0.003, ge=0.0, le=1.0)
     dropout_probability: float = setting(
@@ -300,7 +300,7 @@ class ProbeConfig:
         default=0.0, ge=0.0, le=1.0)
     min_airspeed_mps: float = setting(
         "m/s", "readings below this airspeed are flagged invalid (values kept)", default=1.0,
-        ge=0.0)
+        ge=0.0, le=100.0)
     tip: ProbeTip = setting("-", "tip geometry (pressure)", default=ProbeTip())
     sdp33: SDP33Sensor = setting("-", "the three differential-pressure sensors (pressure)",
                                  default=SDP33Sensor())
@@ -311,7 +311,7 @@ class ProbeConfig:
                                choices=("single_k", "calibrated"))
     calibration_file: Optional[str] = setting(
         "-", "calibration.json from `vtoladapt probe calibrate` (pressure); default: fitted to the "
-        "simulated tip", default=None)
+        "simulated tip", default=None, pattern=PATH_PATTERN)
 
     def describe(self) -> str:
         """One line on the probe model, for logs and reports."""

@@ -30,10 +30,10 @@ PARAMETER_NAMES = ("CTx", "CTz", "CS", "CD0", "CD1", "CD2", "CL0", "CL1")
 class MassProperties:
     """Mass and inertia about the centre of mass, body FRD axes."""
 
-    mass_kg: float = setting("kg", "take-off mass", gt=0.0)
+    mass_kg: float = setting("kg", "take-off mass (small UAS: <= 150 kg)", gt=0.0, le=150.0)
     inertia_kgm2: tuple[float, ...] = setting(
-        "kg m^2", "principal moments of inertia Ixx, Iyy, Izz", gt=0.0, length=3)
-    product_of_inertia_xz_kgm2: float = setting("kg m^2", "product of inertia Ixz", default=0.0)
+        "kg m^2", "principal moments of inertia Ixx, Iyy, Izz", gt=0.0, le=500.0, length=3)
+    product_of_inertia_xz_kgm2: float = setting("kg m^2", "product of inertia Ixz", default=0.0, ge=-500.0, le=500.0)
 
     def _check(self, source: str) -> None:
         ixx, iyy, izz = self.inertia_kgm2
@@ -55,17 +55,17 @@ class MassProperties:
 class Geometry:
     """Where things are on the airframe (body FRD, metres from the centre of mass)."""
 
-    wing_area_m2: float = setting("m^2", "reference wing area S_ref", gt=0.0)
-    wingspan_m: float = setting("m", "wingspan", gt=0.0)
+    wing_area_m2: float = setting("m^2", "reference wing area S_ref", gt=0.0, le=50.0)
+    wingspan_m: float = setting("m", "wingspan", gt=0.0, le=40.0)
     lift_rotor_positions_m: tuple[tuple[float, ...], ...] = setting(
         "m", "body x, y of the four lift rotors (front-right, rear-left, front-left, rear-right)",
-        length=4)
+        ge=-10.0, le=10.0, length=4)
     lift_rotor_spin: tuple[int, ...] = setting(
         "-", "+1 if the rotor turns clockwise seen from above (yaw reaction torque -z), else -1",
         length=4, choices=None)
-    lift_prop_diameter_m: float = setting("m", "lift propeller diameter", gt=0.0)
-    pusher_prop_diameter_m: float = setting("m", "pusher propeller diameter", gt=0.0)
-    pusher_prop_pitch_m: float = setting("m", "pusher propeller geometric pitch", gt=0.0)
+    lift_prop_diameter_m: float = setting("m", "lift propeller diameter", gt=0.0, le=3.0)
+    pusher_prop_diameter_m: float = setting("m", "pusher propeller diameter", gt=0.0, le=3.0)
+    pusher_prop_pitch_m: float = setting("m", "pusher propeller geometric pitch", gt=0.0, le=3.0)
 
     def _check(self, source: str) -> None:
         for i, pos in enumerate(self.lift_rotor_positions_m):
@@ -91,16 +91,16 @@ class ForceModelCoefficients:
     ``CL = CL0 + CL1 alpha``, ``CD = CD0 + CD1 alpha + CD2 alpha^2`` (alpha in rad).
     """
 
-    CTx: float = setting("m/s^2 per %^2", "pusher thrust coefficient", gt=0.0)
-    CTz: float = setting("m/s^2 per %^2", "total lift-rotor thrust coefficient", gt=0.0)
-    CS: float = setting("m/s^2 per (%^k1 (m/s)^(2-k1))", "rotor side-force coefficient", ge=0.0)
+    CTx: float = setting("m/s^2 per %^2", "pusher thrust coefficient (0.01: 10 g at full throttle)", gt=0.0, le=0.01)
+    CTz: float = setting("m/s^2 per %^2", "total lift-rotor thrust coefficient (0.01: 10 g at full throttle)", gt=0.0, le=0.01)
+    CS: float = setting("m/s^2 per (%^k1 (m/s)^(2-k1))", "rotor side-force coefficient", ge=0.0, le=0.01)
     k1: float = setting("-", "side-force exponent on rotor speed (eq:model_Fs)", gt=0.0, lt=2.0)
-    k2: float = setting("rad", "side-force asymmetry offset (eq:model_Fs)", gt=math.pi / 2)
-    CD0: float = setting("-", "zero-alpha drag coefficient", ge=0.0)
-    CD1: float = setting("1/rad", "linear drag coefficient")
-    CD2: float = setting("1/rad^2", "quadratic drag coefficient", ge=0.0)
-    CL0: float = setting("-", "zero-alpha lift coefficient")
-    CL1: float = setting("1/rad", "lift-curve slope", gt=0.0)
+    k2: float = setting("rad", "side-force asymmetry offset (eq:model_Fs)", gt=math.pi / 2, le=100.0)
+    CD0: float = setting("-", "zero-alpha drag coefficient", ge=0.0, le=2.0)
+    CD1: float = setting("1/rad", "linear drag coefficient", ge=-10.0, le=10.0)
+    CD2: float = setting("1/rad^2", "quadratic drag coefficient", ge=0.0, le=20.0)
+    CL0: float = setting("-", "zero-alpha lift coefficient", ge=-3.0, le=3.0)
+    CL1: float = setting("1/rad", "lift-curve slope (thin airfoil: 2 pi)", gt=0.0, le=10.0)
 
     def as_table_theta(self) -> np.ndarray:
         """theta in the paper's order and Table I units (throttle in percent)."""
@@ -111,16 +111,16 @@ class ForceModelCoefficients:
 class ForceModelStd:
     """Posterior standard deviations of the force model (Table I), same units as the means."""
 
-    CTx: float = setting("m/s^2 per %^2", "std of CTx", gt=0.0)
-    CTz: float = setting("m/s^2 per %^2", "std of CTz", gt=0.0)
-    CS: float = setting("m/s^2 per (%^k1 (m/s)^(2-k1))", "std of CS", gt=0.0)
-    k1: float = setting("-", "std of k1", ge=0.0)
-    k2: float = setting("rad", "std of k2", ge=0.0)
-    CD0: float = setting("-", "std of CD0", gt=0.0)
-    CD1: float = setting("1/rad", "std of CD1", gt=0.0)
-    CD2: float = setting("1/rad^2", "std of CD2", gt=0.0)
-    CL0: float = setting("-", "std of CL0", gt=0.0)
-    CL1: float = setting("1/rad", "std of CL1", gt=0.0)
+    CTx: float = setting("m/s^2 per %^2", "std of CTx", gt=0.0, le=0.01)
+    CTz: float = setting("m/s^2 per %^2", "std of CTz", gt=0.0, le=0.01)
+    CS: float = setting("m/s^2 per (%^k1 (m/s)^(2-k1))", "std of CS", gt=0.0, le=0.01)
+    k1: float = setting("-", "std of k1", ge=0.0, le=2.0)
+    k2: float = setting("rad", "std of k2", ge=0.0, le=100.0)
+    CD0: float = setting("-", "std of CD0", gt=0.0, le=2.0)
+    CD1: float = setting("1/rad", "std of CD1", gt=0.0, le=10.0)
+    CD2: float = setting("1/rad^2", "std of CD2", gt=0.0, le=20.0)
+    CL0: float = setting("-", "std of CL0", gt=0.0, le=3.0)
+    CL1: float = setting("1/rad", "std of CL1", gt=0.0, le=10.0)
 
     def as_table_theta(self) -> np.ndarray:
         """Standard deviations in the paper's order and Table I units (throttle in percent)."""
@@ -133,12 +133,12 @@ class Adaptation:
 
     P0_diag: tuple[float, ...] = setting(
         "adaptation units (see vtoladapt.models.scaling)",
-        "diagonal of P0 for CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1", gt=0.0, length=8)
+        "diagonal of P0 for CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1", gt=0.0, le=1e6, length=8)
     bound_fraction: tuple[float, ...] = setting(
         "-", "theta-hat may move this fraction of |theta_0| either side (per parameter)",
-        gt=0.0, length=8)
+        gt=0.0, le=10.0, length=8)
     bound_sigmas: float = setting(
-        "-", "...and at least this many Table I standard deviations either side", ge=0.0)
+        "-", "...and at least this many Table I standard deviations either side", ge=0.0, le=100.0)
 
 
 @dataclass(frozen=True)
@@ -149,7 +149,7 @@ class Actuators:
     lift_motor_time_constant_s: float = setting("s", "first-order lag of a lift motor", gt=0.0, le=1.0)
     pusher_motor_time_constant_s: float = setting("s", "first-order lag of the pusher", gt=0.0, le=1.0)
     yaw_torque_per_thrust_m: float = setting(
-        "m", "lift-rotor reaction torque per unit thrust (Nm/N)", gt=0.0)
+        "m", "lift-rotor reaction torque per unit thrust (Nm/N)", gt=0.0, le=1.0)
 
 
 @dataclass(frozen=True)
@@ -159,8 +159,8 @@ class Envelope:
     alpha_max_deg: float = setting("deg", "largest desired angle of attack (eq:alphad)", gt=0.0, le=45.0)
     hover_blend_airspeed_mps: tuple[float, ...] = setting(
         "m/s", "below the first airspeed the desired attitude is the multirotor solution, above the "
-        "second the incident-wind solution; smooth blend between", ge=0.0, length=2)
-    air_density_kgpm3: float = setting("kg/m^3", "air density the coefficients refer to", gt=0.0)
+        "second the incident-wind solution; smooth blend between", ge=0.0, le=100.0, length=2)
+    air_density_kgpm3: float = setting("kg/m^3", "air density the coefficients refer to", gt=0.0, le=2.0)
 
     def _check(self, source: str) -> None:
         lo, hi = self.hover_blend_airspeed_mps

@@ -149,6 +149,9 @@ def posterior_from_dict(d: dict, source: str = "<posterior>") -> Posterior:
                 raise PosteriorError(f"{source}: covariance.names: must list {list(POSTERIOR_NAMES)}")
             M = M[np.ix_(idx, idx)]
         cov = M
+    for key in ("diagnostics", "reference"):
+        if d.get(key) is not None and not isinstance(d[key], dict):
+            raise PosteriorError(f"{source}: {key} = {str(d[key])[:40]}: must be a JSON object")
     mean = np.array([params[n]["mean"] for n in PARAMETER_NAMES], float)
     std = np.array([params[n]["std"] for n in PARAMETER_NAMES], float)
     if not 0.0 < params["k1"]["mean"] < 2.0:

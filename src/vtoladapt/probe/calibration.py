@@ -676,7 +676,7 @@ def calibration_from_dict(d: Mapping, where: str):
     if not isinstance(d, Mapping):
         raise ProbeError(f"{where}: expected a JSON object, got {type(d).__name__}")
     kind = d.get("kind")
-    if kind not in _KINDS:
+    if not isinstance(kind, str) or kind not in _KINDS:
         raise ProbeError(f"{where}: kind = {kind!r}: unknown model kind; allowed: "
                          f"{', '.join(repr(k) for k in _KINDS)}")
     return _KINDS[kind].from_dict(d, where)

@@ -18,10 +18,11 @@ into ``DIR``; ``evaluate`` writes ``metrics.json`` and ``linearity.png``.
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 from pathlib import Path
 
+from vtoladapt.config import check_flag, check_input_file
+from vtoladapt.errors import ExitCode
+from vtoladapt.outputs import OutputDir, add_force_argument, atomic_path, output_path, write_json
 from vtoladapt.probe.calibration import (
     DEFAULT_Q_INF_MIN_PA,
     MODEL_NAMES,
@@ -42,7 +43,8 @@ def register_cli(subparsers) -> argparse.ArgumentParser:
     """Add the ``probe`` sub-command (``calibrate``, ``evaluate``) to ``subparsers``.
 
     Each leaf parser sets ``handler`` to its handler ``handler(args) -> int`` (exit code),
-    which ``vtoladapt.cli.main`` calls.
+    which ``vtoladapt.cli.main`` calls; bad input raises ``ProbeError`` (a ``ConfigError``:
+    exit code 2, one line) before anything is written.
 
     Parameters
     ----------
@@ -68,7 +70,7 @@ def register_cli(subparsers) -> argparse.ArgumentParser:
                     "(or on all points when the file has none), and write calibration.json, "
                     "metrics.json and linearity.png into DIR.")
     cal.add_argument("data", metavar="DATA", type=Path, help="calibration data file")
-    cal.add_argument("--out", metavar="DIR", type=Path, required=True, help="output folder")
+    cal.add_argument("--out", metavar="DIR", type=output_path, required=True, help="output folder")
     cal.add_argument("--format", dest="fmt", choices=("auto", "nasa", "csv"), default="auto",
                      help="data format (default: recognise a PCF file by its first line)")
     cal.add_argument("--smoothing", type=float, default=None,
@@ -77,6 +79,7 @@ def register_cli(subparsers) -> argparse.ArgumentParser:
                      default=DEFAULT_Q_INF_MIN_PA,
                      help="readings with q_inf below this are flagged invalid (Pa, default "
                           f"{DEFAULT_Q_INF_MIN_PA:g})")
+    add_force_argument(cal)
     cal.set_defaults(handler=cmd_calibrate)
 
     ev = sub.add_parser(
@@ -86,7 +89,7 @@ def register_cli(subparsers) -> argparse.ArgumentParser:
     ev.add_argument("calibration", metavar="CALIBRATION", type=Path,
                     help="calibration.json written by 'probe calibrate'")
     ev.add_argument("data", metavar="DATA", type=Path, help="probe data file")
-    ev.add_argument("--out", metavar="DIR", type=Path, required=True, help="output folder")
+    ev.add_argument("--out", metavar="DIR", type=output_path, required=True, help="output folder")
     ev.add_argument("--format", dest="fmt", choices=("auto", "nasa", "csv"), default="auto",
                     help="data format (default: recognise a PCF file by its first line)")
     ev.add_argument("--models", default=None,
@@ -94,6 +97,7 @@ def register_cli(subparsers) -> argparse.ArgumentParser:
                          f"names: {', '.join(MODEL_NAMES)})")
     ev.add_argument("--points", choices=("auto", "test", "calibration", "all"), default="auto",
                     help="which points to evaluate (default: test points if any, else all)")
+    add_force_argument(ev)
     ev.set_defaults(handler=cmd_evaluate)
     return probe
 
@@ -110,9 +114,10 @@ def _write_outputs(results: dict, data, out: Path, title: str) -> tuple[Path, Pa
                                       "the readings flagged valid"}
     if data.info.get("citation"):
         doc["info"]["data_citation"] = data.info["citation"]
-    metrics_path = out / "metrics.json"
-    metrics_path.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
-    fig_path = plot_linearity(results, out / "linearity.png", title=title)
+    metrics_path = write_json(out / "metrics.json", doc, indent=1)
+    fig_path = out / "linearity.png"
+    with atomic_path(fig_path) as tmp:
+        plot_linearity(results, tmp, title=title)
     return metrics_path, fig_path
 
 
@@ -126,57 +131,64 @@ def _summary(results: dict) -> str:
     return "\n".join(lines)
 
 
+SMOOTHING_MAX = 1e6
+Q_INF_MIN_PA_MAX = 1e5
+"""Dynamic pressure of ~400 m/s at sea level: above it no reading could be valid."""
+
+
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Handler of ``vtoladapt probe calibrate``; returns the exit code."""
-    try:
-        data = read_probe_data(args.data, args.fmt)
-        models = calibrate(data, smoothing=args.smoothing, q_inf_min_Pa=args.q_inf_min_Pa)
-        args.out.mkdir(parents=True, exist_ok=True)
-        cal_path = save_calibration(args.out / "calibration.json", models, source=data.source,
-                                    notes=data.info.get("citation", ""))
-        results = {name: evaluate_calibration(m, data, "auto", name=name)
-                   for name, m in models.items()}
-        points = next(iter(results.values())).points
-        title = f"{Path(data.source).name}: {points} points"
-        if points != "test":
-            title += " (in-sample: the file has no test points)"
-        metrics_path, fig_path = _write_outputs(results, data, args.out, title)
-    except (ProbeError, OSError) as exc:
-        print(f"vtoladapt probe calibrate: error: {exc}", file=sys.stderr)
-        return 2
+    smoothing = args.smoothing
+    if smoothing is not None:
+        smoothing = check_flag("--smoothing", smoothing, ge=0.0, le=SMOOTHING_MAX)
+    q_min = check_flag("--q-inf-min-Pa", args.q_inf_min_Pa, unit="Pa", ge=0.0, le=Q_INF_MIN_PA_MAX)
+    data = read_probe_data(check_input_file(args.data, "probe data file"), args.fmt)
+    target = OutputDir(args.out, "probe calibrate", force=args.force)
+    models = calibrate(data, smoothing=smoothing, q_inf_min_Pa=q_min)
+    results = {name: evaluate_calibration(m, data, "auto", name=name)
+               for name, m in models.items()}
+    points = next(iter(results.values())).points
+    title = f"{Path(data.source).name}: {points} points"
+    if points != "test":
+        title += " (in-sample: the file has no test points)"
+    with target:
+        cal_path = target.path / "calibration.json"
+        with atomic_path(cal_path) as tmp:
+            save_calibration(tmp, models, source=data.source, notes=data.info.get("citation", ""))
+        metrics_path, fig_path = _write_outputs(results, data, target.path, title)
     print(f"k = {models['single_k'].k:.6g}; spline smoothing = "
           f"{models['calibrated'].smoothing:g}")
     print(_summary(results))
     if points != "test":
         print("note: the data has no test points (split = test); these errors are in-sample")
     print(f"wrote {cal_path}\nwrote {metrics_path}\nwrote {fig_path}")
-    return 0
+    return ExitCode.OK
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     """Handler of ``vtoladapt probe evaluate``; returns the exit code."""
-    try:
-        models = load_calibration(args.calibration)
-        if args.models:
-            names = [n.strip() for n in args.models.split(",") if n.strip()]
-            for n in names:
-                if n not in MODEL_NAMES:
-                    raise ProbeError(f"--models: model name {n!r} unknown; allowed: "
-                                     f"{', '.join(MODEL_NAMES)}")
-                if n not in models:
-                    raise ProbeError(f"{args.calibration}: model {n!r} not in this file (it "
-                                     f"has {', '.join(models)})")
-            models = {n: models[n] for n in names}
-        data = read_probe_data(args.data, args.fmt)
-        results = {name: evaluate_calibration(m, data, args.points, name=name)
-                   for name, m in models.items()}
-        args.out.mkdir(parents=True, exist_ok=True)
-        points = next(iter(results.values())).points
-        title = f"{Path(args.calibration).name} on {Path(data.source).name}: {points} points"
-        metrics_path, fig_path = _write_outputs(results, data, args.out, title)
-    except (ProbeError, OSError) as exc:
-        print(f"vtoladapt probe evaluate: error: {exc}", file=sys.stderr)
-        return 2
+    models = load_calibration(check_input_file(args.calibration, "calibration file"))
+    if args.models:
+        names = [n.strip() for n in args.models.split(",") if n.strip()]
+        for n in names:
+            if n not in MODEL_NAMES:
+                raise ProbeError(f"--models: model name {n!r} unknown; allowed: "
+                                 f"{', '.join(MODEL_NAMES)}")
+            if n not in models:
+                raise ProbeError(f"{args.calibration}: model {n!r} not in this file (it "
+                                 f"has {', '.join(models)})")
+        if not names:
+            raise ProbeError(f"--models {args.models!r}: no model name; allowed: "
+                             f"{', '.join(MODEL_NAMES)}")
+        models = {n: models[n] for n in names}
+    data = read_probe_data(check_input_file(args.data, "probe data file"), args.fmt)
+    target = OutputDir(args.out, "probe evaluate", force=args.force)
+    results = {name: evaluate_calibration(m, data, args.points, name=name)
+               for name, m in models.items()}
+    points = next(iter(results.values())).points
+    title = f"{Path(args.calibration).name} on {Path(data.source).name}: {points} points"
+    with target:
+        metrics_path, fig_path = _write_outputs(results, data, target.path, title)
     print(_summary(results))
     print(f"wrote {metrics_path}\nwrote {fig_path}")
-    return 0
+    return ExitCode.OK

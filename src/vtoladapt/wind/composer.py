@@ -50,7 +50,7 @@ class WindConfig:
     """All the wind of a scenario; the parts add up. Load with :meth:`from_mapping`."""
 
     constant_mps: tuple[float, ...] = setting("m/s", "constant wind vector, NED",
-                                              default=(0.0, 0.0, 0.0), length=3)
+                                              default=(0.0, 0.0, 0.0), ge=-60.0, le=60.0, length=3)
     fan_array: FanArrayConfig = setting("-", "fan-array wind", default=FanArrayConfig())
     turbulence: TurbulenceConfig = setting("-", "Dryden turbulence", default=TurbulenceConfig())
     gusts: tuple[GustConfig, ...] = setting("-", "discrete gusts ([[wind.gusts]] entries)",

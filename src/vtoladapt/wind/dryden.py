@@ -127,9 +127,9 @@ class TurbulenceConfig:
     enabled: bool = setting("-", "add Dryden turbulence", default=False)
     w20_mps: float | None = setting(
         "m/s", "wind speed at 20 ft (light 7.7, moderate 15.4, severe 23.2 m/s)", default=None,
-        ge=0.0)
+        ge=0.0, le=60.0)
     sigma_mps: tuple[float, ...] | None = setting(
-        "m/s", "intensities sigma_u, sigma_v, sigma_w", default=None, ge=0.0, length=3)
+        "m/s", "intensities sigma_u, sigma_v, sigma_w", default=None, ge=0.0, le=30.0, length=3)
     mean_wind_fraction: tuple[float, ...] | None = setting(
         "-", "intensities as fractions of the mean wind speed (u, v, w)", default=None, ge=0.0,
         le=1.0, length=3)
@@ -138,13 +138,13 @@ class TurbulenceConfig:
         default=2.0, gt=0.0, le=1000.0 * FT_M)
     length_scale_m: tuple[float, ...] | None = setting(
         "m", "length scales L_u, L_v, L_w (overrides the altitude model)", default=None, gt=0.0,
-        length=3)
+        le=10000.0, length=3)
     convection_speed_mps: float | None = setting(
         "m/s", "airspeed at which the frozen field is convected (default: |mean wind|)",
-        default=None, ge=0.0)
+        default=None, ge=0.0, le=100.0)
     min_convection_speed_mps: float = setting(
         "m/s", "floor on |mean wind| as convection speed (0: turbulence freezes in still air)",
-        default=0.5, ge=0.0)
+        default=0.5, ge=0.0, le=100.0)
 
     def _check(self, source: str) -> None:
         given = [k for k in ("w20_mps", "sigma_mps", "mean_wind_fraction")

@@ -68,7 +68,7 @@ class FanArrayConfig:
         "-", "'linear': ramps between breakpoints (repeat a time for a step); 'hold': steps",
         default="linear", choices=("linear", "hold"))
     max_speed_mps: float = setting("m/s", "mean wind speed at 100 % throttle (CAST: 12.9)",
-                                   default=FAN_MAX_SPEED_MPS, gt=0.0)
+                                   default=FAN_MAX_SPEED_MPS, gt=0.0, le=60.0)
     array_bearing_deg: float = setting(
         "deg", "compass bearing of the array seen from the vehicle = where the wind comes from "
         "(0: north, so v_w = (-V, 0, 0); 90: east)", default=0.0, ge=-360.0, le=360.0)

@@ -46,9 +46,9 @@ class GustConfig:
 
     shape: str = setting("-", "'one_minus_cosine' (up to A and back to zero) or 'step'",
                          choices=GUST_SHAPES)
-    start_s: float = setting("s", "start time", ge=0.0)
-    duration_s: float = setting("s", "duration", gt=0.0)
-    amplitude_mps: tuple[float, ...] = setting("m/s", "peak wind vector, NED", length=3)
+    start_s: float = setting("s", "start time", ge=0.0, le=3600.0)
+    duration_s: float = setting("s", "duration", gt=0.0, le=3600.0)
+    amplitude_mps: tuple[float, ...] = setting("m/s", "peak wind vector, NED", ge=-60.0, le=60.0, length=3)
 
 
 def pack_gusts(gusts: Sequence[GustConfig]) -> np.ndarray:

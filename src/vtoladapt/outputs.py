@@ -1,0 +1,547 @@
+"""Output folders and files that never lose, truncate or mix anything.
+
+The rules (README "When things go wrong"):
+
+* A command never deletes or overwrites a file it did not create. Writing into a folder that is
+  not empty and is not an earlier output of the same command is refused (exit 2) unless
+  ``--force``; even with ``--force`` only files of the same name are replaced, nothing else.
+* Each output folder carries a manifest, :data:`MANIFEST_NAME`, listing the files the command
+  wrote (size and modification time), the command, its arguments and how it ended.
+* A new run into its own earlier output folder first deletes the files that folder's manifest
+  lists (and only those, and only while they are unchanged since they were written), so an
+  earlier run's outputs never mix with a new run's.
+* Every file is written under a temporary name in the same folder and renamed into place, so an
+  interrupted or failed run leaves no truncated file. Files written by code that does not use
+  these helpers are kept only when the command completes; on failure or Ctrl-C they are removed
+  (they may be truncated).
+* JSON outputs are valid JSON: NaN and infinities are written as ``null``.
+
+API
+---
+::
+
+    from vtoladapt.outputs import OutputDir, write_json, save_figure
+
+    target = OutputDir(args.out, command="run", force=args.force)  # checks only: fail fast
+    ...validate inputs, run...
+    with target as out:                      # claims the folder: manifest, stale outputs removed
+        write_json(out.path / "metrics.json", metrics)
+        save_figure(fig, out.path / "fig_run.png", dpi=120)
+        write_parquet(table, out.path / "runs" / "a.parquet")
+        write_text(out.path / "report.md", text)
+        with atomic_path(out.path / "x.png") as tmp:   # any writer that takes a path
+            some_library_writer(tmp)
+
+The writers work outside a claim too (single-file outputs, e.g. ``tunnel --out DATA.csv``, which
+use :func:`check_output_files` and :func:`staged_files` instead of a folder).
+"""
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import json
+import math
+import os
+import secrets
+import shutil
+import sys
+import threading
+from pathlib import Path
+from typing import Any, Callable, Iterable, Iterator, Optional
+
+from .config import ConfigError
+
+MANIFEST_NAME = ".vtoladapt-manifest.json"
+MANIFEST_FORMAT = "vtoladapt.outputs"
+MANIFEST_VERSION = 1
+PARTIAL_MARK = ".partial-"
+"""Temporary files (and staging folders) are named ``.partial-<random><suffix>`` beside their target."""
+
+
+def _temporary_name(path: Path) -> Path:
+    return path.with_name(f"{PARTIAL_MARK}{secrets.token_hex(4)}{path.suffix}")
+
+_JSON_REPAIR_MAX_BYTES = 64 * 2**20
+
+__all__ = ["MANIFEST_NAME", "OutputDir", "OutputError", "add_force_argument", "atomic_path",
+           "output_path", "read_manifest",
+           "check_output_files",
+           "json_safe", "save_figure", "staged_files", "write_bytes", "write_json",
+           "write_parquet", "write_text"]
+
+
+class OutputError(ConfigError):
+    """An output path is refused (exists as a file, foreign non-empty folder, ...); exit code 2."""
+
+
+# --- the claimed folders of this process ---------------------------------------------------------
+_ACTIVE: list["OutputDir"] = []
+_LOCK = threading.RLock()
+
+
+def _signature(path: Path) -> Optional[list[int]]:
+    try:
+        st = path.stat()
+    except OSError:
+        return None
+    return [st.st_size, st.st_mtime_ns]
+
+
+def _owner_of(path: Path) -> Optional["OutputDir"]:
+    path = Path(os.path.abspath(path))
+    with _LOCK:
+        for claim in reversed(_ACTIVE):
+            if claim._root == path or claim._root in path.parents:
+                return claim
+    return None
+
+
+def _check_path_text(path: Path, flag: str) -> None:
+    if str(path) == "" or str(path).strip() == "":
+        raise OutputError(f"{flag} {str(path)!r}: empty path; give a folder or file name")
+    try:
+        name_max = os.pathconf(str(_existing_ancestor(path)), "PC_NAME_MAX")
+    except (OSError, ValueError, AttributeError):
+        name_max = 255
+    for part in path.parts:
+        if len(os.fsencode(part)) > name_max:
+            shown = part[:40] + "..." + part[-20:]
+            raise OutputError(f"{flag} {shown!r}: a name in the path has {len(part)} characters; "
+                              f"allowed: at most {name_max}")
+    if "\0" in str(path):
+        raise OutputError(f"{flag} {str(path)!r}: contains a NUL character")
+
+
+def _existing_ancestor(path: Path) -> Path:
+    p = Path(os.path.abspath(path))
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return p
+
+
+def _check_parents(path: Path, flag: str) -> None:
+    """Every existing ancestor of ``path`` must be a folder we may write into."""
+    p = Path(os.path.abspath(path)).parent
+    while True:
+        if p.exists() or p.is_symlink():
+            if not p.is_dir():
+                raise OutputError(f"{flag} {str(path)!r}: {p} is a file, so it cannot hold a folder")
+            if not os.access(p, os.W_OK | os.X_OK) and not Path(os.path.abspath(path)).exists():
+                raise OutputError(f"{flag} {str(path)!r}: no permission to write in {p}")
+            return
+        if p == p.parent:
+            return
+        p = p.parent
+
+
+def read_manifest(folder: Path) -> Optional[dict]:
+    """The manifest of ``folder`` if it holds a valid one, else None."""
+    path = Path(folder) / MANIFEST_NAME
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(doc, dict) or doc.get("format") != MANIFEST_FORMAT \
+            or not isinstance(doc.get("files"), dict) or not isinstance(doc.get("command"), str):
+        return None
+    return doc
+
+
+def _walk_files(root: Path) -> dict[str, list[int]]:
+    """Relative path -> signature of every file under ``root`` (not following folder links)."""
+    found = {}
+    for dirpath, dirnames, filenames in os.walk(root):
+        for name in filenames:
+            full = Path(dirpath) / name
+            rel = full.relative_to(root).as_posix()
+            if rel == MANIFEST_NAME:
+                continue
+            sig = _signature(full)
+            if sig is not None:
+                found[rel] = sig
+    return found
+
+
+class OutputDir:
+    """A command's output folder: checked on construction, claimed with ``with``.
+
+    Parameters
+    ----------
+    path : path-like
+        The folder (``--out``).
+    command : str
+        The command writing it (``"run"``, ``"fit"``, ...): a folder holding another command's
+        outputs is foreign.
+    force : bool
+        Write into a foreign non-empty folder anyway (replacing only files of the same name).
+    flag : str
+        How the user gave the path, for messages.
+
+    Raises
+    ------
+    OutputError
+        On construction and again on entry, when the folder is refused.
+    """
+
+    def __init__(self, path, command: str, *, force: bool = False, flag: str = "--out"):
+        self.path = Path(path)
+        self.command = command
+        self.force = force
+        self.flag = flag
+        self._root = Path(os.path.abspath(self.path))
+        self._files: dict[str, list[int]] = {}
+        self._before: dict[str, list[int]] = {}
+        self._created: Optional[Path] = None
+        self._entered = False
+        self._stale: list[str] = []
+        self._was_ours = False
+        self.check()
+
+    # --- checks ---------------------------------------------------------------------------------
+    def check(self) -> None:
+        """Refuse the folder (``OutputError``) unless it is new, empty, ours, or ``force``."""
+        path, flag = self.path, self.flag
+        _check_path_text(path, flag)
+        if path.exists() and not path.is_dir():
+            raise OutputError(f"{flag} {str(path)!r}: is a file, not a folder; give a folder name")
+        _check_parents(path, flag)
+        self._stale = []
+        self._was_ours = False
+        if not path.is_dir():
+            return
+        if not os.access(path, os.W_OK | os.X_OK):
+            raise OutputError(f"{flag} {str(path)!r}: no permission to write in this folder")
+        manifest = read_manifest(path)
+        present = sorted(e.name for e in os.scandir(path) if e.name != MANIFEST_NAME)
+        if manifest is None:
+            if present and not self.force:
+                some = ", ".join(present[:3]) + (", ..." if len(present) > 3 else "")
+                raise OutputError(
+                    f"{flag} {str(path)!r}: folder is not empty ({some}) "
+                    f"and is not an output of 'vtoladapt {self.command}'; choose a new folder, or "
+                    "add --force to write into it (files of the same name are replaced)")
+            return
+        if manifest["command"] != self.command:
+            if not self.force:
+                raise OutputError(
+                    f"{flag} {str(path)!r}: holds the outputs of 'vtoladapt {manifest['command']}'; "
+                    f"'vtoladapt {self.command}' would mix with or replace them; choose a new "
+                    "folder, or add --force")
+            return
+        self._was_ours = True
+        for rel, sig in manifest["files"].items():
+            if not _safe_relative(rel):
+                continue
+            now = _signature(path / rel)
+            if now is not None and now != sig and not self.force:
+                raise OutputError(
+                    f"{flag} {str(path)!r}: {rel} was changed after vtoladapt {self.command} wrote "
+                    "it; move it away, or add --force (it is then kept, or replaced if the new run "
+                    "writes a file of that name)")
+            if now is not None and now == sig:
+                self._stale.append(rel)
+
+    # --- claim ------------------------------------------------------------------------------------
+    def __enter__(self) -> "OutputDir":
+        if self._entered:
+            raise RuntimeError("an OutputDir is claimed once")
+        self.check()  # again: the folder may have changed while the inputs were validated
+        self._entered = True
+        if not self._root.exists():
+            top = self._root
+            while not top.parent.exists():
+                top = top.parent
+            self._root.mkdir(parents=True)
+            self._created = top
+        for rel in self._stale:  # an earlier run of this command: its outputs go first
+            target = self._root / rel
+            target.unlink(missing_ok=True)
+            _remove_empty_parents(target.parent, self._root)
+        self._before = _walk_files(self._root)
+        with _LOCK:
+            _ACTIVE.append(self)
+        self._write_manifest("running")
+        return self
+
+    def record(self, path) -> None:
+        """Note ``path`` (inside the folder) as a complete output of this run."""
+        full = Path(os.path.abspath(path))
+        rel = full.relative_to(self._root).as_posix()
+        sig = _signature(full)
+        if sig is not None:
+            with _LOCK:
+                self._files[rel] = sig
+            self._write_manifest("running")
+
+    def is_foreign(self, path) -> bool:
+        """True for a file that was in the folder before this run and is not one of its outputs."""
+        full = Path(os.path.abspath(path))
+        try:
+            rel = full.relative_to(self._root).as_posix()
+        except ValueError:
+            return False
+        return rel in self._before and rel not in self._files
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        with _LOCK:
+            if self in _ACTIVE:
+                _ACTIVE.remove(self)
+        now = _walk_files(self._root)
+        new = {rel: sig for rel, sig in now.items() if self._before.get(rel) != sig}
+        for rel in list(new):
+            if Path(rel).name.startswith(PARTIAL_MARK):  # a writer's temporary file: never an output
+                (self._root / rel).unlink(missing_ok=True)
+                new.pop(rel)
+        if exc_type is None:
+            for rel in new:
+                if rel.endswith(".json"):
+                    _repair_json(self._root / rel)
+            self._files.update(_walk_files_subset(self._root, new))
+            self._write_manifest("complete")
+            return False
+        # failed or interrupted: keep the files written completely (through this module); remove
+        # the rest, which may be truncated, unless they overwrote a file that was here before
+        for rel in new:
+            if rel not in self._files and rel not in self._before:
+                (self._root / rel).unlink(missing_ok=True)
+                _remove_empty_parents((self._root / rel).parent, self._root)
+        self._files = {rel: sig for rel, sig in self._files.items() if (self._root / rel).exists()}
+        status = "interrupted" if issubclass(exc_type, KeyboardInterrupt) else "failed"
+        if self._files or self._was_ours:
+            self._write_manifest(status)
+        else:  # nothing of this run survived: leave the disk as it was
+            (self._root / MANIFEST_NAME).unlink(missing_ok=True)
+            if self._created is not None:
+                _remove_empty_tree(self._created)
+        return False
+
+    @property
+    def files(self) -> list[str]:
+        """Relative paths of the outputs recorded so far."""
+        return sorted(self._files)
+
+    def _write_manifest(self, status: str) -> None:
+        from . import __version__ as version
+
+        doc = {"format": MANIFEST_FORMAT, "version": MANIFEST_VERSION, "command": self.command,
+               "status": status, "argv": list(sys.argv[1:]), "vtoladapt": version,
+               "updated": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+               "files": dict(sorted(self._files.items()))}
+        _atomic_write_bytes(self._root / MANIFEST_NAME,
+                            (json.dumps(doc, indent=1) + "\n").encode(), register=False)
+
+
+def _walk_files_subset(root: Path, rels: Iterable[str]) -> dict[str, list[int]]:
+    out = {}
+    for rel in rels:
+        sig = _signature(root / rel)
+        if sig is not None:
+            out[rel] = sig
+    return out
+
+
+def _safe_relative(rel: str) -> bool:
+    p = Path(rel)
+    return not p.is_absolute() and ".." not in p.parts
+
+
+def _remove_empty_parents(folder: Path, root: Path) -> None:
+    folder = Path(os.path.abspath(folder))
+    while folder != root and root in folder.parents:
+        try:
+            folder.rmdir()
+        except OSError:
+            return
+        folder = folder.parent
+
+
+def _remove_empty_tree(top: Path) -> None:
+    """Remove ``top`` and the folders under it if they hold no file (never a file)."""
+    for dirpath, dirnames, filenames in os.walk(top, topdown=False):
+        if not filenames:
+            with contextlib.suppress(OSError):
+                os.rmdir(dirpath)
+
+
+def _repair_json(path: Path) -> None:
+    """Rewrite a JSON output holding bare NaN/Infinity (not JSON) with ``null`` instead."""
+    try:
+        if path.stat().st_size > _JSON_REPAIR_MAX_BYTES:
+            return
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return
+    if "NaN" not in text and "Infinity" not in text:
+        return
+    try:
+        json.loads(text, parse_constant=_reject)
+        return
+    except ValueError:
+        pass
+    try:
+        doc = json.loads(text)
+    except ValueError:
+        return
+    _atomic_write_bytes(path, (json.dumps(json_safe(doc), indent=2, allow_nan=False) + "\n").encode(),
+                        register=False)
+
+
+def _reject(name: str):
+    raise ValueError(name)
+
+
+# --- single-file outputs ---------------------------------------------------------------------------
+def check_output_files(paths: Iterable, command: str, *, is_ours: Callable[[Path], bool],
+                       force: bool = False, flag: str = "--out") -> None:
+    """Refuse to replace existing files that ``is_ours`` does not recognise (unless ``force``).
+
+    For commands whose output is one file (and its side files) rather than a folder.
+    """
+    for p in paths:
+        p = Path(p)
+        _check_path_text(p, flag)
+        if p.is_dir():
+            raise OutputError(f"{flag} {str(p)!r}: is a folder; give a file name")
+        _check_parents(p, flag)
+        if p.exists() and not force and not is_ours(p):
+            raise OutputError(f"{flag}: {p} exists and is not an output of 'vtoladapt {command}'; "
+                              "choose another name, or add --force to replace it")
+
+
+@contextlib.contextmanager
+def staged_files(folder) -> Iterator[Path]:
+    """A temporary folder inside ``folder``; on success each file in it is renamed into ``folder``.
+
+    For writers that make several files whose names refer to each other (a CSV and its side
+    file). On an exception the staging folder is removed and ``folder`` is untouched.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    stage = folder / f"{PARTIAL_MARK}{secrets.token_hex(4)}"
+    stage.mkdir()
+    try:
+        yield stage
+        for f in sorted(stage.iterdir()):
+            os.replace(f, folder / f.name)
+            _register(folder / f.name)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+# --- atomic writers -----------------------------------------------------------------------------------
+def _register(path: Path) -> None:
+    owner = _owner_of(path)
+    if owner is not None:
+        owner.record(path)
+
+
+def _refuse_foreign(path: Path) -> None:
+    owner = _owner_of(path)
+    if owner is not None and not owner.force and owner.is_foreign(path):
+        raise OutputError(f"{path}: exists and was not written by 'vtoladapt {owner.command}'; "
+                          "move it away, or add --force to replace it")
+
+
+@contextlib.contextmanager
+def atomic_path(path) -> Iterator[Path]:
+    """Yield a temporary path (same folder, same suffix) to write; renamed to ``path`` on success.
+
+    On an exception (including Ctrl-C) the temporary file is removed and ``path`` is untouched.
+    Inside a claimed :class:`OutputDir` the file is recorded in its manifest.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    _refuse_foreign(path)
+    tmp = _temporary_name(path)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    _register(path)
+
+
+def _atomic_write_bytes(path: Path, data: bytes, register: bool = True) -> Path:
+    if register:
+        with atomic_path(path) as tmp:
+            tmp.write_bytes(data)
+        return path
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = _temporary_name(path)
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    return path
+
+
+def write_bytes(path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically."""
+    return _atomic_write_bytes(Path(path), data)
+
+
+def write_text(path, text: str) -> Path:
+    """Write UTF-8 ``text`` to ``path`` atomically."""
+    return _atomic_write_bytes(Path(path), text.encode("utf-8"))
+
+
+def json_safe(obj: Any) -> Any:
+    """``obj`` with NaN and infinities as None, numpy scalars and arrays as Python, paths as text."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {str(k): json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, (str, int, bool)) or obj is None:
+        return obj
+    if isinstance(obj, Path):
+        return str(obj)
+    tolist = getattr(obj, "tolist", None)  # numpy arrays and scalars
+    if tolist is not None:
+        return json_safe(tolist())
+    raise TypeError(f"cannot write {type(obj).__name__} to JSON")
+
+
+def write_json(path, obj: Any, indent: int = 2) -> Path:
+    """Write ``obj`` as JSON atomically; NaN and infinities become ``null`` (valid JSON)."""
+    text = json.dumps(json_safe(obj), indent=indent, allow_nan=False) + "\n"
+    return write_text(path, text)
+
+
+def write_parquet(table, path) -> Path:
+    """Write a ``pyarrow.Table`` to ``path`` atomically."""
+    import pyarrow.parquet as pq
+
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp)
+    return Path(path)
+
+
+def save_figure(fig, path, **savefig_kwargs) -> Path:
+    """``fig.savefig(path, ...)`` atomically (the format follows the suffix, as in matplotlib)."""
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, **savefig_kwargs)
+    return Path(path)
+
+
+def add_force_argument(parser) -> None:
+    """Add the shared ``--force`` flag to a command's ``argparse`` parser."""
+    parser.add_argument("--force", action="store_true",
+                        help="write into a non-empty folder (or over a file) that is not an "
+                             "earlier output of this command; only files of the same name are "
+                             "replaced")
+
+
+def output_path(text: str) -> Path:
+    """``argparse`` type of ``--out``: a path, refusing the empty string (it would mean '.')."""
+    import argparse
+
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r}: empty path; give a folder or file name")
+    return Path(text)
