@@ -108,7 +108,7 @@ def trace_figure(fit, diagnostics: dict | None = None) -> Figure:
     (``diagnostics["rhat_split"]``: split R-hat over the posterior draws, see
     :func:`vtoladapt.fitting.report.largest_rhat`); computed from ``fit`` when not given.
     """
-    from .report import SAMPLED_TO_QUANTITY, largest_rhat, rhat_by_quantity
+    from .rhat import SAMPLED_TO_QUANTITY, largest_rhat, rhat_by_quantity
 
     rhat = rhat_by_quantity(fit) if diagnostics is None else diagnostics["rhat_split"]
     m = fit.marginal

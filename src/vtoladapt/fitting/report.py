@@ -14,32 +14,13 @@ from ..vehicle import PARAMETER_NAMES, Vehicle
 from . import figures
 from .bayes import SamplerSettings, Table1Fit, fit_table1
 from .posterior import POSTERIOR_NAMES, posterior_dict_from_fit, write_posterior
+from .rhat import SAMPLED_TO_QUANTITY, largest_rhat, rhat_by_quantity  # noqa: F401 (re-exported)
 from .tunnel import make_design, run_virtual_tunnel
 
 THRUSTER_ROWS = ("CTx", "CTz", "CS", "k1", "k2")
 AERO_ROWS = ("CL0", "CL1", "CD0", "CD1", "CD2")
 TEX = {"CTx": "C_Tx", "CTz": "C_Tz", "CS": "C_S", "k1": "k_1", "k2": "k_2", "CL0": "C_L0",
        "CL1": "C_L1", "CD0": "C_D0", "CD1": "C_D1", "CD2": "C_D2"}
-
-
-SAMPLED_TO_QUANTITY = {"log10_sigma_abs_N": "sigma_abs_N"}
-"""Sampled parameter -> the reported quantity it is a transform of (same name otherwise)."""
-
-
-def rhat_by_quantity(fit: Table1Fit) -> dict[str, float]:
-    """Split R-hat over the posterior draws of each reported quantity (the ten Table I ones and
-    the noise): the values ``posterior.json`` stores as ``diagnostics.rhat_split``."""
-    s = fit.summary()
-    return {n: s[n]["rhat"] for n in POSTERIOR_NAMES + ("sigma_abs_N", "sigma_rel")}
-
-
-def largest_rhat(rhat_split: dict[str, float]) -> tuple[str, float]:
-    """The quantity with the largest split R-hat and that R-hat: the one number table1.md,
-    trace.png and ``vtoladapt fit`` report as the fit's R-hat. ``("none", nan)`` if empty."""
-    if not rhat_split:
-        return "none", float("nan")
-    name = max(rhat_split, key=lambda n: rhat_split[n])
-    return name, float(rhat_split[name])
 
 
 def _pm(e: dict) -> str:

@@ -96,5 +96,6 @@ class HoldEnv(gym.Env):
         return {"t_s": t_s, "p_err_true_m": p_err}
 
     def close(self) -> None:
+        """Release the environment's compiled-run arrays and worker threads."""
         self._batch.close()
         super().close()

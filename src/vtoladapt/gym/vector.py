@@ -113,4 +113,5 @@ class HoldVectorEnv(VectorEnv):
         return obs, reward, terminated, truncated, {}
 
     def close_extras(self, **kwargs: Any) -> None:
+        """Release the batch's arrays and worker threads (called by ``VectorEnv.close``)."""
         self._batch.close()
