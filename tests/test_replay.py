@@ -19,6 +19,7 @@ from vtoladapt.cli import main
 from vtoladapt.frames import GRAVITY_MPS2, quat_from_euler, quat_to_rotmat
 from vtoladapt.replay import ReadSettings, ReplaySettings, parse_throttle_source, read_csv_folder, read_ulog, run_replay
 from vtoladapt.replay.flightlog import ReplayError
+from vtoladapt.outputs import MANIFEST_NAME
 from vtoladapt.replay.outputs import OUTPUT_FILES
 
 VTOL_ULOG = REPO_DATA_DIR / "pyulog-testdata" / "sample_log_small.ulg"
@@ -43,7 +44,7 @@ def test_vtol_ulog_replays_end_to_end(tmp_path, capsys):
     out = tmp_path / "vtol"
     rc, stdout, err = _replay([VTOL_ULOG, "--vehicle", "px4_standard_vtol", "--out", out, *VTOL_THROTTLES], capsys)
     assert rc == 0, err
-    assert sorted(p.name for p in out.iterdir()) == sorted(OUTPUT_FILES)
+    assert sorted(p.name for p in out.iterdir() if p.name != MANIFEST_NAME) == sorted(OUTPUT_FILES)
     m = _metrics(out)
     assert m["format"] == "vtoladapt.replay.metrics"
     topics = set(m["log"]["topics"])
@@ -102,12 +103,17 @@ def test_earlier_output_is_overwritten_but_other_folders_are_refused(tmp_path, c
     out = tmp_path / "out"
     args = [tmp_path / "log", "--vehicle", "px4_standard_vtol", "--out", out, "--no-adapt"]
     assert _replay(args, capsys)[0] == 0
-    assert _replay(args, capsys)[0] == 0  # an earlier replay's output: fine
+    assert _replay(args, capsys)[0] == 0  # an earlier replay's output: replaced
     (out / "notes.txt").write_text("mine")
-    rc, _, err = _replay(args, capsys)
-    assert rc == 2 and "not empty" in err and "--force" in err and len(err.strip().splitlines()) == 1
-    assert _replay([*args, "--force"], capsys)[0] == 0
+    assert _replay(args, capsys)[0] == 0  # a file of the user's beside it is neither refused nor touched
     assert (out / "notes.txt").read_text() == "mine"
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    (foreign / "precious.txt").write_text("keep")
+    rc, _, err = _replay([tmp_path / "log", "--vehicle", "px4_standard_vtol", "--out", foreign, "--no-adapt"],
+                         capsys)
+    assert rc == 2 and "not empty" in err and "--force" in err and len(err.strip().splitlines()) == 1
+    assert (foreign / "precious.txt").read_text() == "keep" and sorted(p.name for p in foreign.iterdir()) == ["precious.txt"]
 
 
 # --- the readers against pyulog's own values ------------------------------------------------------

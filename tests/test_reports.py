@@ -204,8 +204,11 @@ def test_single_run_report_names_its_scenario_and_has_its_metrics(tmp_path):
     assert set(metrics) <= set(METRIC_INFO)     # every metric has words and a unit
     for key, value in metrics.items():
         label, unit = METRIC_INFO[key]
-        shown = 100 * value if key.endswith("_fraction") else value
-        shown_text = f"{shown:.4g}" if np.isfinite(shown) else "n/a"   # e.g. no high wind in 3 s
+        if value is None:                       # NaN is written as JSON null, e.g. no high wind in 3 s
+            shown_text = "n/a"
+        else:
+            shown = 100 * value if key.endswith("_fraction") else value
+            shown_text = f"{shown:.4g}" if np.isfinite(shown) else "n/a"
         assert f"| {label} | {shown_text} | {unit} |" in md, key
     assert "`gusty_hold.toml`" in md or "`../gusty_hold.toml`" in md
     assert str(tmp_path) not in (out / "report.html").read_text()

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Optional
 
+from .. import outputs
 from ..control.registry import CONTROLLERS
 from ..metrics import METRIC_INFO, metric_display_value
 from ..vehicle import PARAMETER_NAMES
@@ -234,30 +235,24 @@ def display_paths_in(text: str, out: Path) -> str:
 
 
 # --- writing files (the one place outputs are written) ---------------------------------------------------
+# Every output goes through vtoladapt.outputs: written under a temporary name and renamed (an
+# interrupted run leaves no truncated file), recorded in the output folder's manifest, JSON with
+# null for NaN.
 def _write_text(path: Path, text: str) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text, encoding="utf-8")
-    return path
+    return outputs.write_text(path, text)
 
 
 def _write_bytes(path: Path, data: bytes) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_bytes(data)
-    return path
+    return outputs.write_bytes(path, data)
 
 
 def _write_json(path: Path, data: dict) -> Path:
-    return _write_text(path, json.dumps(data, indent=2, allow_nan=True))
+    return outputs.write_json(path, data)
 
 
 def _copy_file(src: Path, dst: Path) -> Path:
-    return _write_bytes(dst, Path(src).read_bytes())
+    return outputs.write_bytes(dst, Path(src).read_bytes())
 
 
 def _save_figure(fig, path: Path, dpi: Optional[float] = None) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi if dpi is not None else fig.dpi)
-    return path
+    return outputs.save_figure(fig, path, dpi=dpi if dpi is not None else fig.dpi)

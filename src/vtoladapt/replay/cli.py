@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from ..config import ConfigError
+from ..outputs import OutputDir, add_force_argument
 from .flightlog import FlightLog, ReadSettings, ReplayError, parse_throttle_source
 
 
@@ -25,8 +26,7 @@ def register_cli(subparsers) -> argparse.ArgumentParser:
     p.add_argument("log", metavar="LOG", type=Path, help="PX4 ULog (.ulg) or folder of topic CSVs")
     p.add_argument("--vehicle", required=True, help="shipped vehicle name or vehicle TOML path")
     p.add_argument("--out", metavar="DIR", required=True, type=Path, help="output folder")
-    p.add_argument("--force", action="store_true",
-                   help="write into a non-empty folder that is not an earlier replay's output")
+    add_force_argument(p)
     p.add_argument("--rate-hz", type=float, default=None,
                    help="resampling rate (Hz; default: the fastest required topic, at most 250)")
     p.add_argument("--airspeed-min", type=float, default=ReadSettings.airspeed_min_mps,
@@ -70,10 +70,10 @@ def cmd_replay(args: argparse.Namespace) -> int:
     """Handler of ``vtoladapt replay``; returns the exit code."""
     from ..vehicle import load_vehicle
     from .estimator import ReplaySettings, run_replay
-    from .outputs import check_output_dir, write_outputs
+    from .outputs import write_outputs
 
     try:
-        check_output_dir(args.out, args.force)
+        target = OutputDir(args.out, "replay", force=args.force)
         vehicle = load_vehicle(args.vehicle)
         read = ReadSettings(
             rate_hz=args.rate_hz, airspeed_min_mps=args.airspeed_min,
@@ -84,10 +84,10 @@ def cmd_replay(args: argparse.Namespace) -> int:
                                   use_landed=args.use_landed)
         log = read_flight_log(args.log, read)
         result = run_replay(log, vehicle, settings)
-        metrics = write_outputs(result, args.out)
-    except (ReplayError, ConfigError, OSError) as exc:
-        print(f"vtoladapt replay: error: {exc}", file=sys.stderr)
-        return 2
+        with target:
+            metrics = write_outputs(result, target.path)
+    except ReplayError as exc:
+        raise ConfigError(str(exc)) from exc
     a = metrics["prediction_error"]["adapted"]
     p = metrics["prediction_error"]["prior"]
     used = metrics["log"]["used_s"]

@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from ..frames import GRAVITY_MPS2
+from ..outputs import save_figure
 from ..vehicle import PARAMETER_NAMES
 from .estimator import ReplayResult
 
@@ -69,7 +70,7 @@ def plot_replay(result: ReplayResult, path: Path) -> Path:
     ax.legend(loc="upper left", fontsize=7, ncol=4)
     axes[-1].set_xlabel(f"time since log sample {log.t0_us} us (s)")
     axes[0].set_title(f"replay of {Path(log.source).name} with vehicle {result.vehicle.name}", fontsize=10)
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path, dpi=100)
     plt.close(fig)
     return Path(path)
 

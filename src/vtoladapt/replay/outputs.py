@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..frames import GRAVITY_MPS2
+from ..outputs import write_json, write_parquet
 from ..vehicle import PARAMETER_NAMES
 from .estimator import ReplayResult
 from .flightlog import ReplayError
@@ -95,7 +96,6 @@ def compute_metrics(result: ReplayResult) -> dict:
 def write_timeseries(result: ReplayResult, path: Path) -> None:
     """``replay.parquet``: one row per sample, units in the column names."""
     import pyarrow as pa
-    import pyarrow.parquet as pq
 
     log = result.log
     V = airspeed_mps(result)
@@ -124,50 +124,22 @@ def write_timeseries(result: ReplayResult, path: Path) -> None:
         "vtoladapt": json.dumps({"format": "vtoladapt.replay.timeseries", "version": 1,
                                  "theta_units": "Table I (throttle in percent)",
                                  "frames": "body FRD, world NED", "source": log.source})})
-    pq.write_table(table, path)
-
-
-def check_output_dir(out: Path, force: bool) -> None:
-    """Refuse a non-empty ``out`` that is not an earlier replay's output, unless ``force``.
-
-    Raises
-    ------
-    ReplayError
-        Naming the folder and what is in it.
-    """
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise ReplayError(f"--out {out}: exists and is not a folder")
-    if force or not out.exists():
-        return
-    entries = sorted(p.name for p in out.iterdir())
-    if not entries:
-        return
-    metrics = out / "metrics.json"
-    try:
-        earlier = json.loads(metrics.read_text(encoding="utf-8")).get("format") == METRICS_FORMAT
-    except (OSError, ValueError, AttributeError):
-        earlier = False
-    if not earlier or not set(entries) <= set(OUTPUT_FILES):
-        raise ReplayError(f"--out {out}: not empty and not an earlier replay's output (holds "
-                          f"{', '.join(entries[:5])}{', ...' if len(entries) > 5 else ''}); "
-                          "choose an empty folder or pass --force")
+    write_parquet(table, path)
 
 
 def write_outputs(result: ReplayResult, out: Path) -> dict:
-    """Write every output file into ``out`` (created); return the metrics."""
+    """Write every output file into ``out`` (atomically, through :mod:`vtoladapt.outputs`); return the metrics."""
     from .figures import plot_replay
     from .report import write_report
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     metrics = compute_metrics(result)
     write_timeseries(result, out / "replay.parquet")
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=1, allow_nan=False) + "\n", encoding="utf-8")
+    write_json(out / "metrics.json", metrics)
     plot_replay(result, out / "fig_replay.png")
     write_report(result, metrics, out)
     return metrics
 
 
-__all__ = ["AIRSPEED_BINS_MPS", "METRICS_FORMAT", "OUTPUT_FILES", "check_output_dir", "compute_metrics",
+__all__ = ["AIRSPEED_BINS_MPS", "METRICS_FORMAT", "OUTPUT_FILES", "compute_metrics",
            "write_outputs", "write_timeseries"]

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..outputs import write_text
 from .estimator import ReplayResult
 
 _MD = """# Replay of a flight log
@@ -92,8 +93,8 @@ def write_report(result: ReplayResult, metrics: dict, out: Path) -> tuple[Path, 
     md = jinja2.Environment(autoescape=False, keep_trailing_newline=True).from_string(_MD).render(ctx)
     html = jinja2.Environment(autoescape=True).from_string(_HTML).render(ctx)
     out = Path(out)
-    (out / "report.md").write_text(md, encoding="utf-8")
-    (out / "report.html").write_text(html, encoding="utf-8")
+    write_text(out / "report.md", md)
+    write_text(out / "report.html", html)
     return out / "report.md", out / "report.html"
 
 
