@@ -136,10 +136,15 @@ class Scenario:
     def load_vehicle(self) -> Vehicle:
         """The vehicle named by the scenario (a shipped name, or a path relative to the scenario file)."""
         path = Path(self.vehicle)
-        if self.source_path and path.suffix == ".toml" and not path.is_absolute():
-            path = Path(self.source_path).parent / path
-            return load_vehicle(path)
-        return load_vehicle(self.vehicle)
+        try:
+            if self.source_path and path.suffix == ".toml" and not path.is_absolute():
+                return load_vehicle(Path(self.source_path).parent / path)
+            return load_vehicle(self.vehicle)
+        except ConfigError as exc:
+            # an unknown name is the scenario file's mistake: say which file holds the key
+            if self.source_path and str(self.source_path) not in str(exc):
+                raise ConfigError(f"{self.source_path}: {exc}") from None
+            raise
 
     def posterior_path(self) -> Optional[Path]:
         """Path of the ``[controller_prior] posterior`` file (relative to the scenario), or None."""
