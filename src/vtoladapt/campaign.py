@@ -170,7 +170,8 @@ def _write_outputs(rows: list[dict], out: Path, varied: tuple[str, ...] = ()) ->
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    keys = list(dict.fromkeys(k for r in rows for k in r))  # a diverged run's row lacks the metrics
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    rows = [{k: r.get(k, float("nan")) for k in keys} for r in rows]  # a run diverged at once has no metrics
     table = pa.table({k: [r.get(k, float("nan")) for r in rows] for k in keys})
     pq.write_table(table, out / "campaign.parquet")
     summary = {}
