@@ -101,8 +101,10 @@ def test_fault_table_rows(fault_runs):
     rows = fault_table([res for _, res in fault_runs.values()])
     assert [r["faults"] for r in rows] == list(FAULT_KINDS)
     by = {r["faults"]: r for r in rows}
-    assert by["mocap_latency"]["recovered"] and not by["pusher_saturated"]["recovered"] or \
-        by["pusher_saturated"]["pos_err_worst_m"] > 10.0
+    # only the saturated pusher is still far away at the end of its run (it returns at the
+    # velocity-correction limit); every other fault, the stuck rotor included, ends back on the point
+    assert [k for k, r in by.items() if not r["recovered"]] == ["pusher_saturated"]
+    assert by["pusher_saturated"]["saturated_during_fault"] > 0.5 and by["pusher_saturated"]["diverged"] == ""
     for kind, bound in POSITION_ERROR_BOUND_M.items():
         assert by[kind]["pos_err_worst_m"] < bound
 
