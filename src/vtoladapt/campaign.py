@@ -137,8 +137,11 @@ def run_one(spec: RunSpec) -> dict:
     scenario = scenario_from_mapping(spec.mapping, spec.source)
     result = simulate(scenario)
     row = {"run": spec.index, **spec.drawn}
-    row.update(run_metrics(result, fan_throttle_series(scenario, result.time_s)))
+    if len(result) > 1:  # a run that diverged at once has no metrics, only its divergence
+        row.update(run_metrics(result, fan_throttle_series(scenario, result.time_s)))
     row["wall_time_s"] = result.metadata["wall_time_s"]
+    row["diverged"] = float(result.diverged)
+    row["diverged_at_s"] = result.diverged_at_s if result.diverged else float("nan")
     return row
 
 
@@ -253,7 +256,8 @@ def _progress(total: int, show: bool):
 def _write_outputs(rows: list[dict], out: Path, varied: tuple[str, ...] = ()) -> None:
     import pyarrow as pa
 
-    keys = list(rows[0])
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    rows = [{k: r.get(k, float("nan")) for k in keys} for r in rows]  # a run diverged at once has no metrics
     table = pa.table({k: [r.get(k, float("nan")) for r in rows] for k in keys})
     write_parquet(table, out / "campaign.parquet")
     summary = {}
@@ -264,7 +268,8 @@ def _write_outputs(rows: list[dict], out: Path, varied: tuple[str, ...] = ()) ->
         summary[k] = {"mean": float(np.nanmean(vals)), "std": float(np.nanstd(vals)),
                       "min": float(np.nanmin(vals)), "p95": float(np.nanpercentile(vals, 95)),
                       "max": float(np.nanmax(vals))}
-    write_json(out / "summary.json", {"runs": len(rows), "columns": summary})
+    diverged = int(sum(r.get("diverged", 0.0) for r in rows))
+    write_json(out / "summary.json", {"runs": len(rows), "diverged_runs": diverged, "columns": summary})
     figure_campaign_png(rows, out / "fig_campaign.png", varied)
 
 

@@ -2,11 +2,14 @@
 
 Per controller tick ``k`` (time ``t = k dt``), in this order:
 
+0. the divergence monitor checks the state against the scenario's envelope
+   (:mod:`vtoladapt.monitor`); outside it, the run stops before this tick;
 1. the wind model advances and gives the wind at the vehicle, held over the tick;
-2. the sensors sample the true state, the true specific force and the true incident flow;
+2. the sensors sample the true state, the true specific force and the true incident flow, and the
+   scenario's active sensor faults alter the measurement (:mod:`vtoladapt.faults`);
 3. the controller computes its command from the measurement and the reference (its output is
    held until the next tick, as on a flight computer);
-4. the mixer turns the command into five motor commands;
+4. the mixer turns the command into five motor commands, which the active actuator faults alter;
 5. one log row is written;
 6. the plant advances by ``dt`` with ``n_sub`` fixed RK4 substeps (default 1 kHz).
 
@@ -42,7 +45,9 @@ from .layout import (
     X_P_W,
     X_SIZE,
 )
-from .mixer import mix
+from .faults import active_mask, apply_actuator_faults, apply_measurement_faults
+from .mixer import MX_U_MAX, mix
+from .monitor import REASON_OK, check_envelope
 from .plant import RK4_WORK_SIZE, plant_advance, plant_first_stage
 from .sensors import sensors_step
 from .wind import wind_step
@@ -57,7 +62,7 @@ LOG_COLUMNS: tuple[str, ...] = (
     + ("motor1_cmd_frac", "motor2_cmd_frac", "motor3_cmd_frac", "motor4_cmd_frac", "pusher_cmd_frac",
        "mixer_saturated")
     + tuple(CONTROLLER_DIAG_COLUMNS)
-    + ("lyapunov_V",)
+    + ("lyapunov_V", "faults_active")
 )
 """Names of the log columns, in order; units are in the names (see README, "Log columns")."""
 
@@ -71,7 +76,8 @@ _C_CMD = _C_REF + REF_SIZE
 _C_MOTOR = _C_CMD + CMD_SIZE
 _C_DIAG = _C_MOTOR + N_MOTORS + 1
 _C_LYAP = _C_DIAG + N_DIAG
-N_LOG = _C_LYAP + 1
+_C_FAULTS = _C_LYAP + 1
+N_LOG = _C_FAULTS + 1
 assert N_LOG == len(LOG_COLUMNS)
 
 
@@ -102,6 +108,14 @@ def tick_actuate(x, plant_p, mixer_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B
     ``work`` must hold the first RK4 stage :func:`tick_sense` evaluated at this ``x``.
     """
     saturated = mix(cmd, mixer_p, motor_cmd)
+    tick_log_advance(x, plant_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag, motor_cmd,
+                     saturated, 0.0, work, theta_true, gamma, row)
+
+
+@njit(cache=True, nogil=True)
+def tick_log_advance(x, plant_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag, motor_cmd,
+                     saturated, faults_active, work, theta_true, gamma, row) -> None:
+    """Steps 5-6 of the tick: log the tick into ``row`` (unless empty), advance the plant with ``motor_cmd``."""
     if row.shape[0] > 0:
         row[0] = t
         for i in range(X_SIZE):
@@ -128,20 +142,29 @@ def tick_actuate(x, plant_p, mixer_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B
         row[_C_LYAP] = lyapunov_function(
             diag[DIAG_V_TILDE:DIAG_V_TILDE + 3], diag[DIAG_Q_TILDE],
             state_theta_hat(ctrl_state), state_P_inv(ctrl_state), theta_true, gamma)
+        row[_C_FAULTS] = faults_active
     plant_advance(x, motor_cmd, v_wind, plant_p, dt / n_sub, n_sub, True, work)
 
 
 @njit(cache=True, nogil=True)
 def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state,
-                    ref_table, t0, dt, n_sub, rng, theta_true, gamma, log) -> None:
-    """Simulate ``ref_table.shape[0]`` controller ticks from time ``t0``, one row of ``log`` per tick.
+                    ref_table, t0, dt, n_sub, rng, theta_true, gamma, faults, fault_state, envelope,
+                    log) -> tuple:
+    """Simulate up to ``ref_table.shape[0]`` controller ticks from time ``t0``, one row of ``log`` per tick.
 
-    ``x``, ``ctrl_state``, ``wind_state`` and ``sens_state`` are advanced in place, so a run
-    can be continued. The loop releases the GIL: runs with their own arrays and generators
-    advance in parallel threads (:func:`vtoladapt.simulate.simulate_many`). ``theta_true`` (the
-    plant's linear-model coefficients) is used only for the Lyapunov function in the log, never
-    by the controller. Each tick is :func:`tick_sense` then :func:`tick_actuate`, the two halves
-    the Gymnasium environment (:mod:`vtoladapt.gym`) also steps.
+    Returns ``(ticks_done, reason)``: all ticks and ``REASON_OK``, or, when the state leaves the
+    ``envelope`` (:func:`vtoladapt.monitor.check_envelope`), the ticks completed before it and the
+    reason code; ``x`` is then the offending state and only ``log[:ticks_done]`` is written.
+    ``faults`` is the fault schedule (``(n, FAULT_ROW_SIZE)``, possibly empty) and ``fault_state``
+    its state (:mod:`vtoladapt.faults`).
+
+    ``x``, ``ctrl_state``, ``wind_state``, ``sens_state`` and ``fault_state`` are advanced in
+    place, so a run can be continued. The loop releases the GIL: runs with their own arrays and
+    generators advance in parallel threads (:func:`vtoladapt.simulate.simulate_many`).
+    ``theta_true`` (the plant's linear-model coefficients) is used only for the Lyapunov function
+    in the log, never by the controller. Each tick is :func:`tick_sense` (with the controller run
+    here, after the sensor faults) then the mixer, the actuator faults and
+    :func:`tick_log_advance`: the same steps as the Gymnasium environment's :func:`tick_actuate`.
     """
     n_ticks = ref_table.shape[0]
     v_wind = np.zeros(3)
@@ -152,10 +175,19 @@ def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state,
     diag = np.zeros(N_DIAG)
     motor_cmd = np.zeros(N_MOTORS)
     work = np.empty(RK4_WORK_SIZE)
+    u_max = mixer_p[MX_U_MAX]
     for k in range(n_ticks):
+        reason = check_envelope(x, envelope)
+        if reason != REASON_OK:
+            return k, reason
         t = t0 + k * dt
         ref = ref_table[k]
         tick_sense(x, plant_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state, ref, t, dt, rng,
-                   True, v_wind, f_B, v_i, meas, cmd, diag, work)
-        tick_actuate(x, plant_p, mixer_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag,
-                     motor_cmd, work, theta_true, gamma, log[k])
+                   False, v_wind, f_B, v_i, meas, cmd, diag, work)
+        apply_measurement_faults(faults, fault_state, t, dt, meas)
+        controller_step(ctrl_p, ctrl_state, meas, ref, dt, cmd, diag)
+        saturated = mix(cmd, mixer_p, motor_cmd)
+        apply_actuator_faults(faults, fault_state, t, u_max, motor_cmd)
+        tick_log_advance(x, plant_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag,
+                         motor_cmd, saturated, active_mask(faults, t), work, theta_true, gamma, log[k])
+    return n_ticks, check_envelope(x, envelope)

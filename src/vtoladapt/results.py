@@ -106,6 +106,29 @@ class SimulationResult:
         """``(T, 8)`` theta-hat in the adaptation scaling, if the controller logs it."""
         return self.columns_like([f"theta_hat_{n}" for n in PARAMETER_NAMES])
 
+    @property
+    def diverged_at_s(self) -> float | None:
+        """Time (s) the state left the scenario's envelope and the run stopped, or None."""
+        return self.metadata.get("diverged_at_s")
+
+    @property
+    def divergence_reason(self) -> str | None:
+        """One line on which envelope limit was hit, by how much and when, or None."""
+        return self.metadata.get("divergence_reason")
+
+    @property
+    def diverged(self) -> bool:
+        """Whether the run stopped early because it left its envelope."""
+        return self.diverged_at_s is not None
+
+    def raise_if_diverged(self) -> "SimulationResult":
+        """Return ``self``, or raise :class:`vtoladapt.monitor.DivergenceError` if the run diverged."""
+        if self.diverged:
+            from .monitor import DivergenceError
+
+            raise DivergenceError(self)
+        return self
+
     def __len__(self) -> int:
         return self.data.shape[0]
 

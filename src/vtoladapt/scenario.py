@@ -18,6 +18,8 @@ from typing import Optional
 from .config import NAME_PATTERN, PATH_PATTERN, ConfigError, build, read_toml, setting
 from .control.config import ControllerConfig
 from .control.registry import CONTROLLER_IDS
+from .faults import FaultConfig
+from .monitor import EnvelopeConfig
 from .plant import PlantConfig
 from .sensors import SensorsConfig
 from .vehicle import Vehicle, load_vehicle
@@ -126,6 +128,9 @@ class Scenario:
     controller_prior: ControllerPrior = setting("-", "controller's initial model", default=ControllerPrior())
     experiment: ExperimentConfig = setting("-", "single run or one of the paper's experiments",
                                            default=ExperimentConfig())
+    envelope: EnvelopeConfig = setting("-", "where the run stops as diverged", default=EnvelopeConfig())
+    faults: tuple[FaultConfig, ...] = setting("-", "injected faults ([[faults]] entries, each with start_s "
+                                              "and end_s)", default=())
     source_path: str = setting("-", "file the scenario was read from", default="")
 
     @property

@@ -1,6 +1,7 @@
 """Run a scenario: build the kernel arrays once, run the compiled loop, return a typed result."""
 from __future__ import annotations
 
+import dataclasses
 import os
 import subprocess
 import sys
@@ -42,6 +43,9 @@ class PreparedRun:
     sensor_params: np.ndarray
     sensor_state: np.ndarray
     reference_table: np.ndarray
+    fault_schedule: np.ndarray
+    fault_state: np.ndarray
+    envelope: np.ndarray
     theta_true: np.ndarray
     gamma: float
     rng: np.random.Generator
@@ -52,6 +56,7 @@ def prepare(scenario: Scenario) -> PreparedRun:
     """Convert a validated scenario into kernel arrays. All random draws come from the scenario seed."""
     from .control.api import controller_arrays
     from .control.trajectory import trajectory_from_reference
+    from .faults import faults_to_kernel
     from .sensors import draw_probe_offsets, sensors_initial_state
     from .wind import wind_initial_state
 
@@ -79,8 +84,10 @@ def prepare(scenario: Scenario) -> PreparedRun:
     probe = scenario.sensors.probe
     if probe.model == "pressure" and not probe.ideal:
         draw_probe_offsets(sensor_params, probe.sdp33_offset_std_Pa, rng)
+    fault_schedule, fault_state = faults_to_kernel(scenario.faults, scenario.dt_control_s)
     return PreparedRun(
-        scenario=scenario, vehicle=vehicle, x0=x0,
+        scenario=scenario, vehicle=vehicle, x0=x0, fault_schedule=fault_schedule, fault_state=fault_state,
+        envelope=scenario.envelope.to_kernel(),
         plant_params=scenario.plant.to_kernel(vehicle), mixer_params=mixer_params(ctrl_vehicle),
         controller_params=ctrl_params, controller_state=ctrl_state,
         wind_params=wind_params, wind_state=wind_initial_state(wind_params),
@@ -111,9 +118,30 @@ def controller_prior(scenario: Scenario, vehicle: Vehicle):
     return ctrl_vehicle, theta0, P0, lower, upper, f"posterior {path}"
 
 
+def run_chunk(run: PreparedRun, x: np.ndarray, k0: int, k1: int, log: np.ndarray) -> tuple[int, int]:
+    """Advance ``run`` (state ``x``) over ticks ``k0 .. k1-1`` into ``log`` (``k1 - k0`` rows).
+
+    Returns ``(ticks_done, reason)`` of :func:`vtoladapt.compiled_loop.run_closed_loop`.
+    """
+    from .compiled_loop import run_closed_loop
+
+    sc = run.scenario
+    done, reason = run_closed_loop(
+        x, run.plant_params, run.mixer_params, run.controller_params, run.controller_state,
+        run.wind_params, run.wind_state, run.sensor_params, run.sensor_state, run.reference_table[k0:k1],
+        k0 * sc.dt_control_s, sc.dt_control_s, sc.plant_substeps, run.rng, run.theta_true, run.gamma,
+        run.fault_schedule, run.fault_state, run.envelope, log)
+    return int(done), int(reason)
+
+
 def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) -> SimulationResult:
-    """Run ``scenario`` and return its :class:`SimulationResult` (log and metadata)."""
-    from .compiled_loop import LOG_COLUMNS, N_LOG, run_closed_loop
+    """Run ``scenario`` and return its :class:`SimulationResult` (log and metadata).
+
+    A run whose state leaves the scenario's ``[envelope]`` stops there: the result holds the
+    ticks before it, and ``result.diverged_at_s`` / ``result.divergence_reason`` say when and why
+    (:mod:`vtoladapt.monitor`); nothing is raised (``result.raise_if_diverged()`` does).
+    """
+    from .compiled_loop import LOG_COLUMNS, N_LOG
 
     run = prepare(scenario)
     n = scenario.n_ticks
@@ -121,16 +149,22 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
     x = run.x0.copy()
     chunk = max(1, int(round(CHUNK_S / scenario.dt_control_s)))
     wall0 = time.perf_counter()
+    n_done, reason = n, 0
     for k0 in range(0, n, chunk):
         k1 = min(n, k0 + chunk)
-        run_closed_loop(x, run.plant_params, run.mixer_params, run.controller_params,
-                        run.controller_state, run.wind_params, run.wind_state, run.sensor_params,
-                        run.sensor_state, run.reference_table[k0:k1], k0 * scenario.dt_control_s,
-                        scenario.dt_control_s, scenario.plant_substeps, run.rng, run.theta_true,
-                        run.gamma, log[k0:k1])
+        done, reason = run_chunk(run, x, k0, k1, log[k0:k1])
+        if reason != 0:
+            n_done = k0 + done
+            break
         if progress is not None:
             progress(k1 * scenario.dt_control_s, scenario.duration_s)
     wall = time.perf_counter() - wall0
+    diverged_at_s = None
+    why = None
+    if reason != 0:
+        log = log[:n_done].copy()
+        diverged_at_s = n_done * scenario.dt_control_s
+        why = scenario.envelope.describe_violation(reason, x, diverged_at_s)
     metadata = {
         "scenario": scenario.name, "scenario_path": scenario.source_path, "vehicle": run.vehicle.name,
         "controller": scenario.controller.kind, "seed": scenario.seed,
@@ -141,6 +175,8 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
         "velocity_correction_max_mps": scenario.controller.velocity_correction_max_mps,
         "probe_model": scenario.sensors.probe.describe(),
         "theta_true_scaled": run.theta_true.tolist(),
+        "diverged_at_s": diverged_at_s, "divergence_reason": why,
+        "faults": [dataclasses.asdict(f) for f in scenario.faults],
     }
     return SimulationResult(LOG_COLUMNS, log, metadata)
 
