@@ -1,6 +1,7 @@
 """The divergence monitor: a run that leaves its [envelope] stops, keeps its log, says when and why."""
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -26,9 +27,22 @@ def _run(**extra):
     return simulate(scenario_from_mapping(_mapping(**extra), "tests/test_divergence.py"))
 
 
+def _absurd_thrust_scenario(duration_s: float = 2.0):
+    """CTz = 1e10: the input ranges refuse it in a file (test below), so the scenario is built past
+    them, as a program could, to see that the loop itself still stops such a run."""
+    s = scenario_from_mapping(_mapping(duration_s=duration_s), "tests/test_divergence.py")
+    coeffs = dataclasses.replace(s.plant.coefficients, CTz=1e10)
+    return dataclasses.replace(s, plant=dataclasses.replace(s.plant, coefficients=coeffs))
+
+
+def test_absurd_thrust_coefficient_is_refused_in_a_file():
+    with pytest.raises(ConfigError, match=r"\[plant.coefficients\] CTz = 10000000000.0: out of range"):
+        _run(plant={"coefficients": {"CTz": 1e10}})
+
+
 def test_absurd_thrust_coefficient_stops_at_the_first_ticks():
     """Issue #15: CTz = 1e10 made NaN from the first tick and a run 'succeeded' with NaN metrics."""
-    res = _run(plant={"coefficients": {"CTz": 1e10}})
+    res = simulate(_absurd_thrust_scenario())
     assert res.diverged
     assert res.diverged_at_s <= 2 * DT
     assert len(res) == round(res.diverged_at_s / DT)
@@ -72,7 +86,7 @@ def test_height_band():
 
 
 def test_divergence_survives_the_parquet_round_trip(tmp_path):
-    res = _run(plant={"coefficients": {"CTz": 1e10}})
+    res = simulate(_absurd_thrust_scenario())
     back = SimulationResult.from_parquet(res.to_parquet(tmp_path / "log.parquet"))
     assert back.diverged_at_s == res.diverged_at_s and back.divergence_reason == res.divergence_reason
 
@@ -87,10 +101,30 @@ def test_envelope_errors_are_one_line():
 
 def test_campaign_counts_diverged_runs_and_goes_on(tmp_path):
     specs = [RunSpec(0, _mapping(duration_s=0.5), "a.toml", {"seed": 1}),
-             RunSpec(1, _mapping(duration_s=0.5, plant={"coefficients": {"CTz": 1e10}}), "b.toml", {"seed": 2}),
+             # climbs through a 2 m ceiling at about 0.5 s: leaves its envelope, the campaign goes on
+             RunSpec(1, _mapping(duration_s=1.0, reference={"kind": "hold", "position_m": [0.0, 0.0, -3.0]},
+                                 envelope={"max_height_m": 2.0}), "b.toml", {"seed": 2}),
              RunSpec(2, _mapping(duration_s=0.5, seed=3), "c.toml", {"seed": 3})]
     rows = run_campaign(specs, tmp_path, scheduler="none", n_workers=1, show_progress=False)
     assert [r["diverged"] for r in rows] == [0.0, 1.0, 0.0]
     assert np.isfinite(rows[2]["pos_err_max_m"])
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["diverged_runs"] == 1 and summary["runs"] == 3
+
+
+def test_cli_run_that_diverges_exits_1_with_one_line_and_keeps_its_outputs(tmp_path, capsys):
+    from vtoladapt.cli import main
+
+    path = tmp_path / "height_band.toml"
+    path.write_text('name = "height_band"\nvehicle = "caltech_vtol"\nduration_s = 3.0\n'
+                    '[reference]\nkind = "hold"\nposition_m = [0.0, 0.0, -3.0]\n'
+                    '[envelope]\nmax_height_m = 2.0\n')
+    out = tmp_path / "o"
+    assert main(["run", str(path), "--out", str(out), "--quiet"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "height_band: run diverged: height" in err[0] and "max_height_m = 2" in err[0]
+    metrics = json.loads((out / "metrics.json").read_text())
+    (entry,) = metrics["divergence"]
+    assert entry["run"] == "height_band" and 0.0 < entry["diverged_at_s"] < 3.0
+    back = SimulationResult.from_parquet(out / "log.parquet")
+    assert back.diverged_at_s == entry["diverged_at_s"] and np.all(np.isfinite(back["p_D_m"]))

@@ -18,6 +18,7 @@ import numpy as np
 from numba import njit
 
 from .config import setting
+from .errors import RunFailed
 from .layout import X_OMEGA_B, X_P_W, X_SIZE, X_V_W, BlockLayout, Field
 
 REASON_OK = 0
@@ -89,15 +90,16 @@ class EnvelopeConfig:
         return ""
 
 
-class DivergenceError(RuntimeError):
+class DivergenceError(RunFailed):
     """A run left its envelope; ``result`` is the truncated :class:`SimulationResult`.
 
-    The CLI maps it to exit status 1 with ``str(error)`` as the one-line reason.
+    A :class:`vtoladapt.errors.RunFailed`: the CLI exits with status 1 and ``str(error)`` as the
+    one-line reason (``where`` says which run and where its outputs were kept).
     """
 
-    def __init__(self, result):
+    def __init__(self, result, where: str = ""):
         self.result = result
-        super().__init__(f"run diverged: {result.divergence_reason}")
+        super().__init__(f"{where}run diverged: {result.divergence_reason}")
 
 
 @njit(cache=True, nogil=True)

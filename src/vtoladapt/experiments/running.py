@@ -12,6 +12,7 @@ from typing import Optional
 import numpy as np
 
 from ..metrics import run_metrics
+from ..monitor import DivergenceError
 from ..results import SimulationResult
 from ..scenario import SCENARIO_DIR, Scenario, load_scenario
 from .claims import check_claims
@@ -173,8 +174,18 @@ def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, wa
     finally:
         progress.close()
     metrics["claims"] = check_claims(metrics.get("comparison"), metrics.get("convergence"))
+    runs = ({"": res} if kind == "single" else results if kind == "comparison"
+            else {f"run{i + 1}": r for i, r in enumerate(results)})
+    diverged = {name: r for name, r in runs.items() if r.diverged}
+    # every run that left its envelope, with when and why; its log is kept up to that point
+    metrics["divergence"] = [{"run": name or scenario.name, "diverged_at_s": r.diverged_at_s,
+                              "reason": r.divergence_reason} for name, r in diverged.items()]
     _write_json(out / "metrics.json", metrics)
     write_report(out, build_report(_experiment_title(scenario), metrics, _figure_refs(figures), notes))
+    if diverged:
+        name, res = next(iter(diverged.items()))
+        count = f" (first of {len(diverged)} diverged runs)" if len(diverged) > 1 else ""
+        raise DivergenceError(res, f"{scenario.name}{' ' + name if name else ''}{count}: ")
     return metrics
 
 
