@@ -85,8 +85,8 @@ class FaultConfig:
     """One entry of the ``[[faults]]`` schedule (see the module docstring for the kinds)."""
 
     kind: str = setting("-", "what fails", choices=FAULT_KINDS)
-    start_s: float = setting("s", "fault active from this time", ge=0.0)
-    end_s: float = setting("s", "until this time (exclusive)", gt=0.0)
+    start_s: float = setting("s", "fault active from this time", ge=0.0, le=3600.0)
+    end_s: float = setting("s", "until this time (exclusive)", gt=0.0, le=3600.0)
     motor: int = setting("-", "motor for lift_motor_loss (1-4) and stuck_throttle (1-4 lift, 5 pusher)",
                          default=1, ge=1, le=5)
     thrust_loss_fraction: float = setting("-", "thrust lost by the motor (lift_motor_loss)", default=0.3,

@@ -50,11 +50,13 @@ class EnvelopeConfig:
     controllers fly, so only a run that has lost the vehicle trips them."""
 
     enabled: bool = setting("-", "stop the run when the state leaves the envelope", default=True)
-    max_speed_mps: float = setting("m/s", "largest ground speed |v_W|", default=50.0, gt=0.0)
+    max_speed_mps: float = setting("m/s", "largest ground speed |v_W|", default=50.0, gt=0.0, le=1000.0)
     max_body_rate_radps: float = setting("rad/s", "largest body rate |omega_B| (35 rad/s is a gyro's range)",
-                                         default=30.0, gt=0.0)
-    min_height_m: float = setting("m", "lowest height -p_D above the world origin", default=-100.0)
-    max_height_m: float = setting("m", "highest height -p_D above the world origin", default=1000.0)
+                                         default=30.0, gt=0.0, le=1000.0)
+    min_height_m: float = setting("m", "lowest height -p_D above the world origin", default=-100.0,
+                                  ge=-1e5, le=1e5)
+    max_height_m: float = setting("m", "highest height -p_D above the world origin", default=1000.0,
+                                  ge=-1e5, le=1e5)
 
     def _check(self, source: str) -> None:
         from .config import ConfigError
