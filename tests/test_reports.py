@@ -204,6 +204,10 @@ def test_single_run_report_names_its_scenario_and_has_its_metrics(tmp_path):
     assert set(metrics) <= set(METRIC_INFO)     # every metric has words and a unit
     for key, value in metrics.items():
         label, unit = METRIC_INFO[key]
+        if isinstance(value, dict):   # per airspeed bin: "bin value" pairs, "n/a" for an empty bin
+            shown_text = "; ".join(f"{b} {'n/a' if v is None else format(v, '.4g')}" for b, v in value.items())
+            assert f"| {label} | {shown_text} | {unit} |" in md, key
+            continue
         shown = 100 * value if key.endswith("_fraction") else value
         shown_text = f"{shown:.4g}" if np.isfinite(shown) else "n/a"   # e.g. no high wind in 3 s
         assert f"| {label} | {shown_text} | {unit} |" in md, key

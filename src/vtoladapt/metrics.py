@@ -29,6 +29,7 @@ METRIC_INFO: dict[str, tuple[str, str]] = {
     "pos_err_max_m": ("peak position error", "m"),
     "pred_err_rms_g": (f"RMS prediction error (after {PRED_ERR_SKIP_S:g} s)", "g"),
     "pred_err_p95_g": (f"95th-percentile prediction error (after {PRED_ERR_SKIP_S:g} s)", "g"),
+    "pred_err_p95_g_by_airspeed": ("95th-percentile prediction error per true-airspeed bin (m/s)", "g"),
     "mixer_saturated_fraction": ("share of time with a saturated motor", "%"),
     "airspeed_max_mps": ("peak airspeed", "m/s"),
     "fan_off_time_s": ("time the fan stops", "s"),

@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 
 from ..control.registry import CONTROLLERS
-from .report import (Cell, Table, ablation_table, convergence_distribution_table,
+from .report import (Cell, Table, ablation_table, claims_table, convergence_distribution_table,
                      distribution_claims_table, distribution_controllers_table, table_markdown,
                      wind_table_table)
 
@@ -37,6 +37,10 @@ def controllers_law_table() -> Table:
 def readme_tables(metrics: dict) -> str:
     """The README's block of result tables (Markdown) for ``metrics`` (a reproduce metrics.json)."""
     parts = [controllers_law_table()]
+    if metrics.get("claims"):
+        single = claims_table(metrics["claims"])
+        parts.append(Table("The claims at the scenarios' own seed (the run the figures show):",
+                           single.headers, single.rows))
     dist = metrics.get("distribution", {})
     if "comparison" in dist:
         parts += [distribution_claims_table(dist["comparison"]),

@@ -116,7 +116,12 @@ def run_metrics_table(run: dict) -> Table:
     rows = []
     for k in keys:
         label, unit = METRIC_INFO.get(k, (k, ""))
-        rows.append((Cell(label), _num(metric_display_value(k, run[k])), Cell(_unit_text(unit))))
+        value = run[k]
+        if isinstance(value, dict):  # per-bin values: "bin: value" pairs in one cell
+            cell = Cell("; ".join(f"{b} {fmt_number(v)}" for b, v in value.items()), numeric=True)
+        else:
+            cell = _num(metric_display_value(k, value))
+        rows.append((Cell(label), cell, Cell(_unit_text(unit))))
     return Table("", ("quantity", "value", "unit"), tuple(rows))
 
 
