@@ -97,15 +97,25 @@ def comparison_variant(scenario: Scenario, progress: Progress = None) -> dict:
 
 def convergence_variant(scenario: Scenario, progress: Progress = None) -> dict:
     """The convergence experiment (``runs`` random-start runs) on ``scenario``; claims and ratios."""
-    from .running import run_convergence
+    from ..simulate import simulate_many
 
-    results = run_convergence(scenario)
+    results = simulate_many(convergence_runs(scenario))
     conv = convergence_metrics(scenario, results)
     if progress is not None:
         progress(scenario.duration_s * len(results))
     return {"param_std_ratio": conv["param_std_ratio"],
             "predicted_force_std_ratio": conv["predicted_force_std_ratio"],
             "claims": check_claims(None, conv)}
+
+
+def convergence_runs(scenario: Scenario) -> list[Scenario]:
+    """The convergence experiment's runs: ``[experiment] runs`` seeds spawned from the scenario
+    seed, each from a random initial theta-hat, all on one aircraft (a Table I draw comes from
+    the experiment's seed, not each run's)."""
+    seeds = np.random.SeedSequence(scenario.seed).generate_state(scenario.experiment.runs)
+    prior = replace(scenario.controller_prior, initial_theta="random")
+    plant = scenario.plant.resolved(scenario.load_vehicle(), scenario.seed)
+    return [replace(scenario, seed=int(seed), controller_prior=prior, plant=plant) for seed in seeds]
 
 
 # --- many variants -------------------------------------------------------------------------------

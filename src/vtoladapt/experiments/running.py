@@ -9,7 +9,6 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Optional
 
-import numpy as np
 
 from ..metrics import run_metrics
 from ..results import SimulationResult
@@ -104,11 +103,9 @@ def run_comparison(scenario: Scenario, progress: Optional[_Progress] = None) -> 
 
 def run_convergence(scenario: Scenario, progress: Optional[_Progress] = None) -> list[SimulationResult]:
     """``[experiment] runs`` runs from random initial theta-hat, seeds spawned from the scenario seed."""
-    seeds = np.random.SeedSequence(scenario.seed).generate_state(scenario.experiment.runs)
-    prior = replace(scenario.controller_prior, initial_theta="random")
-    # one aircraft: a Table I draw comes from the experiment's seed, not each run's
-    plant = scenario.plant.resolved(scenario.load_vehicle(), scenario.seed)
-    runs = [replace(scenario, seed=int(seed), controller_prior=prior, plant=plant) for seed in seeds]
+    from .distribution import convergence_runs
+
+    runs = convergence_runs(scenario)
     return _run_all(runs, progress, f"convergence: {len(runs)} runs")
 
 
