@@ -48,12 +48,19 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(20200531)
 
 
+REPRODUCED_VARIANTS = 4
+"""Seeded variants of each experiment in the ``reproduced`` fixture (the real run flies 30 and 10)."""
+
+
 @pytest.fixture(scope="session")
 def reproduced(tmp_path_factory):
-    """``vtoladapt reproduce`` at 0.12 of the paper's durations: its output folder (shared by the
-    tests of the experiments and of the reports, so it runs once)."""
-    from vtoladapt.cli import main
+    """``vtoladapt reproduce`` at 0.12 of the paper's durations, each experiment over
+    :data:`REPRODUCED_VARIANTS` seeded variants, the ablation over 2 and the method x wind table
+    over 1: its output folder (shared by the tests of the experiments and of the reports, so it
+    runs once)."""
+    from vtoladapt.experiments import reproduce
 
     out = tmp_path_factory.mktemp("repro") / "results"
-    assert main(["reproduce", "--out", str(out), "--duration-scale", "0.12", "--quiet"]) == 0
+    reproduce(out, duration_scale=0.12, show_progress=False, variants=REPRODUCED_VARIANTS,
+              ablation_variants=2, wind_variants=1)
     return out

@@ -204,6 +204,10 @@ def test_single_run_report_names_its_scenario_and_has_its_metrics(tmp_path):
     assert set(metrics) <= set(METRIC_INFO)     # every metric has words and a unit
     for key, value in metrics.items():
         label, unit = METRIC_INFO[key]
+        if isinstance(value, dict):   # per airspeed bin: "bin value" pairs, "n/a" for an empty bin
+            shown_text = "; ".join(f"{b} {'n/a' if v is None else format(v, '.4g')}" for b, v in value.items())
+            assert f"| {label} | {shown_text} | {unit} |" in md, key
+            continue
         if value is None:                       # NaN is written as JSON null, e.g. no high wind in 3 s
             shown_text = "n/a"
         else:

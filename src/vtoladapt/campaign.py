@@ -138,7 +138,9 @@ def run_one(spec: RunSpec) -> dict:
     result = simulate(scenario)
     row = {"run": spec.index, **spec.drawn}
     if len(result) > 1:  # a run that diverged at once has no metrics, only its divergence
-        row.update(run_metrics(result, fan_throttle_series(scenario, result.time_s)))
+        # one column per scalar metric (the per-airspeed-bin prediction error is a mapping: left out)
+        row.update({k: v for k, v in run_metrics(result, fan_throttle_series(scenario, result.time_s)).items()
+                    if not isinstance(v, dict)})
     row["wall_time_s"] = result.metadata["wall_time_s"]
     row["diverged"] = float(result.diverged)
     row["diverged_at_s"] = result.diverged_at_s if result.diverged else float("nan")

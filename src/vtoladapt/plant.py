@@ -32,7 +32,7 @@ plant's time.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Optional
 
 import numpy as np
@@ -77,6 +77,11 @@ class PlantConfig:
 
     coefficients: PlantCoefficients = setting("-", "true coefficients (default: vehicle's Table I)",
                                               default=PlantCoefficients())
+    coefficients_from: str = setting(
+        "-", "where the coefficients not set in [plant.coefficients] come from: 'table_i_means' (the "
+        "vehicle's published means, the controller's theta_0) or 'table_i_draw' (one draw from Table "
+        "I's mean +- std, seeded by the run seed; see draw_table_i_coefficients)",
+        default="table_i_means", choices=("table_i_means", "table_i_draw"))
     mass_kg: Optional[float] = setting("kg", "true mass (default: vehicle's)", default=None, gt=0.0, le=150.0)
     inertia_kgm2: Optional[tuple[float, ...]] = setting(
         "kg m^2", "true principal inertia (default: vehicle's)", default=None, gt=0.0, le=500.0, length=3)
@@ -106,6 +111,17 @@ class PlantConfig:
     Clp: float = setting("-", "roll damping derivative", default=-0.4, ge=-100.0, le=0.0)
     Cmq: float = setting("-", "pitch damping derivative (V-tail)", default=-6.0, ge=-100.0, le=0.0)
     Cnr: float = setting("-", "yaw damping derivative", default=-0.15, ge=-100.0, le=0.0)
+
+    def resolved(self, vehicle: Vehicle, seed: int) -> "PlantConfig":
+        """This config with a ``table_i_draw`` made concrete: the drawn coefficients written into
+        ``coefficients`` (explicit overrides kept) and ``coefficients_from = 'table_i_means'``.
+        A config without a draw comes back unchanged."""
+        if self.coefficients_from != "table_i_draw":
+            return self
+        drawn = draw_table_i_coefficients(vehicle, seed)
+        given = {n: getattr(self.coefficients, n) for n in drawn}
+        merged = {n: (given[n] if given[n] is not None else drawn[n]) for n in drawn}
+        return replace(self, coefficients=PlantCoefficients(**merged), coefficients_from="table_i_means")
 
     def true_coefficients(self, vehicle: Vehicle) -> dict[str, float]:
         """The plant's coefficients in Table I units: vehicle's means with this config's overrides."""
@@ -153,6 +169,37 @@ class PlantConfig:
             KM=vehicle.actuators.yaw_torque_per_thrust_m,
             KM_PUSHER=vehicle.actuators.yaw_torque_per_thrust_m if self.rotor_reaction_torque else 0.0,
             DAMP_ON=float(self.aero_rate_damping), CLP=self.Clp, CMQ=self.Cmq, CNR=self.Cnr)
+
+
+PLANT_DRAW_STREAM = 0x7AB1E1
+"""Second entropy word of the plant draw's seed sequence: the draw gets its own stream, so drawing
+the plant does not shift the run's other random draws (sensor noise, turbulence)."""
+TABLE_I_DRAW_CLIP_SIGMAS = 2.0
+"""A drawn coefficient stays within this many standard deviations of its mean."""
+
+
+def draw_table_i_coefficients(vehicle: Vehicle, seed: int) -> dict[str, float]:
+    """One plausible aircraft: the ten force-model coefficients of Table I (Table I units), each
+    drawn independently from a normal with the published mean and standard deviation.
+
+    The rule: generator ``numpy.random.default_rng(SeedSequence([seed, PLANT_DRAW_STREAM]))``,
+    one standard normal per coefficient in the order CTx, CTz, CS, k1, k2, CD0, CD1, CD2, CL0, CL1,
+    each clipped to +-:data:`TABLE_I_DRAW_CLIP_SIGMAS` std (a posterior's tails are where a
+    Gaussian summary is least trustworthy) and to the coefficient's physical range (CS, CD0,
+    CD2 >= 0; k2 > pi/2). Table I gives no correlations, so none are drawn.
+    """
+    names = ("CTx", "CTz", "CS", "k1", "k2", "CD0", "CD1", "CD2", "CL0", "CL1")
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), PLANT_DRAW_STREAM]))
+    z = np.clip(rng.standard_normal(len(names)), -TABLE_I_DRAW_CLIP_SIGMAS, TABLE_I_DRAW_CLIP_SIGMAS)
+    out = {}
+    for name, zi in zip(names, z):
+        value = getattr(vehicle.force_model, name) + zi * getattr(vehicle.force_model_std, name)
+        if name in ("CS", "CD0", "CD2"):
+            value = max(value, 0.0)
+        elif name == "k2":
+            value = max(value, math.pi / 2 + 1e-6)
+        out[name] = float(value)
+    return out
 
 
 def plant_config_from_mapping(data: dict | None, source: str) -> PlantConfig:

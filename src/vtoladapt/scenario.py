@@ -95,6 +95,10 @@ class ExperimentConfig:
                         "(Figs. tracking_comparison)", default="single",
                         choices=("single", "convergence", "comparison"))
     runs: int = setting("-", "number of random-start runs (kind = convergence)", default=7, ge=2, le=1000)
+    variants: int = setting(
+        "-", "seeded variants the experiment is also flown over (1: the single-seed experiment only); "
+        "variant i has seed i of SeedSequence([seed, 0xD157]) and so its own plant draw, turbulence "
+        "and sensor noise (vtoladapt.experiments.distribution)", default=1, ge=1, le=10000)
     controllers: tuple[str, ...] = setting(
         "-", "controllers compared (kind = comparison)",
         default=CONTROLLER_IDS,

@@ -50,6 +50,7 @@ class PreparedRun:
     gamma: float
     rng: np.random.Generator
     prior_description: str
+    plant_coefficients: dict
 
 
 def prepare(scenario: Scenario) -> PreparedRun:
@@ -61,6 +62,7 @@ def prepare(scenario: Scenario) -> PreparedRun:
     from .wind import wind_initial_state
 
     vehicle = scenario.load_vehicle()
+    plant = scenario.plant.resolved(vehicle, scenario.seed)
     rng = np.random.default_rng(scenario.seed)
     ctrl_vehicle, theta0, P0_diag, lower, upper, prior_description = controller_prior(scenario, vehicle)
     theta_init = None
@@ -71,7 +73,7 @@ def prepare(scenario: Scenario) -> PreparedRun:
         ctrl_vehicle, scenario.controller, theta_0=theta0, P0_diag=P0_diag, theta_lower=lower,
         theta_upper=upper, theta_init=theta_init)
     ic = scenario.initial
-    motors = hover_trim_motor(vehicle, scenario.plant) if ic.trimmed_motors else np.zeros(layout.N_MOTORS)
+    motors = hover_trim_motor(vehicle, plant) if ic.trimmed_motors else np.zeros(layout.N_MOTORS)
     q0 = quat_from_euler(np.radians(ic.yaw_deg), np.radians(ic.pitch_deg), np.radians(ic.roll_deg))
     x0 = layout.pack_state(ic.position_m, ic.velocity_mps, q0, (0.0, 0.0, 0.0), motors)
     wind_params = scenario.wind.to_kernel()
@@ -88,12 +90,13 @@ def prepare(scenario: Scenario) -> PreparedRun:
     return PreparedRun(
         scenario=scenario, vehicle=vehicle, x0=x0, fault_schedule=fault_schedule, fault_state=fault_state,
         envelope=scenario.envelope.to_kernel(),
-        plant_params=scenario.plant.to_kernel(vehicle), mixer_params=mixer_params(ctrl_vehicle),
+        plant_params=plant.to_kernel(vehicle), mixer_params=mixer_params(ctrl_vehicle),
         controller_params=ctrl_params, controller_state=ctrl_state,
         wind_params=wind_params, wind_state=wind_initial_state(wind_params),
         sensor_params=sensor_params, sensor_state=sensor_state,
-        reference_table=reference, theta_true=scenario.plant.theta_true_scaled(vehicle),
-        gamma=scenario.controller.gamma, rng=rng, prior_description=prior_description)
+        reference_table=reference, theta_true=plant.theta_true_scaled(vehicle),
+        gamma=scenario.controller.gamma, rng=rng, prior_description=prior_description,
+        plant_coefficients=plant.true_coefficients(vehicle))
 
 
 def controller_prior(scenario: Scenario, vehicle: Vehicle):
@@ -177,6 +180,7 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
         "theta_true_scaled": run.theta_true.tolist(),
         "diverged_at_s": diverged_at_s, "divergence_reason": why,
         "faults": [dataclasses.asdict(f) for f in scenario.faults],
+        "plant_coefficients": run.plant_coefficients,
     }
     return SimulationResult(LOG_COLUMNS, log, metadata)
 

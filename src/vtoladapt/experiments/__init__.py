@@ -18,8 +18,18 @@ in the 5 s after the fan stops), and for the composite controllers ``pred_err_rm
 ``pred_err_p95_g`` (after the first 2 s), plus further diagnostics (labels and units of every key:
 :data:`vtoladapt.metrics.METRIC_INFO`).
 ``convergence.param_std_ratio.<param>``: spread (std) of theta-hat across the runs at the end
-divided by at the start. ``claims.<name>``: ``{"holds", "value", "threshold", "statement"}``.
-``run`` (single runs): the run's metrics.
+divided by at the start. ``claims.<name>``: ``{"holds", "value", "threshold", "statement",
+"paper_claim", "source"}`` (``paper_claim`` false: a diagnostic of ours, labelled so).
+``run`` (single runs): the run's metrics. Composite runs also have ``pred_err_p95_g_by_airspeed``
+(bins [0,2), [2,5), [5,8), [8,11), [11,inf) m/s, null where empty); the 0.05 g claim is judged
+in every bin.
+
+Over seeded variants (:mod:`.distribution`): ``distribution.<experiment>.claims.<name>`` =
+``{fraction, ci95, n, successes, value: {median, iqr, n}, threshold, statement, paper_claim}``,
+``distribution.comparison.controllers.<id>.<metric>`` = ``{median, iqr, n}``,
+``distribution.convergence.param_std_ratio.<param>`` = ``{median, iqr, n}``; from ``reproduce``
+also ``ablation.<config>.claims.<name>`` (config ``all_on`` or ``<effect>_off``) and
+``wind_table.conditions.<condition>.<id>.{pos_err_mean_m, vel_err_rms_mps}`` = ``{median, iqr, n}``.
 """
 from __future__ import annotations
 
@@ -32,10 +42,15 @@ from .figures import (CONTROLLER_COLORS, CONTROLLER_LABELS, PLOT_FILTER_HZ, PRED
                       plot_single_run, plot_tracking_axes, plot_tracking_comparison)
 from .metrics import (THETA_SCALED_UNITS, comparison_metrics, convergence_metrics, fan_speed_series,
                       fan_throttle_series)
+from .distribution import (ABLATION_EFFECTS, WIND_CONDITIONS, ablation, comparison_distribution,
+                           convergence_distribution, variant_seeds, wind_table)
+from .readme import readme_tables
 from .report import Report, build_report, render_html, render_markdown, write_report
 from .running import reproduce, run_comparison, run_convergence, run_experiment, run_scenario_file
 
 __all__ = [
+    "ABLATION_EFFECTS", "WIND_CONDITIONS", "ablation", "comparison_distribution",
+    "convergence_distribution", "readme_tables", "variant_seeds", "wind_table",
     "ADAPTIVE_IDS", "CLAIM_UNITS", "COMPOSITE_IDS", "CONTROLLER_COLORS", "CONTROLLER_LABELS",
     "PLOT_FILTER_HZ", "PRED_ERR_COLUMNS", "Report", "THETA_SCALED_UNITS", "build_report",
     "check_claims", "comparison_metrics", "controller_style", "convergence_metrics",

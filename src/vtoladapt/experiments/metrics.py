@@ -37,11 +37,14 @@ def fan_speed_series(scenario: Scenario, t: np.ndarray) -> np.ndarray:
 def comparison_metrics(scenario: Scenario, results: dict[str, SimulationResult]) -> dict:
     """Each controller's run metrics (prediction error only for the composite controllers)."""
     out = {}
+    fan = None
     for cid, res in results.items():
-        m = run_metrics(res, fan_throttle_series(scenario, res.time_s))
+        if fan is None or len(fan) != len(res.time_s):
+            fan = fan_throttle_series(scenario, res.time_s)
+        m = run_metrics(res, fan)
         if cid not in COMPOSITE_IDS:
-            m.pop("pred_err_rms_g", None)
-            m.pop("pred_err_p95_g", None)
+            for key in ("pred_err_rms_g", "pred_err_p95_g", "pred_err_p95_g_by_airspeed"):
+                m.pop(key, None)
         out[cid] = m
     return {"scenario": scenario.name, "controllers": out}
 
@@ -53,7 +56,8 @@ def convergence_metrics(scenario: Scenario, results: list[SimulationResult]) -> 
     std_end = theta[:, -1, :].std(axis=0, ddof=1)
     ratio = {name: float(std_end[i] / std_start[i]) if std_start[i] > 0 else float("nan")
              for i, name in enumerate(PARAMETER_NAMES)}
-    per_run = [run_metrics(r, fan_throttle_series(scenario, r.time_s)) for r in results]
+    fan = fan_throttle_series(scenario, results[0].time_s)
+    per_run = [run_metrics(r, fan) for r in results]
     force_start, force_end = _predicted_force_spread(scenario, results, theta)
     return {
         # what the data identify: the force each run's theta-hat predicts at the final operating

@@ -117,7 +117,12 @@ def run_metrics_table(run: dict) -> Table:
     rows = []
     for k in keys:
         label, unit = METRIC_INFO.get(k, (k, ""))
-        rows.append((Cell(label), _num(metric_display_value(k, run[k])), Cell(_unit_text(unit))))
+        value = run[k]
+        if isinstance(value, dict):  # per-bin values: "bin: value" pairs in one cell
+            cell = Cell("; ".join(f"{b} {fmt_number(v)}" for b, v in value.items()), numeric=True)
+        else:
+            cell = _num(metric_display_value(k, value))
+        rows.append((Cell(label), cell, Cell(_unit_text(unit))))
     return Table("", ("quantity", "value", "unit"), tuple(rows))
 
 
@@ -157,10 +162,159 @@ def claims_table(claims: dict) -> Table:
     """Each claim: statement, measured value, threshold, unit and verdict."""
     from .claims import CLAIM_UNITS
 
-    rows = tuple((Cell(c["statement"]), _num(c["value"]), _num(c["threshold"]),
+    rows = tuple((Cell(claim_label(name, c)), _num(c["value"]), _num(c["threshold"]),
                   Cell(CLAIM_UNITS.get(name, "")), Cell("yes" if c["holds"] else "no", strong=not c["holds"]))
                  for name, c in claims.items())
     return Table("", ("claim", "measured", "threshold", "unit", "holds"), rows)
+
+
+# --- distributions over seeded variants ------------------------------------------------------------
+DISTRIBUTION_COLUMNS = ("vel_err_rms_mps", "vel_err_rms_high_wind_mps", "overshoot_after_fan_off_mps",
+                        "pos_err_rms_m", "pred_err_p95_g")
+"""Per-controller metrics of the distribution table (median [IQR] over the variants)."""
+
+
+def fmt_median_iqr(entry: Optional[dict], digits: int = 3) -> str:
+    """``"0.0612 [0.0571, 0.0663]"``: median and interquartile range; ``–`` without values."""
+    if not entry or entry.get("median") is None:
+        return "–"
+    q25, q75 = entry["iqr"]
+    return f"{entry['median']:.{digits}g} [{q25:.{digits}g}, {q75:.{digits}g}]"
+
+
+def fmt_fraction(entry: Optional[dict]) -> str:
+    """``"0.93 (28/30) [0.79, 0.98]"``: fraction of variants, count, 95 % Wilson interval."""
+    if not entry or entry.get("fraction") is None:
+        return "–"
+    lo, hi = entry["ci95"]
+    return f"{entry['fraction']:.2f} ({entry['successes']}/{entry['n']}) [{lo:.2f}, {hi:.2f}]"
+
+
+def claim_label(name: str, claim: dict) -> str:
+    """The claim's statement, marked when the paper does not make it."""
+    from .claims import NOT_A_PAPER_CLAIM
+
+    text = claim["statement"]
+    if not claim.get("paper_claim", True) and not text.startswith(NOT_A_PAPER_CLAIM):
+        text = NOT_A_PAPER_CLAIM + text
+    return text
+
+
+def distribution_claims_table(dist: dict) -> Table:
+    """Each claim over the variants: fraction holding with its 95 % Wilson interval, and the
+    claim's measured value as median [IQR] against its threshold."""
+    from .claims import CLAIM_UNITS
+
+    rows = []
+    for name, c in dist["claims"].items():
+        strong = c["fraction"] is not None and c["ci95"][1] < 0.5
+        rows.append((Cell(claim_label(name, c)), Cell(fmt_fraction(c), numeric=True, strong=strong),
+                     Cell(fmt_median_iqr(c["value"]), numeric=True), _num(c["threshold"]),
+                     Cell(CLAIM_UNITS.get(name, ""))))
+    return Table(f"Over {dist['variants']} seeded variants (seed, plant draw from Table I, turbulence, "
+                 "sensor noise): the fraction of variants where each claim holds, (count) and [95 % "
+                 "Wilson interval]; the measured value as median [interquartile range]:",
+                 ("claim", "holds in", "measured", "threshold", "unit"), tuple(rows))
+
+
+def distribution_controllers_table(dist: dict) -> Table:
+    """One row per controller, median [IQR] over the variants of each metric of
+    :data:`DISTRIBUTION_COLUMNS`."""
+    headers = ("controller",) + tuple(metric_label_text(k) for k in DISTRIBUTION_COLUMNS)
+    rows = []
+    for cid, m in dist["controllers"].items():
+        label = CONTROLLERS[cid].label if cid in CONTROLLERS else cid
+        rows.append((Cell(label),) + tuple(Cell(fmt_median_iqr(m.get(k)), numeric=True)
+                                           for k in DISTRIBUTION_COLUMNS))
+    return Table(f"Each controller over {dist['variants']} seeded variants: median [interquartile range]:",
+                 headers, tuple(rows))
+
+
+def convergence_distribution_table(dist: dict) -> Table:
+    """Per parameter: spread of theta-hat at the end over at the start, median [IQR] over variants."""
+    rows = tuple((Cell(p), Cell(fmt_median_iqr(e), numeric=True)) for p, e in dist["param_std_ratio"].items())
+    return Table(f"Spread of θ̂ across the runs at the end over at the start, over {dist['variants']} "
+                 "seeded variants: median [interquartile range]:", ("parameter", "spread ratio"), rows)
+
+
+def metric_label_text(key: str) -> str:
+    """``"RMS velocity error (m/s)"`` for a table header."""
+    label, unit = METRIC_INFO[key]
+    return f"{label} ({_unit_text(unit)})"
+
+
+def ablation_table(ablation: dict) -> Table:
+    """Claim x plant configuration: fraction of variants where the claim holds [95 % interval]."""
+    from .distribution import ABLATION_EFFECTS
+
+    configs = list(ablation)
+    labels = {"all_on": "every effect on"}
+    labels.update({f"{k}_off": f"{lab} off" for k, (_f, lab) in ABLATION_EFFECTS.items()})
+    names = list(dict.fromkeys(n for cfg in ablation.values() for n in cfg["claims"]))
+    rows = []
+    for name in names:
+        first = next(cfg["claims"][name] for cfg in ablation.values() if name in cfg["claims"])
+        cells = [Cell(claim_label(name, first))]
+        for cfg in configs:
+            c = ablation[cfg]["claims"].get(name)
+            cells.append(Cell(fmt_fraction(c), numeric=True))
+        rows.append(tuple(cells))
+    n = next(iter(ablation.values()))["variants"]
+    return Table(f"Ablation: each unmodelled effect of the plant switched off in turn; the fraction of "
+                 f"{n} seeded variants where each comparison claim holds (count) [95 % Wilson interval]:",
+                 ("claim",) + tuple(labels.get(c, c) for c in configs), tuple(rows))
+
+
+def wind_table_table(wind: dict) -> Table:
+    """Method x wind condition (Neural-Fly's table): mean position error and RMS velocity error,
+    medians over the variants."""
+    from .distribution import WIND_CONDITIONS
+
+    conds = list(wind["conditions"])
+    ids = list(next(iter(wind["conditions"].values())))
+    rows = []
+    for cid in ids:
+        cells = [Cell(CONTROLLERS[cid].label if cid in CONTROLLERS else cid)]
+        for cond in conds:
+            e = wind["conditions"][cond][cid]
+            p, v = e["pos_err_mean_m"]["median"], e["vel_err_rms_mps"]["median"]
+            cells.append(Cell("–" if p is None else f"{p:.3f} / {v:.3f}", numeric=True))
+        rows.append(tuple(cells))
+    return Table(f"Method × wind condition: mean position error (m) / RMS velocity error ‖ṽ‖ (m/s), "
+                 f"median over {wind['variants']} seeded variants of a {wind['hold_s']:g} s hold "
+                 f"(the first {wind['settle_s']:g} s left out). Gusty: fan 50 % with 1 − cos gusts of "
+                 "3 m/s every 3 s:", ("controller",) + tuple(WIND_CONDITIONS.get(c, c) for c in conds),
+                 tuple(rows))
+
+
+def distribution_sections(metrics: dict) -> list[Section]:
+    """The report's sections on the distributions, the ablation and the method x wind table."""
+    sections = []
+    dist = metrics.get("distribution", {})
+    if "comparison" in dist:
+        sections.append(Section("Controller comparison over seeded variants",
+                                tables=(distribution_claims_table(dist["comparison"]),
+                                        distribution_controllers_table(dist["comparison"]))))
+    if "convergence" in dist:
+        sections.append(Section("Parameter convergence over seeded variants",
+                                tables=(distribution_claims_table(dist["convergence"]),
+                                        convergence_distribution_table(dist["convergence"]))))
+    if "ablation" in metrics:
+        sections.append(Section("Ablation of the unmodelled effects", tables=(ablation_table(metrics["ablation"]),)))
+    if "wind_table" in metrics:
+        sections.append(Section("Method × wind condition", tables=(wind_table_table(metrics["wind_table"]),)))
+    return sections
+
+
+def table_markdown(table: Table) -> str:
+    """A :class:`Table` as Markdown (caption, header, rows), as report.md prints it."""
+    esc = lambda s: str(s).replace("|", "\\|")  # noqa: E731
+    lines = [table.caption, ""] if table.caption else []
+    lines.append("| " + " | ".join(esc(h) for h in table.headers) + " |")
+    lines.append("|" + "---|" * len(table.headers))
+    for row in table.rows:
+        lines.append("|" + "".join(f" **{esc(c.text)}** |" if c.strong else f" {esc(c.text)} |" for c in row))
+    return "\n".join(lines) + "\n"
 
 
 def build_report(title: str, metrics: dict, figures: Iterable[FigureRef], notes: Iterable[str]) -> Report:
@@ -174,8 +328,9 @@ def build_report(title: str, metrics: dict, figures: Iterable[FigureRef], notes:
     if "convergence" in metrics:
         sections.append(convergence_section(metrics["convergence"]))
     if metrics.get("claims"):
-        sections.append(Section("The paper's claims, checked in simulation",
+        sections.append(Section("The paper's claims, checked in simulation (single seed)",
                                 tables=(claims_table(metrics["claims"]),)))
+    sections.extend(distribution_sections(metrics))
     return Report(title, tuple(paragraph(n) for n in notes), tuple(sections), tuple(figures))
 
 

@@ -9,7 +9,6 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Optional
 
-import numpy as np
 
 from ..metrics import run_metrics
 from ..monitor import DivergenceError
@@ -58,6 +57,19 @@ class _Progress:
     def finish_run(self, duration_s: float):
         self.done += duration_s
 
+    def adder(self):
+        """A thread-safe ``add(sim_s)`` for runs reported one whole run at a time."""
+        import threading
+
+        lock = threading.Lock()
+
+        def add(sim_s: float) -> None:
+            with lock:
+                self.done += sim_s
+                if self.bar is not None:  # rounding must not carry the bar past its total
+                    self.bar.update(round(min(self.done, self.bar.total) - self.bar.n, 3))
+        return add
+
     def set(self, desc: str):
         if self.bar is not None:
             self.bar.set_description(desc)
@@ -92,9 +104,9 @@ def run_comparison(scenario: Scenario, progress: Optional[_Progress] = None) -> 
 
 def run_convergence(scenario: Scenario, progress: Optional[_Progress] = None) -> list[SimulationResult]:
     """``[experiment] runs`` runs from random initial theta-hat, seeds spawned from the scenario seed."""
-    seeds = np.random.SeedSequence(scenario.seed).generate_state(scenario.experiment.runs)
-    prior = replace(scenario.controller_prior, initial_theta="random")
-    runs = [replace(scenario, seed=int(seed), controller_prior=prior) for seed in seeds]
+    from .distribution import convergence_runs
+
+    runs = convergence_runs(scenario)
     return _run_all(runs, progress, f"convergence: {len(runs)} runs")
 
 
@@ -132,8 +144,13 @@ def _experiment_title(scenario: Scenario) -> str:
     return f"vtoladapt: scenario {scenario.name}, {what}"
 
 
-def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, warm: bool = True) -> dict:
-    """Run one scenario per its ``[experiment]`` kind; write logs, figures, metrics.json, report."""
+def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, warm: bool = True,
+                   variants: Optional[int] = None) -> dict:
+    """Run one scenario per its ``[experiment]`` kind; write logs, figures, metrics.json, report.
+
+    A comparison or convergence experiment is also flown over ``variants`` seeded variants
+    (default ``[experiment] variants``; 1: none): ``metrics["distribution"][kind]``
+    (:mod:`vtoladapt.experiments.distribution`)."""
     from ..simulate import simulate
 
     out.mkdir(parents=True, exist_ok=True)
@@ -174,6 +191,11 @@ def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, wa
     finally:
         progress.close()
     metrics["claims"] = check_claims(metrics.get("comparison"), metrics.get("convergence"))
+    n_variants = scenario.experiment.variants if variants is None else variants
+    if kind != "single" and n_variants > 1:
+        metrics["distribution"] = {kind: run_distribution(scenario, n_variants, show_progress)}
+        notes.append(f"Distribution: the experiment flown over {n_variants} seeded variants (own seed, "
+                     "plant draw, turbulence and sensor noise each).")
     runs = ({"": res} if kind == "single" else results if kind == "comparison"
             else {f"run{i + 1}": r for i, r in enumerate(results)})
     diverged = {name: r for name, r in runs.items() if r.diverged}
@@ -187,6 +209,21 @@ def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, wa
         count = f" (first of {len(diverged)} diverged runs)" if len(diverged) > 1 else ""
         raise DivergenceError(res, f"{scenario.name}{' ' + name if name else ''}{count}: ")
     return metrics
+
+
+def run_distribution(scenario: Scenario, n: int, show_progress: bool = True) -> dict:
+    """The experiment of ``scenario`` over ``n`` seeded variants, with a progress bar."""
+    from .distribution import comparison_distribution, convergence_distribution
+
+    kind = scenario.experiment.kind
+    per = len(scenario.experiment.controllers) if kind == "comparison" else scenario.experiment.runs
+    progress = _Progress(n * per * scenario.duration_s, show_progress, f"{scenario.name}: {n} variants")
+    try:
+        if kind == "comparison":
+            return comparison_distribution(scenario, n, progress.adder())
+        return convergence_distribution(scenario, n, progress.adder())
+    finally:
+        progress.close()
 
 
 def _figure_refs(figures: list[Path]) -> list[FigureRef]:
@@ -218,8 +255,22 @@ def run_scenario_file(path, out: Path, duration_s: Optional[float] = None, seed:
     return metrics
 
 
-def reproduce(out: Path, duration_scale: float = 1.0, show_progress: bool = True) -> dict:
-    """Both paper experiments, one combined metrics.json and report."""
+ABLATION_VARIANTS = 10
+"""Seeded variants per plant configuration of the ablation."""
+WIND_VARIANTS = 5
+"""Seeded variants per controller and wind condition of the method x wind table."""
+
+
+def reproduce(out: Path, duration_scale: float = 1.0, show_progress: bool = True,
+              variants: Optional[int] = None, ablation_variants: int = ABLATION_VARIANTS,
+              wind_variants: int = WIND_VARIANTS) -> dict:
+    """Both paper experiments, one combined metrics.json and report.
+
+    Each experiment is flown once at its scenario seed (the figures) and over seeded variants
+    (``variants``, default each scenario's ``[experiment] variants``): ``distribution.<experiment>``.
+    Then the comparison's claims with each unmodelled effect off (``ablation``, over
+    ``ablation_variants``) and the method x wind table (``wind_table``, over ``wind_variants``);
+    0 skips either."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     conv = load_scenario(SCENARIO_DIR / "paper_convergence.toml")
@@ -231,10 +282,23 @@ def reproduce(out: Path, duration_scale: float = 1.0, show_progress: bool = True
         comp = _scaled(comp, duration_scale)
     t0 = time.perf_counter()
     _warm_up(comp, show_progress)
-    m_conv = run_experiment(conv, out / "convergence", show_progress, warm=False)
-    m_comp = run_experiment(comp, out / "comparison", show_progress, warm=False)
+    m_conv = run_experiment(conv, out / "convergence", show_progress, warm=False, variants=variants)
+    m_comp = run_experiment(comp, out / "comparison", show_progress, warm=False, variants=variants)
     metrics = {"convergence": m_conv["convergence"], "comparison": m_comp["comparison"]}
     metrics["claims"] = check_claims(metrics["comparison"], metrics["convergence"])
+    metrics["distribution"] = {**m_conv.get("distribution", {}), **m_comp.get("distribution", {})}
+    from .distribution import ABLATION_EFFECTS, WIND_CONDITIONS, WIND_HOLD_S, ablation, wind_table
+
+    if ablation_variants > 0:
+        metrics["ablation"] = _with_progress(
+            lambda add: ablation(comp, ablation_variants, add),
+            (1 + len(ABLATION_EFFECTS)) * ablation_variants * len(comp.experiment.controllers) * comp.duration_s,
+            show_progress, "ablation")
+    if wind_variants > 0:
+        metrics["wind_table"] = _with_progress(
+            lambda add: wind_table(comp, wind_variants, add, duration_scale),
+            len(WIND_CONDITIONS) * wind_variants * len(comp.experiment.controllers) * WIND_HOLD_S
+            * duration_scale, show_progress, "method x wind")
     figures = []
     for sub, name in (("convergence", "fig_parameter_convergence.png"),
                       ("comparison", "fig_tracking_comparison.png"), ("comparison", "fig_tracking_axes.png")):
@@ -244,6 +308,11 @@ def reproduce(out: Path, duration_scale: float = 1.0, show_progress: bool = True
 
     notes = [f"Generated by `vtoladapt reproduce` in {time.perf_counter() - t0:.0f} s "
              f"(duration scale {duration_scale:g}).",
+             "The plant's force-model coefficients are drawn from Table I's mean ± std (seeded by each "
+             "run's seed); the controllers start from the means. Each experiment is flown once at its "
+             "scenario seed (the figures) and over seeded variants (the distribution tables: each "
+             "claim's fraction of variants with a 95 % Wilson interval, each metric's median and "
+             "interquartile range).",
              f"Convergence: `{display_path(conv.source_path, out)}`, {conv.experiment.runs} runs of "
              f"{conv.duration_s:g} s. Comparison: `{display_path(comp.source_path, out)}`, "
              f"{comp.duration_s:g} s per controller.",
@@ -259,6 +328,14 @@ def reproduce(out: Path, duration_scale: float = 1.0, show_progress: bool = True
         _note(f"  [{'holds' if c['holds'] else 'FAILS'}] {c['statement']}: {c['value']:.3g} "
               f"(threshold {c['threshold']:g})", show_progress)
     return metrics
+
+
+def _with_progress(fn, total_s: float, show: bool, desc: str):
+    progress = _Progress(total_s, show, desc)
+    try:
+        return fn(progress.adder())
+    finally:
+        progress.close()
 
 
 def _scaled(scenario: Scenario, scale: float) -> Scenario:
