@@ -44,3 +44,20 @@ def test_report_lists_claims_and_embeds_figures(reproduced):
     html = (reproduced / "report.html").read_text()
     assert html.count("data:image/png;base64,") == 3
     assert (reproduced / "comparison" / "runs" / "paper_comparison_pid.parquet").exists()
+
+
+def test_reproduce_reports_the_fault_scenarios(reproduced):
+    """Issue #15: the fault table (worst position error, recovered or not) is in the report."""
+    import json
+
+    from vtoladapt.faults import FAULT_KINDS
+
+    rows = json.loads((reproduced / "metrics.json").read_text())["faults"]
+    assert [r["faults"] for r in rows] == list(FAULT_KINDS)
+    for r in rows:
+        assert r["pos_err_worst_m"] >= r["pos_err_before_m"] >= 0.0
+    # the probe faults are ridden through; a pusher held at full throttle is not (physics)
+    by_kind = {r["faults"]: r for r in rows}
+    assert by_kind["probe_dropout"]["recovered"] and not by_kind["pusher_saturated"]["recovered"]
+    md = (reproduced / "report.md").read_text()
+    assert "## Faults in the loop" in md and "| pusher_saturated |" in md

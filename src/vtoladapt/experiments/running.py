@@ -299,6 +299,7 @@ def reproduce(out: Path, duration_scale: float = 1.0, show_progress: bool = True
             lambda add: wind_table(comp, wind_variants, add, duration_scale),
             len(WIND_CONDITIONS) * wind_variants * len(comp.experiment.controllers) * WIND_HOLD_S
             * duration_scale, show_progress, "method x wind")
+    metrics["faults"] = _fault_rows(show_progress)
     figures = []
     for sub, name in (("convergence", "fig_parameter_convergence.png"),
                       ("comparison", "fig_tracking_comparison.png"), ("comparison", "fig_tracking_axes.png")):
@@ -328,6 +329,16 @@ def reproduce(out: Path, duration_scale: float = 1.0, show_progress: bool = True
         _note(f"  [{'holds' if c['holds'] else 'FAILS'}] {c['statement']}: {c['value']:.3g} "
               f"(threshold {c['threshold']:g})", show_progress)
     return metrics
+
+
+def _fault_rows(show_progress: bool) -> list[dict]:
+    """Fly the shipped fault scenarios (one fault each, a few seconds in all) and tabulate them."""
+    from ..faults import FAULT_KINDS, fault_table
+    from ..simulate import simulate_many
+
+    scenarios = [load_scenario(SCENARIO_DIR / "faults" / f"{k}.toml") for k in FAULT_KINDS]
+    _note(f"Faults: {len(scenarios)} scenarios", show_progress)
+    return fault_table(simulate_many(scenarios))
 
 
 def _with_progress(fn, total_s: float, show: bool, desc: str):
