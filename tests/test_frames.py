@@ -319,3 +319,17 @@ def test_reference_pack_places_named_parts():
     named = dict(zip(layout.REFERENCE_COLUMNS, r))
     assert named["ref_p_E_m"] == 2 and named["ref_v_D_mps"] == 6 and named["ref_a_N_mps2"] == 7
     assert named["ref_yaw_rad"] == 0.5 and named["ref_yaw_rate_radps"] == -0.1
+
+
+def test_quats_to_rotmats_is_quat_to_rotmat_for_a_history():
+    """The vectorised form (replay, long-run checks) against scipy and the compiled single form."""
+    from scipy.spatial.transform import Rotation
+
+    from vtoladapt.frames import quat_to_rotmat, quats_to_rotmats
+
+    q = np.random.default_rng(7).normal(size=(50, 4))
+    q /= np.linalg.norm(q, axis=1)[:, None]
+    R = quats_to_rotmats(q)
+    np.testing.assert_allclose(R, Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_matrix(), atol=1e-12)
+    for k in (0, 17, 49):
+        np.testing.assert_array_equal(R[k], quat_to_rotmat(q[k]))

@@ -60,4 +60,4 @@ def test_reproduce_reports_the_fault_scenarios(reproduced):
     by_kind = {r["faults"]: r for r in rows}
     assert by_kind["probe_dropout"]["recovered"] and not by_kind["pusher_saturated"]["recovered"]
     md = (reproduced / "report.md").read_text()
-    assert "## Faults in the loop" in md and "| pusher_saturated |" in md
+    assert "## Faults in the loop" in md and "| pusher saturated |" in md

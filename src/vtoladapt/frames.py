@@ -108,6 +108,25 @@ def quat_to_rotmat(q: np.ndarray) -> np.ndarray:
     return R
 
 
+def quats_to_rotmats(q_WB: np.ndarray) -> np.ndarray:
+    """``R_WB`` (n, 3, 3) of quaternions ``q_WB`` (n, 4), scalar first: :func:`quat_to_rotmat` for a
+    whole history at once (NumPy, not compiled). Unnormalised input gives the same formula's
+    matrix, which is what an orthonormality check of a logged history needs."""
+    q = np.asarray(q_WB, dtype=float)
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    R = np.empty((q.shape[0], 3, 3))
+    R[:, 0, 0] = 1.0 - 2.0 * (y * y + z * z)
+    R[:, 0, 1] = 2.0 * (x * y - w * z)
+    R[:, 0, 2] = 2.0 * (x * z + w * y)
+    R[:, 1, 0] = 2.0 * (x * y + w * z)
+    R[:, 1, 1] = 1.0 - 2.0 * (x * x + z * z)
+    R[:, 1, 2] = 2.0 * (y * z - w * x)
+    R[:, 2, 0] = 2.0 * (x * z - w * y)
+    R[:, 2, 1] = 2.0 * (y * z + w * x)
+    R[:, 2, 2] = 1.0 - 2.0 * (x * x + y * y)
+    return R
+
+
 @njit(cache=True)
 def rotmat_to_quat(R: np.ndarray) -> np.ndarray:
     """Unit quaternion (scalar first, ``w >= 0``) of a rotation matrix.

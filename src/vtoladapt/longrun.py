@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .frames import quats_to_rotmats
 from .layout import X_Q_WB
 from .scenario import Scenario
 
@@ -58,17 +59,7 @@ def _rss_MB() -> float:
 
 def rotation_orthonormality_error(q_WB: np.ndarray) -> np.ndarray:
     """``||R^T R - I||_F`` per row of a ``(T, 4)`` quaternion history (scalar first, unnormalised)."""
-    w, x, y, z = q_WB.T
-    R = np.empty((len(q_WB), 3, 3))
-    R[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    R[:, 0, 1] = 2 * (x * y - w * z)
-    R[:, 0, 2] = 2 * (x * z + w * y)
-    R[:, 1, 0] = 2 * (x * y + w * z)
-    R[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    R[:, 1, 2] = 2 * (y * z - w * x)
-    R[:, 2, 0] = 2 * (x * z - w * y)
-    R[:, 2, 1] = 2 * (y * z + w * x)
-    R[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    R = quats_to_rotmats(q_WB)
     E = np.einsum("tji,tjk->tik", R, R) - np.eye(3)
     return np.sqrt(np.einsum("tij,tij->t", E, E))
 

@@ -293,7 +293,7 @@ def fault_table_table(rows: list) -> Table:
     for r in rows:
         start, end = r["window_s"]
         sat = r["saturated_during_fault"]
-        out.append((Cell(r["faults"]), Cell(f"{start:g}-{end:g}", numeric=True),
+        out.append((Cell(r["faults"].replace("_", " ")), Cell(f"{start:g}-{end:g}", numeric=True),
                     Cell(f"{r['pos_err_before_m']:.2f}", numeric=True),
                     Cell(f"{r['pos_err_worst_m']:.2f}", numeric=True),
                     Cell(f"{r['pos_err_final_m']:.2f}", numeric=True),

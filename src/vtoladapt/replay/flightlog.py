@@ -50,7 +50,7 @@ from typing import Mapping
 import numpy as np
 
 from ..config import setting
-from ..frames import GRAVITY_MPS2
+from ..frames import GRAVITY_MPS2, quats_to_rotmats
 
 
 class ReplayError(ValueError):
@@ -275,19 +275,8 @@ def resample_quaternion(ts_us, q, grid_us, max_gap_s) -> np.ndarray:
 
 
 def rotation_matrices(q_WB: np.ndarray) -> np.ndarray:
-    """``R_WB`` (n, 3, 3) of unit quaternions (n, 4) (:func:`vtoladapt.frames.quat_to_rotmat`, vectorised)."""
-    w, x, y, z = q_WB[:, 0], q_WB[:, 1], q_WB[:, 2], q_WB[:, 3]
-    R = np.empty((q_WB.shape[0], 3, 3))
-    R[:, 0, 0] = 1.0 - 2.0 * (y * y + z * z)
-    R[:, 0, 1] = 2.0 * (x * y - w * z)
-    R[:, 0, 2] = 2.0 * (x * z + w * y)
-    R[:, 1, 0] = 2.0 * (x * y + w * z)
-    R[:, 1, 1] = 1.0 - 2.0 * (x * x + z * z)
-    R[:, 1, 2] = 2.0 * (y * z - w * x)
-    R[:, 2, 0] = 2.0 * (x * z - w * y)
-    R[:, 2, 1] = 2.0 * (y * z + w * x)
-    R[:, 2, 2] = 1.0 - 2.0 * (x * x + y * y)
-    return R
+    """``R_WB`` (n, 3, 3) of unit quaternions (n, 4) (:func:`vtoladapt.frames.quats_to_rotmats`)."""
+    return quats_to_rotmats(q_WB)
 
 
 # --- assembly ------------------------------------------------------------------------------------
