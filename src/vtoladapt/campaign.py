@@ -307,6 +307,7 @@ def _setting_unit(dotted_key: str) -> str | None:
 
 
 def register_cli(subparsers) -> None:
+    """Add the ``campaign`` sub-command to ``subparsers`` (its handler raises on bad input)."""
     p = subparsers.add_parser("campaign", help="Monte-Carlo campaign of a scenario on Dask",
                               description=__doc__.split("\n\n")[1])
     p.add_argument("scenario", help="scenario TOML")
