@@ -46,7 +46,7 @@ from .distribution import (ABLATION_EFFECTS, WIND_CONDITIONS, ablation, comparis
                            convergence_distribution, variant_seeds, wind_table)
 from .readme import readme_tables
 from .report import Report, build_report, render_html, render_markdown, write_report
-from .running import reproduce, run_comparison, run_convergence, run_experiment, run_scenario_file
+from .running import reproduce, run_comparison, run_convergence, run_experiment
 
 __all__ = [
     "ABLATION_EFFECTS", "WIND_CONDITIONS", "ablation", "comparison_distribution",
@@ -59,5 +59,5 @@ __all__ = [
     "measured_airspeed_mps", "new_figure", "plot_campaign", "plot_parameter_convergence",
     "plot_single_run", "plot_tracking_axes", "plot_tracking_comparison", "render_html",
     "render_markdown", "reproduce", "run_comparison", "run_convergence", "run_experiment",
-    "run_scenario_file", "write_report",
+    "write_report",
 ]

@@ -230,31 +230,6 @@ def _figure_refs(figures: list[Path]) -> list[FigureRef]:
     return [FigureRef(p.name, FIGURE_CAPTIONS.get(p.name, p.stem)) for p in figures]
 
 
-def run_scenario_file(path, out: Path, duration_s: Optional[float] = None, seed: Optional[int] = None,
-                      controller: Optional[str] = None, show_progress: bool = True) -> dict:
-    """``vtoladapt run``: load, apply command-line overrides (validated), run, write outputs."""
-    from ..config import ConfigError
-
-    scenario = load_scenario(path)
-    if duration_s is not None:
-        if not duration_s > 0:
-            raise ConfigError(f"--duration = {duration_s}: must be > 0 s")
-        scenario = replace(scenario, duration_s=duration_s)
-    if seed is not None:
-        if seed < 0:
-            raise ConfigError(f"--seed = {seed}: must be >= 0")
-        scenario = replace(scenario, seed=seed)
-    if controller is not None:
-        if controller not in CONTROLLER_LABELS:
-            raise ConfigError(f"--controller = {controller!r}: unknown; allowed: {', '.join(CONTROLLER_LABELS)}")
-        scenario = replace(scenario, controller=replace(scenario.controller, kind=controller))
-        if scenario.experiment.kind == "comparison":  # compare just this one
-            scenario = replace(scenario, experiment=replace(scenario.experiment, controllers=(controller,)))
-    metrics = run_experiment(scenario, Path(out), show_progress)
-    _note(f"wrote {out}/metrics.json, report.md, report.html and figures", show_progress)
-    return metrics
-
-
 ABLATION_VARIANTS = 10
 """Seeded variants per plant configuration of the ablation."""
 WIND_VARIANTS = 5
