@@ -161,8 +161,23 @@ class Envelope:
         "m/s", "below the first airspeed the desired attitude is the multirotor solution, above the "
         "second the incident-wind solution; smooth blend between", ge=0.0, le=100.0, length=2)
     air_density_kgpm3: float = setting("kg/m^3", "air density the coefficients refer to", gt=0.0, le=2.0)
+    stall_angle_deg: float = setting(
+        "deg", "angle of attack at which the wing is believed to stall (the controller's belief, not the "
+        "plant's truth)", gt=0.0, le=60.0)
+    stall_margin_deg: float = setting(
+        "deg", "margin kept below stall_angle_deg: the measured angle of attack is held below "
+        "stall_angle_deg - stall_margin_deg", ge=0.0, le=30.0)
+
+    @property
+    def alpha_protect_deg(self) -> float:
+        """The protected angle of attack ``stall_angle_deg - stall_margin_deg`` (deg)."""
+        return self.stall_angle_deg - self.stall_margin_deg
 
     def _check(self, source: str) -> None:
+        if not self.alpha_max_deg <= self.alpha_protect_deg:
+            raise ConfigError(
+                f"{source}: [envelope] alpha_max_deg = {self.alpha_max_deg}: must not exceed "
+                f"stall_angle_deg - stall_margin_deg = {self.alpha_protect_deg:g}")
         lo, hi = self.hover_blend_airspeed_mps
         if not lo < hi:
             raise ConfigError(
