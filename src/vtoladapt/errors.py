@@ -21,11 +21,17 @@ Every error is reported as one line on stderr naming the file, the field and the
 from __future__ import annotations
 
 import errno
+import signal
+import sys
+import threading
+from contextlib import contextmanager
 from enum import IntEnum
+from typing import Iterator
 
 from .config import ConfigError
 
-__all__ = ["ConfigError", "ExitCode", "RunFailed", "exit_code_for", "one_line"]
+__all__ = ["ConfigError", "ExitCode", "RunFailed", "check_interrupt", "exit_code_for", "interrupt_requested",
+           "one_line", "sigint_handling"]
 
 
 class ExitCode(IntEnum):
@@ -87,3 +93,60 @@ def one_line(exc: BaseException) -> str:
     if len(text) > MAX_MESSAGE_CHARS:
         text = text[:MAX_MESSAGE_CHARS - 3] + "..."
     return text
+
+
+# --- Ctrl-C ----------------------------------------------------------------------------------------
+# Python raises KeyboardInterrupt wherever the main thread happens to be when SIGINT arrives. Inside
+# a callback from C -- llvmlite's object-cache notification during every Numba compile is one --
+# the exception is printed as "Exception ignored" and dropped, and the command would go on to the
+# end and exit 0. The request is therefore also kept here, and the simulator checks it between
+# chunks (in every worker thread too), so a dropped interrupt stops the run at the next chunk.
+_INTERRUPT = threading.Event()
+
+
+def interrupt_requested() -> bool:
+    """Whether Ctrl-C was pressed while :func:`sigint_handling` was active."""
+    return _INTERRUPT.is_set()
+
+
+def check_interrupt() -> None:
+    """Raise :class:`KeyboardInterrupt` if Ctrl-C was pressed (call it between units of work)."""
+    if _INTERRUPT.is_set():
+        raise KeyboardInterrupt
+
+
+def _on_sigint(signum, frame) -> None:
+    _INTERRUPT.set()
+    raise KeyboardInterrupt
+
+
+@contextmanager
+def sigint_handling(ignore_after: bool = False) -> Iterator[None]:
+    """Within the block, Ctrl-C raises KeyboardInterrupt *and* is remembered (:func:`check_interrupt`).
+
+    After the block the previous handler is back, or, with ``ignore_after``, Ctrl-C is ignored
+    for good: the console command's choice once its exit status is decided, because the
+    interpreter's teardown (seconds of freeing compiled kernels) runs with SIGINT's default
+    action restored, and a Ctrl-C then would kill the process by the signal (status -2 in place
+    of the command's own); an ignored signal stays ignored through the teardown.
+    Only the main thread can own a signal handler; elsewhere the block changes nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, _on_sigint)
+    previous_hook = sys.unraisablehook
+
+    def quiet_dropped_interrupt(unraisable) -> None:
+        # the dropped KeyboardInterrupt's traceback is noise: the request is kept and honoured
+        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+            previous_hook(unraisable)
+
+    sys.unraisablehook = quiet_dropped_interrupt
+    _INTERRUPT.clear()
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN if ignore_after else previous)
+        sys.unraisablehook = previous_hook
+        _INTERRUPT.clear()

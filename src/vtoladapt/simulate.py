@@ -14,6 +14,7 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 
 from . import layout
+from .errors import check_interrupt
 from .frames import quat_from_euler
 from .mixer import mixer_params
 from .plant import hover_trim_motor
@@ -154,6 +155,7 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
     wall0 = time.perf_counter()
     n_done, reason = n, 0
     for k0 in range(0, n, chunk):
+        check_interrupt()  # a Ctrl-C Python dropped inside a C callback still stops the run here
         k1 = min(n, k0 + chunk)
         done, reason = run_chunk(run, x, k0, k1, log[k0:k1])
         if reason != 0:
@@ -279,6 +281,11 @@ def load_kernels(scenario: Scenario) -> None:
             helper = None  # no second process: compile everything here
     short = scenario.replace(duration_s=min(scenario.duration_s, 0.1))
     if helper is not None:
-        _plant_wind_sensors_compiled(prepare(short))
-        helper.wait()
+        try:
+            _plant_wind_sensors_compiled(prepare(short))
+            helper.wait()
+        except BaseException:  # Ctrl-C or an error: the second compiler must not outlive us
+            helper.kill()
+            helper.wait()
+            raise
     simulate(short)  # warm: loads the loop alone (its callees are linked into its cached code)
