@@ -214,3 +214,21 @@ def test_identifiability_names_the_excited_parameters():
     assert out["n_determined"] == 1
     assert out["directions"][0]["dominant"] == f"+1.00 {PARAMETER_NAMES[1]}"
     assert out["directions"][0]["sensitivity_mps2"] == pytest.approx(np.sqrt(10.0))
+
+
+def test_identifiability_section_shows_each_run(rng):
+    from vtoladapt.experiments.report import identifiability_section, table_markdown
+
+    theta0 = np.ones(N)
+    runs = []
+    for k in (1, 3):
+        S = np.zeros((N, N))
+        for i in range(k):
+            S[i, i] = 40.0 * (i + 1)                    # k excited parameters, sensitivities >= 2 m/s^2
+        runs.append(identifiability(S, theta0, 10.0))
+    sec = identifiability_section({"identifiability_per_run": runs})
+    per_run, first = sec.tables
+    assert [r[1].text for r in per_run.rows] == ["1", "3"]
+    assert len(first.rows) == N and [r[2].text for r in first.rows].count("yes") == 1
+    md = table_markdown(per_run)
+    assert "directions determined" in md and f"{PARAMETER_NAMES[0]}" in table_markdown(first)

@@ -114,9 +114,9 @@ def test_hold_with_plant_equal_to_model(kind, wind_mps, motor_lag):
 
     Measured, max |v~| over 15-20 s in m/s at 4 and 9 m/s (at 0 m/s all are ~1e-11), with lag /
     without: composite 1.1e-5, 5.0e-5 / 3.6e-8, 2.1e-7; composite_pconst 5.6e-6, 1.4e-5 /
-    3.7e-8, 1.7e-7; tracking_only (its default 'routh' gain rule) TRACKING_ROUTH / 3.4e-7, 2.7e-6 (with
-    the paper's constant P0: 7.8e-6, 0.198, the limit cycle of
-    test_tracking_only_paper_gain_limit_cycle_is_the_pusher_lag); pid 4.9e-4, 6.5e-4 /
+    3.7e-8, 1.7e-7; tracking_only (its default 'routh' gain rule) 7.9e-8, 5.1e-5 / 1.3e-9, 1.7e-7
+    (with the paper's constant P0: 7.8e-6, 0.198 / 3.4e-7, 2.7e-6, the lagged 9 m/s case the limit
+    cycle of test_tracking_only_paper_gain_limit_cycle_is_the_pusher_lag); pid 4.9e-4, 6.5e-4 /
     1.8e-5, 1.6e-5; pd 3.9e-7, 5.4e-7 / 3.5e-8, 3.1e-8.
     """
     plant = dict(UNMODELLED_OFF, motor_lag=motor_lag)
