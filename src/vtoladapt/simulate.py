@@ -138,6 +138,12 @@ def run_chunk(run: PreparedRun, x: np.ndarray, k0: int, k1: int, log: np.ndarray
     return int(done), int(reason)
 
 
+def _information_sum(state: np.ndarray) -> np.ndarray:
+    from .control.kernel import information_sum
+
+    return information_sum(state)
+
+
 def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) -> SimulationResult:
     """Run ``scenario`` and return its :class:`SimulationResult` (log and metadata).
 
@@ -183,6 +189,8 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
         "diverged_at_s": diverged_at_s, "divergence_reason": why,
         "faults": [dataclasses.asdict(f) for f in scenario.faults],
         "plant_coefficients": run.plant_coefficients,
+        # the adaptation's un-forgotten information sum (identifiability; zero for non-adaptive laws)
+        "information_sum": _information_sum(run.controller_state).tolist(),
     }
     return SimulationResult(LOG_COLUMNS, log, metadata)
 

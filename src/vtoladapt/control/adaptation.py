@@ -57,6 +57,13 @@ points (``tau = 0``), and for the composite law is the exact recursive-least-squ
 sigma term stays explicit (stable while ``dt sigma lambda_max(P0) < 2``, checked when the
 parameters are built), so that the composite law's gain is exactly P.
 
+Extensions (not in the paper; off in :func:`adaptation_step`)
+--------------------------------------------------------------
+:func:`weighted_adaptation_step` adds weights on the tracking and prediction-error terms (a
+law's model-validity measure), directional forgetting (:func:`directional_information_update`)
+and a scalar on the tracking mode's gain (the tracking law's gain rule). With unit weights,
+forgetting toward the prior and a unit scale it is the step above, bit for bit.
+
 Bounds by projection
 --------------------
 theta-hat stays in the box ``[lower, upper]``. The step direction ``d = K tau`` is projected in
@@ -382,6 +389,68 @@ def cap_information(Gamma, g, Gamma0, g0, trace_max) -> bool:
     return True
 
 
+@njit(cache=True, error_model="numpy")
+def directional_information_update(Gamma, g, Gamma0, g0, W, wf, WtW, h, a, b, x, s) -> None:
+    """One step of directional forgetting: ``Gamma' = W^T W - lambda M`` (information form, not in the paper).
+
+    ``M = D W^T (W Gamma W^T)^-1 W D`` with ``D = Gamma - Gamma_0`` (the data part of the
+    information): the information is forgotten only along the directions the current regressor
+    ``W`` excites (Bittanti et al. 1990 and Cao & Schwartz 2000 forget along the current
+    regressor; here in the information form, toward the prior). Directions ``W`` does not see
+    keep their information, so theta-hat does not drift along them while others are excited.
+    Since ``W Gamma W^T >= W D W^T``, ``0 <= M <= D``: ``Gamma_k+1 >= Gamma_0`` stays SPD, and the
+    forgetting part of the Lyapunov derivative, ``-lambda theta~^T M theta~ / 2``, is <= 0.
+
+    Discretised like :func:`information_update`: ``Gamma <- Gamma - (1 - a) M + b W^T W``, ``M``
+    from the Gamma before the step. ``W`` (3 x 8) at ``W[wf:]``, ``W^T W`` at ``WtW[h:]``;
+    ``x[s:]`` holds 66 of scratch. ``W Gamma W^T`` gets a ``1e-12`` relative ridge so that a
+    rank-deficient ``W`` (a zero row) forgets nothing along the missing row.
+    """
+    n = N_THETA
+    Gamma = Gamma[g:g + n * n]
+    Gamma0 = Gamma0[g0:g0 + n * n]
+    W = W[wf:wf + 3 * n]
+    WtW = WtW[h:h + n * n]
+    x = x[s:s + 66]
+    # x[0:24] = D W^T (8 x 3), x[24:48] = (S^-1 W D)^T (8 x 3), x[48:57] = S, x[57:66] its factor
+    for i in range(n):
+        for r in range(3):
+            t = 0.0
+            for j in range(n):
+                t += (Gamma[n * i + j] - Gamma0[n * i + j]) * W[n * r + j]
+            x[3 * i + r] = t
+    tr = 0.0
+    for r in range(3):
+        for c in range(r, 3):
+            t = 0.0
+            for i in range(n):
+                gi = 0.0
+                for j in range(n):
+                    gi += Gamma[n * i + j] * W[n * c + j]
+                t += W[n * r + i] * gi
+            x[48 + 3 * r + c] = t
+            x[48 + 3 * c + r] = t
+        tr += x[48 + 4 * r]
+    ridge = 1e-12 * tr + TINY
+    for r in range(3):
+        x[48 + 4 * r] += ridge
+    ok = cholesky_lower(x, 48, x, 57, 3)
+    for i in range(n):
+        for r in range(3):
+            x[24 + 3 * i + r] = x[3 * i + r]
+        if ok:
+            cholesky_solve(x, 57, 3, x, 24 + 3 * i)
+    c = 1.0 - a
+    for i in range(n):
+        for j in range(i, n):
+            m_ij = 0.0
+            if ok:
+                m_ij = x[3 * i] * x[24 + 3 * j] + x[3 * i + 1] * x[24 + 3 * j + 1] + x[3 * i + 2] * x[24 + 3 * j + 2]
+            v = flush_tiny(Gamma[n * i + j] - c * m_ij + b * WtW[n * i + j])
+            Gamma[n * i + j] = v
+            Gamma[n * j + i] = v
+
+
 # --- projection ----------------------------------------------------------------------------------
 
 @njit(cache=True, error_model="numpy")
@@ -548,7 +617,24 @@ def project_direction(K, k, G, g, x, tau, d0, d, s, at_upper, at_lower, active_s
 @njit(cache=True, error_model="numpy")
 def adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, forget_b, sigma,
                     trace_max, active_set) -> tuple:
+    """One tick of eq:th_adapt and eq:P_adapt, the paper's law: :func:`weighted_adaptation_step` with
+    unit weights, forgetting toward the prior and the gain ``P0`` (tracking mode)."""
+    return weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, forget_b, sigma,
+                                    trace_max, active_set, 1.0, 1.0, False, 1.0)
+
+
+@njit(cache=True, error_model="numpy")
+def weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, forget_b, sigma,
+                             trace_max, active_set, w_track, w_pred, directional, gain_scale) -> tuple:
     """One tick of eq:th_adapt and eq:P_adapt (see the module notes), in place.
+
+    The paper's law is ``w_track = w_pred = gain_scale = 1``, ``directional = False``
+    (:func:`adaptation_step`). The extensions (none in the paper, see the laws' modules):
+    ``tau = w_track Phi^T R^T v~ - w_pred W^T e - sigma (theta-hat - theta_0)`` and the
+    information increment ``w_pred W^T W`` (weights in [0, 1] saying how far the linear model is
+    trusted this tick); ``directional``: the composite mode forgets only along the excited
+    directions (:func:`directional_information_update`); ``gain_scale``: the tracking mode's
+    gain is ``gain_scale P0``.
 
     Parameters
     ----------
@@ -564,6 +650,7 @@ def adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, fo
     dt : float, tick (s).
     forget_a, forget_b : :func:`forgetting_weights` of the forgetting rate (1/s) and ``dt``.
     sigma, trace_max : sigma-modification, information-trace cap.
+    w_track, w_pred, directional, gain_scale : the extensions above.
     active_set : bit mask of the bounds the previous step's projection held (0 if none): where
         this step's projection starts (:func:`project_direction`).
 
@@ -590,9 +677,10 @@ def adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, fo
     rv1 = R[0][1] * v_tilde_W[0] + R[1][1] * v_tilde_W[1] + R[2][1] * v_tilde_W[2]
     rv2 = R[0][2] * v_tilde_W[0] + R[1][2] * v_tilde_W[1] + R[2][2] * v_tilde_W[2]
     for k in range(n):
-        t = Phi[0][k] * rv0 + Phi[1][k] * rv1 + Phi[2][k] * rv2 - sigma * (x[th + k] - prior[p + PRIOR_THETA0 + k])
+        t = w_track * (Phi[0][k] * rv0 + Phi[1][k] * rv1 + Phi[2][k] * rv2) \
+            - sigma * (x[th + k] - prior[p + PRIOR_THETA0 + k])
         if mode != ADAPT_TRACKING:
-            t -= x[wf + k] * e[0] + x[wf + n + k] * e[1] + x[wf + 2 * n + k] * e[2]
+            t -= w_pred * (x[wf + k] * e[0] + x[wf + n + k] * e[1] + x[wf + 2 * n + k] * e[2])
         x[tau + k] = t
     at_upper, at_lower = bound_sides(x, th, prior, p + PRIOR_LOWER, prior, p + PRIOR_UPPER)
     bounded = at_upper != 0 or at_lower != 0
@@ -602,12 +690,13 @@ def adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, fo
         # K = P0
         p0 = p + PRIOR_P0
         for i in range(n):
-            x[p_diag + i] = prior[p0 + n * i + i]
+            x[p_diag + i] = gain_scale * prior[p0 + n * i + i]
             t = 0.0
             for j in range(n):
                 t += prior[p0 + n * i + j] * x[tau + j]
-            x[d0 + i] = t
+            x[d0 + i] = gain_scale * t
         if bounded:
+            # the projection in the P0 metric is the same for any positive multiple of P0
             n_active, active = project_direction(prior, p0, prior, p + PRIOR_GAMMA0, x, tau, d0, w + WK_D,
                                                  w + WK_PROJECTION, at_upper, at_lower, active_set)
     else:
@@ -615,7 +704,13 @@ def adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, fo
         gram(x, wf, x, G)
         if mode == ADAPT_COMPOSITE:
             # Gamma_k+1 = a Gamma_k + (1 - a) Gamma_0 + b W^T W; K = Gamma_k+1^-1 (before the cap)
-            information_update(x, gam, prior, p + PRIOR_GAMMA0, x, G, forget_a, forget_b)
+            if directional:
+                # forgetting tied to the excitation: a rejected tick (w_pred = 0) neither adds nor forgets.
+                # Scratch: M and the first two entries of L (both recomputed below)
+                directional_information_update(x, gam, prior, p + PRIOR_GAMMA0, x, wf, x, G,
+                                               1.0 - w_pred * (1.0 - forget_a), w_pred * forget_b, x, w + WK_M)
+            else:
+                information_update(x, gam, prior, p + PRIOR_GAMMA0, x, G, forget_a, w_pred * forget_b)
             G = gam
         else:
             # backward Euler in the prediction term: K = (P0^-1 + dt W^T W)^-1
@@ -623,7 +718,7 @@ def adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, fo
             for i in range(n):
                 x[p_diag + i] = prior[p + PRIOR_P0 + n * i + i]
                 for j in range(n):
-                    x[G + n * i + j] = prior[g0 + n * i + j] + dt * x[G + n * i + j]
+                    x[G + n * i + j] = prior[g0 + n * i + j] + w_pred * dt * x[G + n * i + j]
         M = w + WK_M
         if not cholesky_lower(x, G, x, w + WK_L, n):
             if mode == ADAPT_COMPOSITE:
@@ -677,6 +772,6 @@ __all__ = ["ADAPT_COMPOSITE", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "M
            "MEM_SIZE", "MEM_THETA", "MEM_W", "PRIOR_GAMMA0", "PRIOR_LOWER", "PRIOR_P0", "PRIOR_SIZE",
            "PRIOR_THETA0", "PRIOR_THETA_INIT", "PRIOR_UPPER", "PROJECTION_WORK_SIZE", "TINY", "WK_P_DIAG",
            "WORK_SIZE", "adaptation_step", "bound_sides", "cap_information", "cholesky_lower",
-           "cholesky_solve", "factor_apply", "factor_diag", "flush_tiny", "forgetting_weights", "gram",
+           "cholesky_solve", "directional_information_update", "factor_apply", "factor_diag", "flush_tiny", "forgetting_weights", "gram",
            "gram_of_factor", "information_update", "inverse_factor", "lowpass", "lowpass_gain",
-           "lyapunov_function", "prediction_error", "project_direction", "spd_inverse"]
+           "lyapunov_function", "prediction_error", "project_direction", "spd_inverse", "weighted_adaptation_step"]

@@ -41,7 +41,7 @@ from .layouts import (  # noqa: F401  (the layout names are part of this module'
     P_P0, P_PRIOR, P_TAU_MAX, P_THETA0, P_THETA_INIT, P_TILT_MAX, P_U_MAX, P_UPPER, P_V_HI, P_V_LO,
     P_VCORR_MAX, P_VERR_MAX, P_VPROBE_MAX, P_WD_DOT_MAX, P_WD_HZ, P_WD_MAX, P_WD_ON, P_WIND_FADE, P_WIND_TAU,
     S_AM_F, S_GAINS, S_GAINS_DT, S_GAMMA, S_LAW, S_Q_D_PREV, S_Q_LAST, S_THETA, S_U_PREV, S_VALID_TIME, S_W_F,
-    S_WIND_EST, SHARED_PARAMS, SHARED_STATE,
+    S_INFO_SUM, S_V_I_LAW, S_WIND_EST, SHARED_PARAMS, SHARED_STATE,
 )
 from .registry import CONTROLLERS, law_index
 
@@ -68,6 +68,10 @@ def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
     (dt, new_dt, faults, may_adapt, probe_ok, R, v_W, v_i, p_tilde, v_r, v_r_dot, v_tilde_raw, v_tilde, a_d, yaw_d,
      Phi) = front_end(params, state, meas, ref, dt)
     default_law_diagnostics(params, diag)
+    # the flow the laws' model-validity measures read (the controller's own v_i, never the plant's)
+    state[S_V_I_LAW] = v_i[0]
+    state[S_V_I_LAW + 1] = v_i[1]
+    state[S_V_I_LAW + 2] = v_i[2]
     f_r = (0.0, 0.0, 0.0)
     e = (0.0, 0.0, 0.0)
     adapt_active = False
@@ -257,6 +261,14 @@ def set_state_theta_hat(state, theta) -> None:
         state[S_THETA + i] = theta[i]
 
 
+def information_sum(state) -> np.ndarray:
+    """The un-forgotten information ``sum w_pred W^T W dt`` (8, 8) the adaptive law accumulated (a copy).
+
+    Zero for a law that never adapts; see :func:`vtoladapt.experiments.metrics.identifiability`.
+    """
+    return np.array(state[S_INFO_SUM:S_INFO_SUM + N_THETA * N_THETA]).reshape((N_THETA, N_THETA))
+
+
 @njit(cache=True)
 def state_P_inv(state) -> np.ndarray:
     """The information matrix ``P^-1`` (8, 8) (a view into ``state``)."""
@@ -311,7 +323,7 @@ def state_integrator(state: np.ndarray) -> np.ndarray:
 
 
 __all__ = ["CONTROLLER_DIAG_COLUMNS", "DIAG_SIZE", "controller_initial_state", "controller_params",
-           "controller_step", "default_theta_bounds", "law_of_params", "set_state_theta_hat", "state_P",
+           "controller_step", "default_theta_bounds", "information_sum", "law_of_params", "set_state_theta_hat", "state_P",
            "state_P_inv", "state_filtered_accel", "state_filtered_regressor", "state_integrator",
            "state_last_command", "state_law_field", "state_theta_hat", "state_wind_estimate",
            "theta_bound_half_widths"]

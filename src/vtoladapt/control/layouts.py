@@ -122,11 +122,15 @@ SHARED_STATE = BlockLayout("controller state (shared)", [
     Field("U_EST", 2, "-", "throttles the motors are estimated to deliver (nominal lag)"),
     Field("GAINS_DT", 1, "s", "the dt the gains were computed for; 0: not yet"),
     Field("GAINS", GAINS.size, "-", "the filter gains (GAINS layout)"),
+    Field("V_I_LAW", 3, "m/s", "incident velocity used this tick, body (the laws' model-validity measure)"),
+    Field("INFO_SUM", N_THETA * N_THETA, "s (m/s^2 per adaptation unit)^2",
+          "un-forgotten information sum of w_pred W^T W dt over the adapting ticks (identifiability)"),
 ])
 (S_ESTIMATE, S_FILT_INIT, S_V_PREV, S_U_PREV, S_TAU_PREV, S_Q_D_PREV, S_WD_X1, S_WD_X2, S_HAVE_QD, S_Y_I_PREV,
  S_HAVE_Y_I, S_WIND_EST, S_HAVE_WIND, S_VALID_TIME, S_P_LAST, S_V_LAST, S_Q_LAST, S_OMEGA_LAST, S_HAVE_MEAS,
  S_REF_LAST, S_HAVE_REF, S_SAT_PREV, S_RES_PREV_W, S_TIME, S_STEPS, S_U_EST, S_GAINS_DT,
- S_GAINS) = SHARED_STATE.offsets(*(f.name for f in SHARED_STATE.fields))
+ S_GAINS) = SHARED_STATE.offsets(*(f.name for f in SHARED_STATE.fields[:28]))
+S_V_I_LAW, S_INFO_SUM = SHARED_STATE.offsets("V_I_LAW", "INFO_SUM")
 S_THETA, S_GAMMA, S_W_F, S_AM_F = SHARED_STATE.nested("ESTIMATE", ad.MEMORY, "THETA", "GAMMA", "W", "A_M")
 S_LAW = SHARED_STATE.size
 """First slot of the law's own state block."""

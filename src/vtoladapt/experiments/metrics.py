@@ -59,6 +59,7 @@ def convergence_metrics(scenario: Scenario, results: list[SimulationResult]) -> 
     fan = fan_throttle_series(scenario, results[0].time_s)
     per_run = [run_metrics(r, fan) for r in results]
     force_start, force_end = _predicted_force_spread(scenario, results, theta)
+    theta_0 = scenario.load_vehicle().theta_scaled
     return {
         # what the data identify: the force each run's theta-hat predicts at the final operating
         # point (collinear parameters may wander; their combination should not)
@@ -72,6 +73,8 @@ def convergence_metrics(scenario: Scenario, results: list[SimulationResult]) -> 
         "theta_true_scaled": dict(zip(PARAMETER_NAMES, results[0].metadata["theta_true_scaled"])),
         "vel_err_rms_mps_per_run": [m["vel_err_rms_mps"] for m in per_run],
         "pred_err_p95_g_per_run": [m.get("pred_err_p95_g", float("nan")) for m in per_run],
+        # which directions of theta each run's data determine (eigen-spectrum of its information)
+        "identifiability_per_run": [run_identifiability(r, theta_0) for r in results],
     }
 
 
@@ -91,3 +94,67 @@ def _predicted_force_spread(scenario: Scenario, results: list[SimulationResult],
     f_end = theta[:, -1, :] @ Phi.T
     return (float(np.linalg.norm(f_start.std(axis=0, ddof=1))),
             float(np.linalg.norm(f_end.std(axis=0, ddof=1))))
+
+
+# --- identifiability: what the data of a run determine ----------------------------------------------
+IDENTIFIABILITY_SENSITIVITY_MIN_MPS2 = 1.0
+"""A direction of theta is *determined* by a run if its sensitivity (below) is at least this: a
+10 % error of theta along it then changes the run's RMS predicted specific force by at least
+0.1 m/s^2 (0.01 g, a fifth of the paper's 0.05 g prediction-error bound), which the data show."""
+
+DOMINANT_COMPONENT_MIN = 0.3
+"""A parameter is named in an eigenvector's description if its component's magnitude is at least this."""
+
+
+def identifiability(information_sum: np.ndarray, theta_0: np.ndarray, adapt_time_s: float) -> dict:
+    """The eigen-spectrum of a run's un-forgotten information ``sum w W^T W dt`` and the directions it determines.
+
+    The information is taken in *relative* coordinates, ``theta = diag(|theta_0|) (1 + delta)``, so
+    that the eight parameters, in eight different units, are comparable: ``A = D S D / T`` with
+    ``D = diag(|theta_0|)`` (1 where theta_0 = 0) and ``T`` the time the law adapted. An eigenvalue
+    ``mu`` of ``A`` says that a relative change ``delta`` along its eigenvector changes the predicted
+    specific force by ``sqrt(mu) |delta|`` RMS over the run: the direction's *sensitivity*
+    ``sqrt(mu)`` (m/s^2). Directions with a sensitivity of at least
+    :data:`IDENTIFIABILITY_SENSITIVITY_MIN_MPS2` are *determined*; the others are left to the prior
+    (and, with forgetting toward the prior or sigma, drift back to it).
+
+    Returns a JSON-ready dict: ``sensitivity_mps2`` per direction (largest first), each
+    eigenvector's components by parameter, its ``dominant`` parameters (signed components of
+    magnitude >= :data:`DOMINANT_COMPONENT_MIN`), ``determined`` flags and their count, and the
+    threshold used.
+    """
+    S = np.asarray(information_sum, dtype=float).reshape(len(PARAMETER_NAMES), len(PARAMETER_NAMES))
+    scale = np.where(np.asarray(theta_0) != 0.0, np.abs(theta_0), 1.0)
+    A = scale[:, None] * S * scale[None, :] / max(adapt_time_s, 1e-12)
+    mu, V = np.linalg.eigh(0.5 * (A + A.T))
+    order = np.argsort(mu)[::-1]
+    mu = np.clip(mu[order], 0.0, None)
+    V = V[:, order]
+    sens = np.sqrt(mu)
+    directions = []
+    for k in range(len(mu)):
+        v = V[:, k] * (1.0 if V[np.argmax(np.abs(V[:, k])), k] > 0 else -1.0)  # largest component positive
+        dom = sorted(((PARAMETER_NAMES[i], float(v[i])) for i in range(len(v)) if abs(v[i]) >= DOMINANT_COMPONENT_MIN),
+                     key=lambda p: -abs(p[1]))
+        directions.append({
+            "sensitivity_mps2": float(sens[k]),
+            "determined": bool(sens[k] >= IDENTIFIABILITY_SENSITIVITY_MIN_MPS2),
+            "dominant": " ".join(f"{'+' if c > 0 else '-'}{abs(c):.2f} {n}" for n, c in dom),
+            "components": dict(zip(PARAMETER_NAMES, (float(c) for c in v))),
+        })
+    return {
+        "threshold_sensitivity_mps2": IDENTIFIABILITY_SENSITIVITY_MIN_MPS2,
+        "adapt_time_s": float(adapt_time_s),
+        "n_determined": int(sum(d["determined"] for d in directions)),
+        "directions": directions,
+    }
+
+
+def run_identifiability(result: SimulationResult, theta_0: np.ndarray) -> dict | None:
+    """:func:`identifiability` of one run from its metadata's ``information_sum`` (None if it has none)."""
+    S = result.metadata.get("information_sum")
+    if S is None or "adaptation_active" not in result:
+        return None
+    dt = float(result.metadata.get("dt_control_s", np.median(np.diff(result.time_s))))
+    t_adapt = float(np.sum(result["adaptation_active"] > 0.5)) * dt
+    return identifiability(np.asarray(S), theta_0, t_adapt)

@@ -327,6 +327,29 @@ def distribution_sections(metrics: dict) -> list[Section]:
     return sections
 
 
+def identifiability_section(conv: dict) -> Section:
+    """Per convergence run: how many directions of theta the data determine (information eigen-spectrum)."""
+    runs = [r for r in conv.get("identifiability_per_run", []) if r]
+    thr = runs[0]["threshold_sensitivity_mps2"]
+    text = (f"Eigen-spectrum of each run's un-forgotten information Σ W^T W dt in relative parameter "
+            f"coordinates (θ = diag(|θ_0|)(1 + δ)). A direction's sensitivity is the RMS change of the "
+            f"predicted specific force over the run for a unit relative change δ along it; a direction is "
+            f"determined if its sensitivity is at least {fmt_number(thr)} m/s² (a 10 % error along it moves "
+            f"the prediction by 0.01 g RMS). Directions below are left to the prior.")
+    per_run = tuple((Cell(str(i + 1)), _num(r["n_determined"]),
+                     Cell(", ".join(fmt_number(d["sensitivity_mps2"]) for d in r["directions"]), numeric=True),
+                     Cell(r["directions"][-1]["dominant"]))
+                    for i, r in enumerate(runs))
+    t1 = Table("Per run:", ("run", "directions determined", "sensitivities, m/s² (largest first)",
+                            "least determined direction"), per_run)
+    first = runs[0]["directions"]
+    t2 = Table("Run 1, each direction (eigenvector's components of magnitude ≥ 0.3):",
+               ("sensitivity", "unit", "determined", "direction"),
+               tuple((_num(d["sensitivity_mps2"]), Cell("m/s²"), Cell("yes" if d["determined"] else "no"),
+                      Cell(d["dominant"])) for d in first))
+    return Section("Identifiability", (paragraph(text),), (t1, t2))
+
+
 def table_markdown(table: Table) -> str:
     """A :class:`Table` as Markdown (caption, header, rows), as report.md prints it."""
     esc = lambda s: str(s).replace("|", "\\|")  # noqa: E731
@@ -348,6 +371,8 @@ def build_report(title: str, metrics: dict, figures: Iterable[FigureRef], notes:
         sections.append(Section("Controller comparison", tables=(comparison_table(metrics["comparison"]),)))
     if "convergence" in metrics:
         sections.append(convergence_section(metrics["convergence"]))
+        if any(metrics["convergence"].get("identifiability_per_run") or ()):
+            sections.append(identifiability_section(metrics["convergence"]))
     if metrics.get("claims"):
         sections.append(Section("The paper's claims, checked in simulation (single seed)",
                                 tables=(claims_table(metrics["claims"]),)))

@@ -6,32 +6,87 @@ Not a law (it is not in the registry): :mod:`.composite`, :mod:`.composite_pcons
 """
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from .. import adaptation as ad
 from ..frontend import prediction_error
 from ..layouts import (
-    DIAG_P_DIAG, DIAG_PROJ_ACTIVE, FAULT_ADAPTATION, N_THETA, P_P0, P_PRIOR, S_ESTIMATE, S_GAMMA,
+    DIAG_P_DIAG, DIAG_PROJ_ACTIVE, FAULT_ADAPTATION, N_THETA, P_P0, P_PRIOR, P_V_LO,
+    S_ESTIMATE, S_GAMMA, S_INFO_SUM, S_SAT_PREV, S_V_I_LAW, S_W_F,
 )
 
 
 @njit(cache=True)
+def model_validity(params, state, alpha_trust_rad, alpha_stall_rad) -> float:
+    """How far the linear-in-parameters force model is trusted this tick, in [0, 1] (not in the paper).
+
+    The measured angle of attack ``alpha = atan2(v_iz, v_ix)`` (the controller's ``v_i``, body)
+    against the controller's belief (the vehicle file's ``[envelope]``, never the plant's): 1 up to
+    ``alpha_trust`` (``stall_angle_deg - stall_margin_deg``, the protected angle), 0 from the
+    believed stall angle on, linear between.
+    Backward flow (``|alpha|`` near pi) is beyond stall. The wing's force, and so the model's error,
+    scale with ``V^2``: below the hover blend (``V_lo``) the weight returns to 1 as ``(V/V_lo)^2``.
+    """
+    vx = state[S_V_I_LAW]
+    vz = state[S_V_I_LAW + 2]
+    V2 = vx * vx + state[S_V_I_LAW + 1] * state[S_V_I_LAW + 1] + vz * vz
+    a = abs(np.arctan2(vz, vx))
+    a_lo = alpha_trust_rad
+    if a <= a_lo:
+        return 1.0
+    w = 0.0 if a >= alpha_stall_rad else (alpha_stall_rad - a) / (alpha_stall_rad - a_lo)
+    v_lo = params[P_V_LO]
+    reach = min(1.0, V2 / (v_lo * v_lo)) if v_lo > 0.0 else 1.0
+    return 1.0 - (1.0 - w) * reach
+
+
+@njit(cache=True)
+def saturated(state) -> bool:
+    """True if the last allocation saturated a throttle (the commanded force was not delivered)."""
+    return state[S_SAT_PREV] != 0.0 or state[S_SAT_PREV + 1] != 0.0
+
+
+@njit(cache=True)
+def accumulate_information(state, weight, dt) -> None:
+    """``INFO_SUM += weight W^T W dt`` with the filtered regressor W: the un-forgotten information (identifiability).
+
+    Upper triangle computed and mirrored (exactly symmetric); read after the run
+    (:func:`vtoladapt.experiments.metrics.identifiability`), never decomposed in the loop.
+    """
+    n = N_THETA
+    c = weight * dt
+    for i in range(n):
+        for j in range(i, n):
+            t = 0.0
+            for r in range(3):
+                t += state[S_W_F + n * r + i] * state[S_W_F + n * r + j]
+            v = state[S_INFO_SUM + n * i + j] + c * t
+            state[S_INFO_SUM + n * i + j] = v
+            state[S_INFO_SUM + n * j + i] = v
+
+
+@njit(cache=True)
 def adaptive_estimate(mode, params, state, diag, s_active, s_work, may_adapt, Phi, R, v_tilde, dt, forget_a,
-                      forget_b, sigma, trace_max) -> tuple:
+                      forget_b, sigma, trace_max, w_track=1.0, w_pred=1.0, directional=False,
+                      gain_scale=1.0) -> tuple:
     """Update theta-hat and P (eq:th_adapt, eq:P_adapt) if ``may_adapt``; write ``P_diag`` and ``projection_active_bounds``.
 
     ``s_active``: the law's state slot holding the last projection's active set; ``s_work``: its
-    :data:`~vtoladapt.control.adaptation.WORK` block. Returns ``(e, adapt_active, faults)``: the
-    prediction error before the update (m/s^2 body), whether theta-hat was updated, ``FAULT_*`` bits.
+    :data:`~vtoladapt.control.adaptation.WORK` block; ``w_track``, ``w_pred``, ``directional``,
+    ``gain_scale``: see :func:`vtoladapt.control.adaptation.weighted_adaptation_step` (the
+    defaults are the paper's law). Returns ``(e, adapt_active, faults)``: the prediction error
+    before the update (m/s^2 body), whether theta-hat was updated, ``FAULT_*`` bits.
     """
     faults = 0
     n_active = 0
     p_diag = s_work + ad.WK_P_DIAG
     if may_adapt:
-        n_active, active_set, e = ad.adaptation_step(
+        n_active, active_set, e = ad.weighted_adaptation_step(
             mode, state, S_ESTIMATE, s_work, params, P_PRIOR, Phi, R, v_tilde, dt, forget_a, forget_b, sigma,
-            trace_max, int(state[s_active]))
+            trace_max, int(state[s_active]), w_track, w_pred, directional, gain_scale)
         state[s_active] = active_set
+        accumulate_information(state, w_pred, dt)
         if n_active < 0:
             faults |= FAULT_ADAPTATION
     else:

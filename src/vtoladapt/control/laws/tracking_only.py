@@ -1,8 +1,34 @@
-"""Adaptation on the tracking error only (the paper's controller III): ``theta-hat' = P0 Phi^T R^T v~``.
+"""Adaptation on the tracking error only (the paper's controller III): ``theta-hat' = k P0 Phi^T R^T v~``.
 
-As :mod:`.composite` without the prediction-error term and with P = P0. The sigma-modification
-toward theta_0 (eq:th_adapt's last term) is kept, as in the composite laws: it is this law's
-``[controller.tracking_only] sigma`` (set it to 0 for the paper's pure tracking-error law).
+As :mod:`.composite` without the prediction-error term and with a constant-shape gain ``k P0``.
+The paper's law is ``k = 1`` and no sigma-modification; both are the defaults except where the
+motor lag makes ``k = 1`` unstable (the gain rule below).
+
+Why the paper's gain limit-cycles, and the gain rule
+----------------------------------------------------
+Linearised at a trim with theta~ small, the force error is ``-R Phi theta~`` and this law gives
+``theta~' = k P0 Phi^T R^T v~``: an integral action on ``v~`` with the integral gain matrix
+``k_I = k R Phi P0 Phi^T R^T`` (1/s^2). Through the first-order motor lag ``tau`` the loop along
+one axis is ``tau s^3 + s^2 + K_v s + k_I``, stable iff ``K_v > tau k_I`` (Routh-Hurwitz). At 9
+m/s with Table III's P0, ``k_I`` along north is about 58 /s^2 and ``tau k_I`` = 2.3 > K_v = 1.8
+(the 40 ms pusher): the paper's gain is unstable there, and the simulator shows a 0.2 m/s limit
+cycle of period 0.76 s, while in hover and at 4 m/s it is stable.
+
+``gain_rule = "routh"`` (default) scales the gain so that the criterion holds with margin
+``loop_gain_margin`` on every axis: ``k = min(1, k_I_max / trace(Phi P0 Phi^T))`` with
+``k_I_max = min(K_v) / (margin * max(tau_pusher, tau_lift))``. The trace bounds the largest
+eigenvalue of ``R Phi P0 Phi^T R^T``, so every axis' ``k_I`` is below ``k_I_max``. Where the
+paper's gain is stable with that margin (hover, low wind) ``k = 1`` is the paper's law; above it
+this is the normalised gradient law of robust adaptive control (Ioannou & Sun, *Robust Adaptive
+Control*, sec. 4.3), normalised by the loop gain the motor lag allows. ``"paper"``: ``k = 1``.
+
+Measured (plant equal to the model, 40 ms pusher, max |v~| over the last 5 s of a 20 s hold):
+the paper's gain 0.20 m/s at 9 m/s and 0.23 m/s at 12 m/s (limit cycles); the rule 5e-5 and 6e-5
+m/s. On paper_comparison (5 seeds) RMS |v~| 0.058 m/s against the paper gain's 0.063.
+
+Sigma (``[controller.tracking_only] sigma``, default 0): the paper's law III has none, and it is
+off by default. With ``sigma = 1e-4`` (the composite law's value) the RMS |v~| on
+paper_comparison changes by -0.7 % (5 seeds): a negligible effect either way.
 """
 from __future__ import annotations
 
@@ -14,7 +40,7 @@ from numba import njit
 from ...config import setting
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
-from ..layouts import P_K_V, P_LAW, S_LAW, law_offsets
+from ..layouts import N_THETA, P_K_V, P_LAW, P_P0, S_LAW, law_offsets
 from ..tracking import force_command
 from . import LawContext, check_sigma_step
 from ._adaptive import adaptive_estimate
@@ -24,8 +50,13 @@ from ._adaptive import adaptive_estimate
 class TrackingOnlySettings:
     """The tracking-error law's own gains (the ``[controller.tracking_only]`` table)."""
 
-    sigma: float = setting("adaptation units", "sigma-modification toward theta_0, as in eq:th_adapt "
-                           "(0: the pure tracking-error law)", default=1e-4, ge=0.0, le=100.0)
+    sigma: float = setting("adaptation units", "sigma-modification toward theta_0 (not in the paper's law "
+                           "III; 0: the paper's law)", default=0.0, ge=0.0, le=100.0)
+    gain_rule: str = setting("-", "'routh': the gain k P0 with k <= 1 keeping K_v > margin * tau_motor * k_I on "
+                             "every axis (stable through the motor lag); 'paper': P0 always", default="routh",
+                             choices=("routh", "paper"))
+    loop_gain_margin: float = setting("-", "gain margin of the 'routh' rule: k_I <= min(K_v) / (margin * "
+                                      "max motor time constant)", default=2.0, ge=1.0, le=100.0)
 
 
 Settings = TrackingOnlySettings
@@ -34,19 +65,29 @@ Settings = TrackingOnlySettings
 
 PARAMS = BlockLayout("tracking_only parameters", [
     Field("SIGMA", 1, "adaptation units", "sigma-modification"),
+    Field("K_I_MAX", 1, "1/s^2", "largest integral gain the Routh rule allows (inf: the paper's P0)"),
 ])
 STATE = BlockLayout("tracking_only state", [
     Field("ACTIVE_SET", 1, "-", "bit mask of the bounds the last projection held"),
     Field("WORK", ad.WORK.size, "-", "the adaptation's scratch (no meaning between ticks)"),
 ])
-(P_SIGMA,) = law_offsets(PARAMS, P_LAW, "SIGMA")
+P_SIGMA, P_K_I_MAX = law_offsets(PARAMS, P_LAW, "SIGMA", "K_I_MAX")
 S_ACTIVE_SET, S_WORK = law_offsets(STATE, S_LAW, "ACTIVE_SET", "WORK")
+
+
+def integral_gain_limit(settings: TrackingOnlySettings, K_v, vehicle) -> float:
+    """``k_I_max = min(K_v) / (margin * max motor time constant)`` (1/s^2); inf for the 'paper' rule."""
+    if settings.gain_rule == "paper":
+        return np.inf
+    act = vehicle.actuators
+    tau = max(act.pusher_motor_time_constant_s, act.lift_motor_time_constant_s)
+    return float(min(K_v)) / (settings.loop_gain_margin * tau)
 
 
 def fill_params(settings: TrackingOnlySettings, ctx: LawContext) -> np.ndarray:
     """The law's parameter block; ``ValueError`` if sigma makes the explicit sigma step unstable."""
     check_sigma_step(settings.sigma, ctx, "controller.tracking_only")
-    return PARAMS.pack(SIGMA=settings.sigma)
+    return PARAMS.pack(SIGMA=settings.sigma, K_I_MAX=integral_gain_limit(settings, ctx.config.K_v, ctx.vehicle))
 
 
 def init_state(params: np.ndarray, state: np.ndarray) -> None:
@@ -54,10 +95,27 @@ def init_state(params: np.ndarray, state: np.ndarray) -> None:
 
 
 @njit(cache=True)
+def gain_scale(params, Phi) -> float:
+    """The Routh rule's ``k = min(1, k_I_max / trace(Phi P0 Phi^T))`` (see the module notes)."""
+    k_I_max = params[P_K_I_MAX]
+    if not np.isfinite(k_I_max):
+        return 1.0
+    n = N_THETA
+    t = 0.0
+    for r in range(3):
+        for i in range(n):
+            s = 0.0
+            for j in range(n):
+                s += params[P_P0 + n * i + j] * Phi[r][j]
+            t += Phi[r][i] * s
+    return 1.0 if t <= k_I_max else k_I_max / t
+
+
+@njit(cache=True)
 def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_tilde, a_d) -> tuple:
     """Adapt theta-hat on the tracking error, then the force command (eq:f_ctrl); see the law interface."""
     e, adapt_active, faults = adaptive_estimate(
         ad.ADAPT_TRACKING, params, state, diag, S_ACTIVE_SET, S_WORK, may_adapt, Phi, R, v_tilde, dt,
-        1.0, dt, params[P_SIGMA], np.inf)
+        1.0, dt, params[P_SIGMA], np.inf, 1.0, 1.0, False, gain_scale(params, Phi))
     K_v = (params[P_K_V], params[P_K_V + 1], params[P_K_V + 2])
     return force_command(v_r_dot, v_tilde, K_v), e, adapt_active, faults
