@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 from llvmlite import ir
+from llvmlite.binding import llvm_version_info
 from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
@@ -65,6 +66,11 @@ _OBS_LOW = OBS_LOW.astype(np.float64)
 _OBS_HIGH = OBS_HIGH.astype(np.float64)
 
 
+# LLVM names the intrinsic by its pointer type: "p0" since pointers became opaque (LLVM 17 has
+# only those), "p0i8" for the typed i8* of the LLVM 14-15 under older numba releases.
+_PREFETCH_INTRINSIC = "llvm.prefetch.p0" if llvm_version_info[0] >= 17 else "llvm.prefetch.p0i8"
+
+
 @intrinsic
 def _prefetch(typingctx, array2d, i, j):
     """Ask the CPU to bring ``array2d[i, j]``'s cache line into its caches (LLVM's ``llvm.prefetch``;
@@ -80,7 +86,7 @@ def _prefetch(typingctx, array2d, i, j):
         i8p = builder.bitcast(ptr, ir.IntType(8).as_pointer())
         i32 = ir.IntType(32)
         fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [i8p.type, i32, i32, i32]),
-                                            "llvm.prefetch.p0")
+                                            _PREFETCH_INTRINSIC)
         # read, locality 2 (towards L2, not L1: the next environment's ~10 kB would evict the
         # current one's from a 32 kB L1), data cache
         builder.call(fn, [i8p, i32(0), i32(2), i32(1)])
