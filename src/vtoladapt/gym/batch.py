@@ -1,13 +1,14 @@
-"""Stacked kernel arrays of a batch of episodes, and the one call per thread that steps them.
+"""Kernel state of a batch of episodes in one array per thread, and the one call per thread that steps them.
 
 :class:`RunBatch` is shared by the single environment (a batch of one) and the vector
 environment, so both step through the same compiled :func:`~vtoladapt.gym.kernel.step_batch` and
 an environment of a batch is, draw for draw, the single environment with the same seed.
 
-Each thread owns a :class:`_Chunk`: its own allocation of every array, the shared tables
-included. Numba counts references to an array's buffer atomically whenever the kernel takes a row
-of it, so two threads taking rows of one allocation would bounce that counter's cache line
-between the cores at every row.
+Each thread owns a :class:`_Chunk`: one 2-D array whose rows are its environments' whole kernel
+state (the blocks of :data:`~vtoladapt.gym.kernel.BLOCKS`), its outputs and its own copy of the
+shared tables. Numba counts references to an array's buffer atomically whenever the kernel takes
+a slice of it, so two threads slicing one allocation would bounce that counter's cache line
+between the cores at every slice.
 """
 from __future__ import annotations
 
@@ -23,13 +24,28 @@ from ..control.trajectory import trajectory_from_reference
 from ..layout import CMD_SIZE, MEAS_SIZE, N_MOTORS, X_SIZE
 from ..plant import RK4_WORK_SIZE
 from ..scenario import Scenario
+from ..sensors import SENSOR_STATE
 from ..simulate import PreparedRun, prepare
 from .config import HoldEnvConfig
-from .kernel import MODE_DIRECT, MODE_RESIDUAL, OP_BEGIN, OP_SKIP, OP_STEP, step_batch
+from .kernel import (B_SENS_S, BLOCKS, MODE_DIRECT, MODE_RESIDUAL, OP_BEGIN, OP_SKIP, OP_STEP, SET_ACTION_COST,
+                     SET_COS_TILT_MAX, SET_DT_S, SET_MAX_ERR_M, SET_MODE, SET_N_SUB, SET_N_TICKS,
+                     SET_PREFETCH_END, SET_RESIDUAL_SCALE, SET_U_MAX, SETTINGS_SIZE, step_batch)
 from .spaces import ACTION_SIZE, OBS_SIZE
 
-_PER_RUN = ("plant_params", "mixer_params", "controller_params", "controller_state", "wind_params",
-            "wind_state", "sensor_params", "sensor_state")
+_PER_RUN = BLOCKS[BLOCKS.index("plant_params"):]
+"""The blocks loaded from a :class:`~vtoladapt.simulate.PreparedRun` (attributes of that name)."""
+_SCRATCH_SIZES = {"x": X_SIZE, "v_wind": 3, "f_B": 3, "v_i": 3, "meas": MEAS_SIZE, "cmd": CMD_SIZE,
+                  "base": CMD_SIZE, "diag": DIAG_SIZE, "motor": N_MOTORS, "work": RK4_WORK_SIZE}
+
+# The sensor state ends in the motion-capture delay ring, of which a step touches two entries:
+# the prefetch stops where the ring begins.
+_SENSOR_RING = SENSOR_STATE.offset("RING")
+
+
+def block_offsets(template: PreparedRun) -> np.ndarray:
+    """Column where each block of :data:`~vtoladapt.gym.kernel.BLOCKS` starts, and the row width last."""
+    sizes = [_SCRATCH_SIZES[b] if b in _SCRATCH_SIZES else getattr(template, b).size for b in BLOCKS]
+    return np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
 
 
 class _Chunk:
@@ -38,8 +54,8 @@ class _Chunk:
     def __init__(self, batch: "RunBatch", lo: int, hi: int, template: PreparedRun):
         m = hi - lo
         self.lo, self.hi = lo, hi
-        self.arrays = {name: np.zeros((m, getattr(template, name).size)) for name in _PER_RUN}
-        self.X = np.zeros((m, X_SIZE))
+        self.off = block_offsets(template)
+        self.S = np.zeros((m, int(self.off[-1])))
         self.K = np.zeros(m, dtype=np.int64)
         self.op = np.zeros(m, dtype=np.int64)
         self.actions = np.zeros((m, ACTION_SIZE))
@@ -47,39 +63,35 @@ class _Chunk:
         self.reward = np.zeros(m)
         self.terminated = np.zeros(m, dtype=np.bool_)
         self.truncated = np.zeros(m, dtype=np.bool_)
-        self.scratch = [np.zeros((m, size)) for size in (3, 3, 3, MEAS_SIZE, CMD_SIZE, CMD_SIZE, DIAG_SIZE,
-                                                         N_MOTORS, RK4_WORK_SIZE)]
         # Python keeps each generator alive; the typed list holds their unboxed form, so a call
         # does not unbox them again (a tuple of generators costs tens of microseconds each)
         self.generators = [template.rng] * m
         self.rngs = typed.List()
         for _ in range(m):
             self.rngs.append(template.rng)
-        ref_table = batch.ref_table.copy()
-        tau_max = batch.tau_max.copy()
-        cfg = batch.cfg
-        a = self.arrays
-        v_wind, f_B, v_i, meas, cmd, base, diag, motor, work = self.scratch
+        self.settings = batch.settings.copy()
+        self.settings[SET_PREFETCH_END] = self.off[B_SENS_S] + min(_SENSOR_RING, self.off[B_SENS_S + 1]
+                                                                    - self.off[B_SENS_S])
         # every array is updated in place, so the arguments are bound once
-        self.args = (0, m, self.rngs, self.op, self.actions, batch.mode, cfg.residual_scale, batch.u_max,
-                     tau_max, cfg.max_position_error_m, batch.cos_tilt_max, cfg.action_cost, ref_table,
-                     batch.dt, batch.n_sub, batch.n_ticks,
-                     self.X, a["plant_params"], a["mixer_params"], a["controller_params"], a["controller_state"],
-                     a["wind_params"], a["wind_state"], a["sensor_params"], a["sensor_state"],
-                     v_wind, f_B, v_i, meas, cmd, base, diag, motor, work, self.K,
-                     self.obs, self.reward, self.terminated, self.truncated)
+        self.args = (self.rngs, self.op, self.actions, self.settings, batch.tau_max.copy(), batch.ref_table.copy(),
+                     self.S, self.off, self.K, self.obs, self.reward, self.terminated, self.truncated)
+
+    def block(self, j: int, name: str) -> np.ndarray:
+        """Row ``j``'s block ``name`` (a view)."""
+        b = BLOCKS.index(name)
+        return self.S[j, self.off[b]:self.off[b + 1]]
 
     def load(self, j: int, run: PreparedRun, name: str) -> None:
+        row = self.S[j]
+        row[:] = 0.0
         for key in _PER_RUN:
             value = getattr(run, key)
-            row = self.arrays[key][j]
-            if value.size != row.size:
+            b = BLOCKS.index(key)
+            if value.size != self.off[b + 1] - self.off[b]:
                 raise ValueError(f"episode scenario {name!r}: {key} has {value.size} entries, the batch "
-                                 f"{row.size}; the randomisation must not change array sizes")
-            row[:] = value
-        self.X[j] = run.x0
-        for a in self.scratch:
-            a[j] = 0.0
+                                 f"{self.off[b + 1] - self.off[b]}; the randomisation must not change array sizes")
+            row[self.off[b]:self.off[b + 1]] = value
+        self.block(j, "x")[:] = run.x0
         self.K[j] = 0
         self.generators[j] = run.rng
         self.rngs[j] = run.rng
@@ -113,6 +125,11 @@ class RunBatch:
         self.u_max = float(template.controller_params[P_U_MAX])
         self.tau_max = np.array(template.controller_params[P_TAU_MAX:P_TAU_MAX + 3], dtype=float)
         self.cos_tilt_max = math.cos(math.radians(cfg.max_tilt_deg))
+        self.settings = np.zeros(SETTINGS_SIZE)
+        self.settings[[SET_MODE, SET_RESIDUAL_SCALE, SET_U_MAX, SET_MAX_ERR_M, SET_COS_TILT_MAX, SET_ACTION_COST,
+                       SET_DT_S, SET_N_SUB, SET_N_TICKS]] = (
+            self.mode, cfg.residual_scale, self.u_max, cfg.max_position_error_m, self.cos_tilt_max, cfg.action_cost,
+            self.dt, self.n_sub, self.n_ticks)
         self.scenarios: list[Optional[Scenario]] = [None] * n
         workers = max(1, min(int(workers), n))
         edges = np.linspace(0, n, workers + 1).round().astype(int)
@@ -161,7 +178,7 @@ class RunBatch:
         c = self.chunks[self._chunk_of[i]]
         j = i - c.lo
         k = int(c.K[j])
-        return k * self.dt, c.X[j, 0:3] - self.ref_table[k, 0:3]
+        return k * self.dt, c.block(j, "x")[0:3] - self.ref_table[k, 0:3]
 
     def close(self) -> None:
         """Stop the worker threads."""

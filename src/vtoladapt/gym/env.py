@@ -33,6 +33,7 @@ from ..config import ConfigError
 from ..scenario import Scenario
 from .batch import RunBatch
 from .config import ENV_ID, HoldEnvConfig, episode_scenario, make_config
+from .kernel import OP_STEP
 from .spaces import ACTION_SIZE, action_space, observation_space
 
 
@@ -62,6 +63,7 @@ class HoldEnv(gym.Env):
         self.observation_space = observation_space()
         self.action_space = action_space()
         self._batch = RunBatch(self.config, 1, workers=1)
+        self._chunk = self._batch.chunks[0]
         self.dt_s: float = self._batch.dt
         self.max_steps: int = self._batch.n_ticks
         self.episode_scenario: Optional[Scenario] = None
@@ -84,12 +86,13 @@ class HoldEnv(gym.Env):
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (ACTION_SIZE,) or not np.isfinite(a).all():
             raise ValueError(f"{ENV_ID}: action {action!r}: must be {ACTION_SIZE} finite numbers in [-1, 1]")
-        b = self._batch
-        b.set_actions(a[None, :])
-        b.advance()
-        obs, reward, terminated, truncated = b.outputs()
-        self._over = bool(terminated[0] or truncated[0])
-        return obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]), self._info()
+        c = self._chunk  # a batch of one: write its row and call the kernel directly
+        c.actions[0] = a
+        c.op[0] = OP_STEP
+        c.run()
+        terminated, truncated = bool(c.terminated[0]), bool(c.truncated[0])
+        self._over = terminated or truncated
+        return c.obs[0].copy(), float(c.reward[0]), terminated, truncated, self._info()
 
     def _info(self) -> dict:
         t_s, p_err = self._batch.position_error(0)
