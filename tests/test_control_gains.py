@@ -7,6 +7,8 @@ stable with damped poles. ``omega_d`` feed-forward is left out (it is filtered a
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy.linalg import expm
@@ -56,11 +58,26 @@ def test_attitude_loop_is_stable_and_damped(any_vehicle, axis):
     assert _damping(z).min() > 0.45
 
 
+def _ff_lp(cfg, kind, Lp):
+    """The velocity coefficient the reference feed-forward adds: v_r' = -Lp v in hover (eq:f_ctrl and
+    the baselines' ``feedforward = "v_r_dot"``); 0 for a baseline feeding forward a_d only."""
+    return Lp if kind == "adaptive" or getattr(cfg, kind).feedforward == "v_r_dot" else 0.0
+
+
+def _with_feedforward(cfg, kind, feedforward):
+    return cfg if feedforward is None else dataclasses.replace(
+        cfg, **{kind: dataclasses.replace(getattr(cfg, kind), feedforward=feedforward)})
+
+
+KINDS = [("adaptive", None), ("pid", "v_r_dot"), ("pid", "a_d"), ("pd", "v_r_dot"), ("pd", "a_d")]
+
+
 def _horizontal(vehicle, cfg, kind):
     """States [x, v, theta, omega, tau_a, I, a_f] for the pitch axis driving north velocity in hover.
 
-    a_x = -g theta; theta_d = -f_x / g; f_x from eq:f_ctrl (adaptive) or PX4's PID; I and the
-    filtered acceleration a_f evolve in continuous time (their sampling is immaterial at 250 Hz).
+    a_x = -g theta; theta_d = -f_x / g; f_x from eq:f_ctrl (adaptive) or PX4's PID (with its
+    feed-forward: v_r' or a_d = 0); I and the filtered acceleration a_f evolve in continuous time
+    (their sampling is immaterial at 250 Hz).
     """
     g = GRAVITY_MPS2
     J = vehicle.mass.inertia_kgm2[1]
@@ -89,7 +106,8 @@ def _horizontal(vehicle, cfg, kind):
     if kind == "adaptive":
         fx = np.array([-Kv * Lp, -Kv - Lp, 0, 0, 0, 0, 0])          # v_r' - K_v v~
     else:
-        fx = np.array([-Kv * Lp, -Kv, 0, 0, 0, 1.0, -KD])          # K_v (v_sp - v) + I - K_D a_f
+        # ff + K_v (v_sp - v) + I - K_D a_f
+        fx = np.array([-Kv * Lp, -Kv - _ff_lp(cfg, kind, Lp), 0, 0, 0, 1.0, -KD])
     theta_d = -fx / g
     e_theta = np.zeros(7)
     e_theta[2] = 1.0
@@ -99,9 +117,9 @@ def _horizontal(vehicle, cfg, kind):
     return A, B, F[None, :]
 
 
-@pytest.mark.parametrize("kind", ["adaptive", "pid", "pd"])
-def test_horizontal_velocity_loop_through_the_attitude_is_stable(any_vehicle, kind):
-    cfg = ControllerConfig()
+@pytest.mark.parametrize("kind,feedforward", KINDS)
+def test_horizontal_velocity_loop_through_the_attitude_is_stable(any_vehicle, kind, feedforward):
+    cfg = _with_feedforward(ControllerConfig(), kind, feedforward)
     A, B, F = _horizontal(any_vehicle, cfg, kind)
     keep = [i for i in range(7) if not (i == 5 and kind != "pid") and not (i == 6 and kind == "adaptive")]
     z = _closed_loop_poles(A[np.ix_(keep, keep)], B[keep], F[:, keep])   # drop states the law does not use
@@ -109,10 +127,10 @@ def test_horizontal_velocity_loop_through_the_attitude_is_stable(any_vehicle, ki
     assert _damping(z).min() > 0.3
 
 
-@pytest.mark.parametrize("kind", ["adaptive", "pid", "pd"])
-def test_vertical_velocity_loop_through_the_lift_motors_is_stable(any_vehicle, kind):
+@pytest.mark.parametrize("kind,feedforward", KINDS)
+def test_vertical_velocity_loop_through_the_lift_motors_is_stable(any_vehicle, kind, feedforward):
     """States [z, v, a_actual, I]; the lift acceleration follows its command through the motor lag."""
-    cfg = ControllerConfig()
+    cfg = _with_feedforward(ControllerConfig(), kind, feedforward)
     tau_m = any_vehicle.actuators.lift_motor_time_constant_s
     Kv, Lp = cfg.K_v[2], cfg.Lambda_p[2]
     KI = cfg.pid.K_I[2] if kind == "pid" else 0.0
@@ -121,7 +139,7 @@ def test_vertical_velocity_loop_through_the_lift_motors_is_stable(any_vehicle, k
     if kind == "adaptive":
         F = np.array([[-Kv * Lp, -Kv - Lp, 0, 0]])
     else:
-        F = np.array([[-Kv * Lp, -Kv, 0, 1.0]])
+        F = np.array([[-Kv * Lp, -Kv - _ff_lp(cfg, kind, Lp), 0, 1.0]])
     keep = [0, 1, 2, 3] if kind == "pid" else [0, 1, 2]
     z = _closed_loop_poles(A[np.ix_(keep, keep)], B[keep], F[:, keep])
     assert np.abs(z).max() < 0.9999

@@ -1,7 +1,9 @@
 """The PID without its integral (the paper's controller V).
 
 Exactly :mod:`.pid` with the integral left out: the same parameter and state blocks, with the
-integral gain fixed at 0 (a PD has none to set) and the integrator never moving.
+integral gain fixed at 0 (a PD has none to set) and the integrator never moving. Its
+``feedforward`` setting is the PID's (``"v_r_dot"`` by default, the fair comparison; see
+:mod:`.pid`): with ``K_D = 0`` and ``"v_r_dot"`` the PD is exactly ``nominal``.
 """
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ from numba import njit
 
 from ...config import setting
 from . import LawContext
-from .pid import PARAMS, STATE, pid_update
+from .pid import FEEDFORWARD_CHOICES, FEEDFORWARD_DOC, PARAMS, STATE, feedforward_flag, pid_update
 
 
 @dataclass(frozen=True)
@@ -22,6 +24,7 @@ class PDSettings:
     K_D: tuple[float, ...] = setting("-", "velocity-derivative gain on the measured acceleration, NED",
                                      default=(0.2, 0.2, 0.0), ge=0.0, length=3)
     derivative_cutoff_hz: float = setting("Hz", "low-pass on the measured acceleration", default=5.0, gt=0.0)
+    feedforward: str = setting("-", FEEDFORWARD_DOC, default="v_r_dot", choices=FEEDFORWARD_CHOICES)
 
 
 Settings = PDSettings
@@ -30,7 +33,8 @@ Settings = PDSettings
 
 def fill_params(settings: PDSettings, ctx: LawContext) -> np.ndarray:
     """The PID's parameter block with no integral (``K_I`` = 0, limit 0)."""
-    return PARAMS.pack(K_D=settings.K_D, DERIV_HZ=settings.derivative_cutoff_hz)
+    return PARAMS.pack(K_D=settings.K_D, DERIV_HZ=settings.derivative_cutoff_hz,
+                       FF_V_R_DOT=feedforward_flag(settings.feedforward))
 
 
 def init_state(params: np.ndarray, state: np.ndarray) -> None:
@@ -40,6 +44,6 @@ def init_state(params: np.ndarray, state: np.ndarray) -> None:
 @njit(cache=True)
 def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_tilde, a_d) -> tuple:
     """The PD force command (:mod:`.pid` without the integral). See the law interface."""
-    return pid_update(params, state, diag, False, dt, new_dt, v_W, v_tilde, a_d)
+    return pid_update(params, state, diag, False, dt, new_dt, v_W, v_r_dot, v_tilde, a_d)
 
 
