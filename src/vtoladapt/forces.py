@@ -12,7 +12,7 @@ Kernel conventions
   so ``CTz`` is the full-throttle lift acceleration in m/s^2.
 * ``model``: float64 array (or tuple) of the :data:`N_MODEL` model constants, built by
   :func:`vtoladapt.scaling.model_kernel_params`: ``[aero_scale_per_m, k1, k2, alpha_lo_rad,
-  alpha_hi_rad, inv_blend_width_per_rad, cos2_sideslip_linear]`` with
+  alpha_hi_rad, inv_blend_width_per_rad, inv_cos2_sideslip_linear]`` with
   ``aero_scale_per_m = rho S / (2 m)``, ``[alpha_lo, alpha_hi]`` the attached-flow range and the
   last two the widths of the continuations below.
 * All forces are per unit mass (m/s^2), body FRD. The force kernels return them as tuples
@@ -66,11 +66,13 @@ alpha wraps from +pi to -pi. The model used here:
 * **Sideslip.** The paper's dynamic pressure ``V^2`` includes the spanwise flow, which with C_Y = 0
   makes the force jump when the flow turns through the spanwise direction (``v_ix = v_iz = 0``
   with ``v_iy != 0``: alpha is undefined there). The paper's ``V^2`` is kept for
-  ``|beta| <= SIDESLIP_LINEAR_DEG`` (30 deg, far beyond any coordinated flight); beyond, with
-  ``p = cos^2(beta) / cos^2(30 deg)``, it is ``V^2 p (2 - p)``, which joins smoothly at
-  ``p = 1`` and vanishes like ``cos^2(beta)`` (the independence principle's chordwise pressure)
-  as the flow turns spanwise: a wing edge-on to the flow makes no lift, and C_Y = 0 as in the
-  paper.
+  ``|beta| <= SIDESLIP_LINEAR_DEG`` (30 deg, far beyond any coordinated flight); beyond, it is
+  the chordwise ``v_ix^2 + v_iz^2 = V^2 cos^2(beta)`` of the independence principle (an unswept
+  wing feels only the flow across its span), divided by ``cos^2(30 deg)`` so that the two join:
+  ``min(V^2, (v_ix^2 + v_iz^2) / cos^2(30 deg))``. It vanishes as the flow turns spanwise (a wing
+  edge-on to the flow makes no lift, and C_Y = 0 as in the paper). The join is continuous with a
+  kink at 30 deg (a C1 join would need a division per call in the hot path, which cost a third
+  of the force model's time in the benchmark).
 
 Every term stays a basis function times one of the eight parameters, so ``regressor`` gives
 ``Phi theta == f_b-hat`` everywhere, and the fitting pipeline and adaptation see the same model
@@ -86,7 +88,7 @@ N_THETA = 8
 I_CTX, I_CTZ, I_CS, I_CD0, I_CD1, I_CD2, I_CL0, I_CL1 = range(8)
 N_MODEL = 7
 """Length of the ``model`` constants array (see the kernel conventions)."""
-M_AERO_SCALE, M_K1, M_K2, M_ALPHA_LO, M_ALPHA_HI, M_INV_BLEND, M_COS2_SIDESLIP = range(N_MODEL)
+M_AERO_SCALE, M_K1, M_K2, M_ALPHA_LO, M_ALPHA_HI, M_INV_BLEND, M_INV_COS2_SIDESLIP = range(N_MODEL)
 HALF_PI_SQ = (0.5 * np.pi) ** 2
 INV_PI = 1.0 / np.pi
 STALL_BLEND_WIDTH_DEG = 8.0
@@ -179,18 +181,19 @@ def drag_coefficient(alpha_rad: float, CD0: float, CD1: float, CD2: float) -> fl
 
 
 @njit(cache=True)
-def stall_weight(alpha_rad: float, model) -> tuple:
+def stall_weight(alpha_rad: float, lo: float, hi: float, inv_w: float) -> tuple:
     """Weight ``sigma`` of the flat plate past the attached-flow range, and ``d sigma / d alpha``.
 
-    0 inside ``[alpha_lo, alpha_hi]``, ``3 t^2 - 2 t^3`` over the blend (``t`` the distance past the
-    edge in blend widths), 1 beyond (module notes).
+    0 inside ``[lo, hi]`` (rad), ``3 t^2 - 2 t^3`` over the blend (``t`` the distance past the edge
+    times ``inv_w``, 1 / blend width in 1/rad), 1 beyond (module notes). Scalars, not the model
+    array: passing an array to a compiled function costs reference counting in the hot path.
     """
-    if alpha_rad > model[M_ALPHA_HI]:
-        k = model[M_INV_BLEND]
-        t = (alpha_rad - model[M_ALPHA_HI]) * k
-    elif alpha_rad < model[M_ALPHA_LO]:
-        k = -model[M_INV_BLEND]
-        t = (model[M_ALPHA_LO] - alpha_rad) * model[M_INV_BLEND]
+    if alpha_rad > hi:
+        k = inv_w
+        t = (alpha_rad - hi) * k
+    elif alpha_rad < lo:
+        k = -inv_w
+        t = (lo - alpha_rad) * inv_w
     else:
         return 0.0, 0.0
     if t >= 1.0:
@@ -199,19 +202,17 @@ def stall_weight(alpha_rad: float, model) -> tuple:
 
 
 @njit(cache=True)
-def wing_pressure(V2: float, r2: float, model) -> float:
-    """The wing's dynamic pressure per unit mass, ``rho S / (2 m)`` times ``V^2`` (m/s^2 per unit C).
+def wing_pressure(V2: float, r2: float, s: float, kc: float) -> float:
+    """The wing's dynamic pressure per unit mass, ``s = rho S / (2 m)`` times ``V^2`` (m/s^2 per unit C).
 
-    ``V2`` is ``|v_i|^2``, ``r2`` its chordwise part ``v_ix^2 + v_iz^2``. The paper's ``V^2`` up to
-    ``|beta| = SIDESLIP_LINEAR_DEG``, then ``V^2 p (2 - p)`` with ``p = cos^2 beta / cos^2 30 deg``
-    (module notes).
+    ``V2`` is ``|v_i|^2``, ``r2`` its chordwise part ``v_ix^2 + v_iz^2``, ``kc`` is
+    ``1 / cos^2(SIDESLIP_LINEAR_DEG)``: the paper's ``V^2`` up to ``|beta| = SIDESLIP_LINEAR_DEG``, then
+    ``kc r2`` (module notes).
     """
-    q = model[M_AERO_SCALE] * V2
-    c2 = model[M_COS2_SIDESLIP] * V2
-    if r2 < c2:
-        p = r2 / c2
-        q *= p * (2.0 - p)
-    return q
+    r2_scaled = r2 * kc
+    if r2_scaled < V2:
+        return s * r2_scaled
+    return s * V2
 
 
 @njit(cache=True)
@@ -224,7 +225,7 @@ def wing_coefficients(alpha_rad: float, sin_alpha: float, cos_alpha: float, thet
     """
     CL = lift_coefficient(alpha_rad, theta[I_CL0], theta[I_CL1])
     CD = drag_coefficient(alpha_rad, theta[I_CD0], theta[I_CD1], theta[I_CD2])
-    sigma, _ = stall_weight(alpha_rad, model)
+    sigma, _ = stall_weight(alpha_rad, model[M_ALPHA_LO], model[M_ALPHA_HI], model[M_INV_BLEND])
     if sigma > 0.0:
         CN = theta[I_CL1] * INV_PI * sin_alpha
         CL = (1.0 - sigma) * CL + sigma * CN * cos_alpha
@@ -253,16 +254,16 @@ def aero_force(v_i_B, theta, model, out=None) -> tuple:
     the coefficients and the dynamic pressure continue as in the module notes.
     """
     vx, vz = v_i_B[0], v_i_B[2]
+    V2 = vx * vx + v_i_B[1] ** 2 + vz * vz   # summed in this order: bit for bit the paper's model
     r2 = vx * vx + vz * vz
-    V2 = r2 + v_i_B[1] ** 2
     r = np.sqrt(r2)
     alpha = np.arctan2(vz, vx)
     # sin/cos of alpha from the components avoids a trig call and is exact at r > 0.
     sa, ca = (vz / r, vx / r) if r > 0.0 else (0.0, 1.0)
-    q = wing_pressure(V2, r2, model)
+    q = wing_pressure(V2, r2, model[M_AERO_SCALE], model[M_INV_COS2_SIDESLIP])
     CL = lift_coefficient(alpha, theta[I_CL0], theta[I_CL1])
     CD = drag_coefficient(alpha, theta[I_CD0], theta[I_CD1], theta[I_CD2])
-    sigma, _ = stall_weight(alpha, model)
+    sigma, _ = stall_weight(alpha, model[M_ALPHA_LO], model[M_ALPHA_HI], model[M_INV_BLEND])
     if sigma > 0.0:
         # the polar weighted by 1 - sigma (C_D0 kept whole) and the plate's normal force along -z,
         # summed as the regressor's columns are, so that Phi theta matches to rounding
@@ -303,16 +304,16 @@ def regressor(v_i_B, u_x, u_z, model, Phi=None) -> tuple:
     body -z (module notes).
     """
     vx, vy, vz = v_i_B[0], v_i_B[1], v_i_B[2]
-    r2 = vx * vx + vz * vz
-    V2 = r2 + vy * vy
+    V2 = vx * vx + vy * vy + vz * vz   # summed in this order: bit for bit the paper's model
     V = np.sqrt(V2)
+    r2 = vx * vx + vz * vz
     r = np.sqrt(r2)
     alpha = np.arctan2(vz, vx)
     sa, ca = (vz / r, vx / r) if r > 0.0 else (0.0, 1.0)
     alpha_disk, cb, sb = rotor_flow_angles(v_i_B)
     G = side_force_basis(alpha_disk, V, u_z, model[M_K1], model[M_K2])
-    q = wing_pressure(V2, r2, model)
-    sigma, _ = stall_weight(alpha, model)
+    q = wing_pressure(V2, r2, model[M_AERO_SCALE], model[M_INV_COS2_SIDESLIP])
+    sigma, _ = stall_weight(alpha, model[M_ALPHA_LO], model[M_ALPHA_HI], model[M_INV_BLEND])
     # drag acts along -x_i = -(cos a, 0, sin a) with C_D0, C_D1 alpha, C_D2 alpha^2;
     # lift along (sin a, 0, -cos a) with C_L0, C_L1 alpha; past stall the polar terms are weighted
     # by w = 1 - sigma (w = 1 exactly inside the range, so these are the paper's columns bit for bit)
@@ -347,8 +348,8 @@ def body_force_jacobian(v_i_B, u_x, u_z, theta, model, J_v, J_u) -> None:
     """Analytic Jacobian of ``f_b-hat``: ``J_v = d f / d v_i_B`` (3x3), ``J_u = d f / d(u_x, u_z)`` (3x2).
 
     Exact where the model is smooth (``V > 0``, in-plane flow ``> 0``, ``u_z > 0``, chordwise flow
-    ``> 0``), including the stall and sideslip continuations (which are C1); it is checked against
-    finite differences in the tests.
+    ``> 0``, ``|beta| != 30 deg``), including the stall continuation; it is checked against finite
+    differences in the tests.
     """
     vx, vy, vz = v_i_B[0], v_i_B[1], v_i_B[2]
     V2 = vx * vx + vy * vy + vz * vz
@@ -372,7 +373,7 @@ def body_force_jacobian(v_i_B, u_x, u_z, theta, model, J_v, J_u) -> None:
         CD = drag_coefficient(alpha, CD0, CD1, CD2)
         dCL = CL1
         dCD = CD1 + 2.0 * CD2 * alpha
-        sigma, dsigma = stall_weight(alpha, model)
+        sigma, dsigma = stall_weight(alpha, model[M_ALPHA_LO], model[M_ALPHA_HI], model[M_INV_BLEND])
         if sigma > 0.0:
             kN = CL1 * INV_PI
             CN = kN * sa
@@ -388,17 +389,11 @@ def body_force_jacobian(v_i_B, u_x, u_z, theta, model, J_v, J_u) -> None:
         dfz = -dCL * ca + CL * sa - dCD * sa - CD * ca
         # d q / d v and q / r^2 (which multiplies d alpha / d v = (-vz, 0, vx) / r^2), the latter
         # formed without dividing by a tiny r^2: it is at most s / cos^2(30 deg)
-        c2 = model[M_COS2_SIDESLIP]
-        if r2 < c2 * V2:
-            # q = s V^2 phi(p), p = r^2 / (c2 V^2), phi = p (2 - p):
-            # V^2 d p / d v_j = 2 v_j (chord_j - r^2 / V^2) / c2 with chord = (1, 0, 1)
-            p = r2 / (c2 * V2)
-            phi = p * (2.0 - p)
-            q_r2 = s * (2.0 - p) / c2
-            k = 4.0 * s * (1.0 - p) / c2
-            f_r = r2 / V2
-            dq = (2.0 * s * phi * vx + k * vx * (1.0 - f_r), 2.0 * s * phi * vy - k * vy * f_r,
-                  2.0 * s * phi * vz + k * vz * (1.0 - f_r))
+        kc = model[M_INV_COS2_SIDESLIP]
+        if r2 * kc < V2:
+            # q = s kc r^2 (past 30 deg of sideslip)
+            q_r2 = s * kc
+            dq = (2.0 * s * kc * vx, 0.0, 2.0 * s * kc * vz)
         else:
             q_r2 = s * (V2 / r2)
             dq = (2.0 * s * vx, 2.0 * s * vy, 2.0 * s * vz)

@@ -41,7 +41,7 @@ def theta_from_scaled(theta_scaled: np.ndarray, k1: float) -> np.ndarray:
 def model_kernel_params(aero_scale_per_m: float, k1: float, k2: float, stall_angle_deg: float) -> np.ndarray:
     """Kernel constants of the force model for :mod:`vtoladapt.forces` (``forces.N_MODEL`` floats).
 
-    ``[rho S / (2 m), k1, k2, -stall, +stall, 1 / blend width, cos^2(linear sideslip)]`` (angles in
+    ``[rho S / (2 m), k1, k2, -stall, +stall, 1 / blend width, 1 / cos^2(linear sideslip)]`` (angles in
     rad): the wing follows the paper's polars for ``|alpha| <= stall_angle_deg`` and a flat plate
     beyond (see the module notes of :mod:`vtoladapt.forces`).
 
@@ -60,5 +60,5 @@ def model_kernel_params(aero_scale_per_m: float, k1: float, k2: float, stall_ang
     model[forces.M_ALPHA_LO] = -stall_rad
     model[forces.M_ALPHA_HI] = stall_rad
     model[forces.M_INV_BLEND] = 1.0 / math.radians(forces.STALL_BLEND_WIDTH_DEG)
-    model[forces.M_COS2_SIDESLIP] = math.cos(math.radians(forces.SIDESLIP_LINEAR_DEG)) ** 2
+    model[forces.M_INV_COS2_SIDESLIP] = 1.0 / math.cos(math.radians(forces.SIDESLIP_LINEAR_DEG)) ** 2
     return model
