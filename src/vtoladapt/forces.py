@@ -188,17 +188,10 @@ def stall_weight(alpha_rad: float, lo: float, hi: float, inv_w: float) -> tuple:
     times ``inv_w``, 1 / blend width in 1/rad), 1 beyond (module notes). Scalars, not the model
     array: passing an array to a compiled function costs reference counting in the hot path.
     """
-    if alpha_rad > hi:
-        k = inv_w
-        t = (alpha_rad - hi) * k
-    elif alpha_rad < lo:
-        k = -inv_w
-        t = (lo - alpha_rad) * inv_w
-    else:
-        return 0.0, 0.0
-    if t >= 1.0:
-        return 1.0, 0.0
-    return t * t * (3.0 - 2.0 * t), 6.0 * t * (1.0 - t) * k
+    # branch-free (selects, not jumps): this runs on every evaluation of the wing
+    t = min(max(max((alpha_rad - hi) * inv_w, (lo - alpha_rad) * inv_w), 0.0), 1.0)
+    dt_dalpha = inv_w if alpha_rad > hi else -inv_w
+    return t * t * (3.0 - 2.0 * t), 6.0 * t * (1.0 - t) * dt_dalpha
 
 
 @njit(cache=True)
@@ -264,16 +257,14 @@ def aero_force(v_i_B, theta, model, out=None) -> tuple:
     CL = lift_coefficient(alpha, theta[I_CL0], theta[I_CL1])
     CD = drag_coefficient(alpha, theta[I_CD0], theta[I_CD1], theta[I_CD2])
     sigma, _ = stall_weight(alpha, model[M_ALPHA_LO], model[M_ALPHA_HI], model[M_INV_BLEND])
-    if sigma > 0.0:
-        # the polar weighted by 1 - sigma (C_D0 kept whole) and the plate's normal force along -z,
-        # summed as the regressor's columns are, so that Phi theta matches to rounding
-        w = 1.0 - sigma
-        CL = w * CL
-        CD = theta[I_CD0] + w * (theta[I_CD1] * alpha + theta[I_CD2] * alpha * alpha)
-        N = sigma * theta[I_CL1] * INV_PI * sa
-        f = (q * (CL * sa - CD * ca), 0.0, q * (-CL * ca - CD * sa) - q * N)
-    else:
-        f = (q * (CL * sa - CD * ca), 0.0, q * (-CL * ca - CD * sa))
+    # the polar weighted by w = 1 - sigma (C_D0 kept whole) and the plate's normal force along -z,
+    # grouped as the regressor's columns are; with sigma = 0 every step is exact (1 * x, x + 0 * y,
+    # x - 0), so inside the range this is the paper's model bit for bit
+    w = 1.0 - sigma
+    CL = w * CL
+    CD = w * CD + sigma * theta[I_CD0]
+    N = sigma * theta[I_CL1] * INV_PI * sa
+    f = (q * (CL * sa - CD * ca), 0.0, q * (-CL * ca - CD * sa) - q * N)
     if out is not None:
         out[0], out[1], out[2] = f
     return f
@@ -322,7 +313,7 @@ def regressor(v_i_B, u_x, u_z, model, Phi=None) -> tuple:
     b1 = w * alpha
     b2 = w * (alpha * alpha)
     # the plate's normal force (C_L1 / pi) sin(a) along body -z: lift cos a and drag sin a of it
-    n_z = -q * sigma * INV_PI * sa if sigma > 0.0 else 0.0
+    n_z = -q * sigma * INV_PI * sa
     rows = ((u_x * u_x, 0.0, -G * cb, -q * ca, -q * b1 * ca, -q * b2 * ca, qw * sa, q * b1 * sa),
             (0.0, 0.0, -G * sb, 0.0, 0.0, 0.0, 0.0, 0.0),
             (0.0, -u_z * u_z, 0.0, -q * sa, -q * b1 * sa, -q * b2 * sa, -qw * ca, -q * b1 * ca + n_z))
