@@ -112,7 +112,7 @@ def test_density_scaling_of_the_regressor(veh):
     v = rng.normal(0, 5, (20, 3))
     ux, uz = rng.random(20), rng.random(20)
     wing = rng.random(20) < 0.5
-    args = (veh.envelope.air_density_kgpm3, veh.aero_scale_per_m, 1.4, 3.1)
+    args = (veh.envelope.air_density_kgpm3, veh.aero_scale_per_m, 1.4, 3.1, veh.envelope.stall_angle_deg)
     P1 = tunnel.regressor_for_rows(v, ux, uz, wing, np.full(20, 1.225), *args)
     P2 = tunnel.regressor_for_rows(v, ux, uz, wing, np.full(20, 2.45), *args)
     np.testing.assert_allclose(P2, 2 * P1, rtol=1e-14)

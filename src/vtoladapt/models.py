@@ -13,6 +13,8 @@ The parameter scaling for adaptation (throttle as a fraction) is defined in
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from . import forces
@@ -80,6 +82,19 @@ def body_force_jacobian(v_i_B, throttle_x_pct: float, throttle_z_pct: float, veh
     return J_v, J_u / THROTTLE_FULL_PCT
 
 
+def wing_coefficients(alpha_rad: float, vehicle: Vehicle,
+                      theta_scaled: np.ndarray | None = None) -> tuple[float, float]:
+    """``(C_L, C_D)`` of the controller's wing model at angle of attack ``alpha_rad`` (rad, any value).
+
+    The paper's polars (eq:model_cl, eq:model_cd) for ``|alpha| <= [envelope] stall_angle_deg``,
+    a flat plate past it (see :mod:`vtoladapt.forces`); ``alpha_rad`` is wrapped to ``(-pi, pi]``.
+    At the vehicle's published coefficients, or at ``theta_scaled``.
+    """
+    theta = vehicle.theta_scaled if theta_scaled is None else np.asarray(theta_scaled, float)
+    sa, ca = math.sin(alpha_rad), math.cos(alpha_rad)
+    return forces.wing_coefficients(math.atan2(sa, ca), sa, ca, theta, vehicle.model_kernel)
+
+
 def airflow_angles(v_i_B) -> tuple[float, float, float]:
     """``(V [m/s], alpha [rad], beta [rad])`` of an incident velocity (eq:alphabeta)."""
     return forces.airflow_angles(_v3(v_i_B))
@@ -87,4 +102,4 @@ def airflow_angles(v_i_B) -> tuple[float, float, float]:
 
 __all__ = ["PARAMETER_NAMES", "THROTTLE_FULL_PCT", "airflow_angles", "body_force",
            "body_force_jacobian", "model_kernel_params", "regressor", "scaled_theta",
-           "theta_from_scaled", "theta_scale", "theta_to_scaled"]
+           "theta_from_scaled", "theta_scale", "theta_to_scaled", "wing_coefficients"]

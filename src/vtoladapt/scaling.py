@@ -12,7 +12,11 @@ is well conditioned (see the experiments' report).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from . import forces
 
 THROTTLE_FULL_PCT = 100.0
 """Throttle in percent that corresponds to a fraction of 1 in the kernels."""
@@ -34,6 +38,27 @@ def theta_from_scaled(theta_scaled: np.ndarray, k1: float) -> np.ndarray:
     return np.asarray(theta_scaled, dtype=float) / theta_scale(k1)
 
 
-def model_kernel_params(aero_scale_per_m: float, k1: float, k2: float) -> np.ndarray:
-    """Kernel parameter array ``[rho S / (2 m), k1, k2]`` for :mod:`vtoladapt.forces`."""
-    return np.array([aero_scale_per_m, k1, k2], dtype=float)
+def model_kernel_params(aero_scale_per_m: float, k1: float, k2: float, stall_angle_deg: float) -> np.ndarray:
+    """Kernel constants of the force model for :mod:`vtoladapt.forces` (``forces.N_MODEL`` floats).
+
+    ``[rho S / (2 m), k1, k2, -stall, +stall, 1 / blend width, 1 / cos^2(linear sideslip)]`` (angles in
+    rad): the wing follows the paper's polars for ``|alpha| <= stall_angle_deg`` and a flat plate
+    beyond (see the module notes of :mod:`vtoladapt.forces`).
+
+    Raises
+    ------
+    ValueError
+        If ``stall_angle_deg`` is not in ``(0, 90]``.
+    """
+    if not 0.0 < stall_angle_deg <= 90.0:
+        raise ValueError(f"stall_angle_deg = {stall_angle_deg!r}: must be in (0, 90] deg")
+    stall_rad = math.radians(stall_angle_deg)
+    model = np.empty(forces.N_MODEL)
+    model[forces.M_AERO_SCALE] = aero_scale_per_m
+    model[forces.M_K1] = k1
+    model[forces.M_K2] = k2
+    model[forces.M_ALPHA_LO] = -stall_rad
+    model[forces.M_ALPHA_HI] = stall_rad
+    model[forces.M_INV_BLEND] = 1.0 / math.radians(forces.STALL_BLEND_WIDTH_DEG)
+    model[forces.M_INV_COS2_SIDESLIP] = 1.0 / math.cos(math.radians(forces.SIDESLIP_LINEAR_DEG)) ** 2
+    return model

@@ -208,7 +208,8 @@ class Vehicle:
     @cached_property
     def model_kernel(self) -> np.ndarray:
         """Kernel parameters of the force model (see :mod:`vtoladapt.forces`)."""
-        return _read_only(model_kernel_params(self.aero_scale_per_m, self.force_model.k1, self.force_model.k2))
+        return _read_only(model_kernel_params(self.aero_scale_per_m, self.force_model.k1, self.force_model.k2,
+                                              self.envelope.stall_angle_deg))
 
     @cached_property
     def theta_scaled(self) -> np.ndarray:

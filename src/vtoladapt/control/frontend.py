@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit
 
 from .. import layout as L
-from ..forces import regressor
+from ..forces import model_at, regressor
 from ..frames import euler_from_quat, quat_to_rotmat
 from . import adaptation as ad
 from .layouts import (
@@ -251,7 +251,7 @@ def front_end(params, state, meas, ref, dt) -> tuple:
     else:
         state[S_U_EST] = state[S_U_PREV]
         state[S_U_EST + 1] = state[S_U_PREV + 1]
-    Phi = regressor(v_i, state[S_U_EST], state[S_U_EST + 1], vec3(params, P_MODEL))
+    Phi = regressor(v_i, state[S_U_EST], state[S_U_EST + 1], model_at(params, P_MODEL))
     c_f = state[S_GAINS + GAIN_LOWPASS]
     if state[S_FILT_INIT] > 0.0:
         for r in range(3):

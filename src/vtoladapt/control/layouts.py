@@ -16,6 +16,7 @@ Nothing here imports a law, the configuration or the kernel: laws import this mo
 """
 from __future__ import annotations
 
+from .. import forces
 from .. import layout as L
 from ..layout import BlockLayout, Field
 from ..vehicle import PARAMETER_NAMES
@@ -43,7 +44,7 @@ SHARED_PARAMS = BlockLayout("controller parameters (shared)", [
     Field("LAMBDA_Q", 3, "1/s", "attitude-error gain Lambda_q (eq:wr), FRD"),
     Field("K_OMEGA", 3, "N m s", "rate-error gain K_omega (eq:m_ctrl), FRD"),
     Field("J", 9, "kg m^2", "the controller's inertia, row-major"),
-    Field("MODEL", 3, "-", "the vehicle's force-model constants (vehicle.model_kernel)"),
+    Field("MODEL", forces.N_MODEL, "-", "the vehicle's force-model constants (vehicle.model_kernel)"),
     Field("PRIOR", ad.PRIOR.size, "adaptation units", "theta_0, initial theta-hat, bounds, P0^-1, P0"),
     Field("LOWPASS_HZ", 1, "Hz", "filter [.]_f of the accelerometer and Phi"),
     Field("GAMMA_LYAP", 1, "-", "weight of the attitude term of the Lyapunov function"),

@@ -129,6 +129,7 @@ class Table1Data:
     wing_area_m2: float
     rho_ref_kgpm3: float
     aero_scale_ref_per_m: float
+    stall_angle_deg: float     # the wing's attached-flow range (forces module notes)
     v_i_B: np.ndarray
     u_x: np.ndarray
     u_z: np.ndarray
@@ -147,7 +148,7 @@ class Table1Data:
         """The full regressor (N, 3, 8) at ``(k1, k2)``, straight from :func:`forces.regressor_rows`."""
         return regressor_for_rows(self.v_i_B, self.u_x, self.u_z, self.data.wing_on,
                                   self.data.density(self.rho_ref_kgpm3), self.rho_ref_kgpm3,
-                                  self.aero_scale_ref_per_m, k1, k2)
+                                  self.aero_scale_ref_per_m, k1, k2, self.stall_angle_deg)
 
 
 def prepare_table1_data(data: ForceBalanceData, vehicle: Vehicle, *,
@@ -170,12 +171,13 @@ def prepare_table1_data(data: ForceBalanceData, vehicle: Vehicle, *,
     u_x = data.throttle_x_pct / THROTTLE_FULL_PCT
     u_z = data.throttle_z_pct / THROTTLE_FULL_PCT
     rho = data.density(rho_ref)
-    Phi = regressor_for_rows(v_i_B, u_x, u_z, data.wing_on, rho, rho_ref, scale, 1.0, 2.0)
+    stall = vehicle.envelope.stall_angle_deg
+    Phi = regressor_for_rows(v_i_B, u_x, u_z, data.wing_on, rho, rho_ref, scale, 1.0, 2.0, stall)
     Phi[:, :, forces.I_CS] = 0.0
     side = np.nonzero((u_z > 0) & (data.airspeed_mps > 0)
                       & (np.hypot(v_i_B[:, 0], v_i_B[:, 1]) > 0))[0]
     return Table1Data(data=data, mass_kg=m, wing_area_m2=S, rho_ref_kgpm3=rho_ref,
-                      aero_scale_ref_per_m=scale, v_i_B=v_i_B, u_x=u_x, u_z=u_z,
+                      aero_scale_ref_per_m=scale, stall_angle_deg=stall, v_i_B=v_i_B, u_x=u_x, u_z=u_z,
                       rho_ratio=rho / rho_ref, Phi_base=Phi, side_rows=side,
                       y_B=data.force_B_N / m, vehicle_name=vehicle.name)
 

@@ -131,7 +131,7 @@ def design_points(design: TunnelDesign) -> dict[str, np.ndarray]:
 
 def regressor_for_rows(v_i_B: np.ndarray, u_x: np.ndarray, u_z: np.ndarray, wing_on: np.ndarray,
                        rho_kgpm3: np.ndarray, rho_ref_kgpm3: float, aero_scale_ref_per_m: float,
-                       k1: float, k2: float) -> np.ndarray:
+                       k1: float, k2: float, stall_angle_deg: float) -> np.ndarray:
     """The control regressor (:func:`vtoladapt.forces.regressor_rows`) for tunnel rows, (N, 3, 8).
 
     Rows without the wing have zero aerodynamic columns; every row is scaled by
@@ -139,7 +139,7 @@ def regressor_for_rows(v_i_B: np.ndarray, u_x: np.ndarray, u_z: np.ndarray, wing
     ``Phi @ theta_scaled`` is the body force per unit mass at the row's density for coefficients
     referred to ``rho_ref``. Throttles ``u_x, u_z`` are fractions, theta in the adaptation scaling.
     """
-    model = model_kernel_params(aero_scale_ref_per_m, k1, k2)
+    model = model_kernel_params(aero_scale_ref_per_m, k1, k2, stall_angle_deg)
     Phi = forces.regressor_rows(np.ascontiguousarray(v_i_B, dtype=float),
                                 np.ascontiguousarray(u_x, dtype=float),
                                 np.ascontiguousarray(u_z, dtype=float), model)
@@ -162,9 +162,10 @@ def linear_model_truth(coefficients: ForceModelCoefficients, vehicle: Vehicle) -
     theta_s = theta_to_scaled(coefficients.as_table_theta(), k1)
     rho_ref = vehicle.envelope.air_density_kgpm3
     scale = vehicle.aero_scale_per_m
+    stall = vehicle.envelope.stall_angle_deg
 
     def truth(v_i_B, u_x, u_z, wing_on, rho_kgpm3):
-        Phi = regressor_for_rows(v_i_B, u_x, u_z, wing_on, rho_kgpm3, rho_ref, scale, k1, k2)
+        Phi = regressor_for_rows(v_i_B, u_x, u_z, wing_on, rho_kgpm3, rho_ref, scale, k1, k2, stall)
         return Phi @ theta_s
 
     return truth
