@@ -64,3 +64,25 @@ def reproduced(tmp_path_factory):
     reproduce(out, duration_scale=0.12, show_progress=False, variants=REPRODUCED_VARIANTS,
               ablation_variants=2, wind_variants=1)
     return out
+
+
+WARM_UP_MIN_TESTS = 300
+"""A session of at least this many tests compiles the simulator's kernels first, in two processes."""
+
+
+def pytest_collection_finish(session):
+    """Compile (or load) the simulator's kernels before a long session starts.
+
+    On a cold cache the loop's callees compile in two processes side by side
+    (:func:`vtoladapt.simulate.load_kernels`: the controller in a second process), which saves
+    about a third of the loop's compile time on two cores; otherwise the first test that flies
+    compiles everything in one. A warm cache only loads the code (a second or two).
+    ``VTOLADAPT_NO_WARM_UP=1`` skips it.
+    """
+    if len(session.items) < WARM_UP_MIN_TESTS or os.environ.get("VTOLADAPT_NO_WARM_UP", "") not in ("", "0"):
+        return
+    from vtoladapt.scenario import scenario_from_mapping
+    from vtoladapt.simulate import load_kernels
+
+    load_kernels(scenario_from_mapping({"name": "warm-up", "vehicle": "caltech_vtol", "duration_s": 0.1},
+                                       "<warm-up>"))
