@@ -213,17 +213,17 @@ def _beats(runs: dict, cid: str, metric: str = "vel_err_rms_mps") -> Optional[bo
     """``cid`` has a lower ``metric`` than every baseline (None: a value missing)."""
     if cid not in runs or any(b not in runs for b in BASELINE_IDS):
         return None
-    whole = metric == "vel_err_rms_mps"
-    if whole and runs[cid]["diverged"] > 0:
-        return False
     mine = runs[cid][metric]
-    others = [runs[b][metric] for b in BASELINE_IDS]
-    if not _finite(mine):
-        return False if whole else None
-    if not all(_finite(o) for o in others):
-        # a baseline that diverged (or went non-finite) over the whole run is beaten
-        return True if whole else None
-    return bool(all(mine < o for o in others))
+    if metric != "vel_err_rms_mps":  # within an airspeed bin: judged where all have a value
+        others = [runs[b][metric] for b in BASELINE_IDS]
+        if not (_finite(mine) and all(_finite(o) for o in others)):
+            return None
+        return bool(all(mine < o for o in others))
+    if runs[cid]["diverged"] > 0 or not _finite(mine):
+        return False
+    # a baseline that diverged (its RMS covers only the time before) or went non-finite is beaten
+    return bool(all(runs[b]["diverged"] > 0 or not _finite(runs[b][metric]) or mine < runs[b][metric]
+                    for b in BASELINE_IDS))
 
 
 def judge_draw(runs: dict[str, dict]) -> dict:
@@ -402,3 +402,31 @@ def figure_envelope(summary: dict, path) -> None:
     from ..outputs import save_figure
 
     save_figure(plot_envelope(summary), path, dpi=110)
+
+
+def resummarize(out_dir) -> dict:
+    """Judge a finished campaign's ``campaign.parquet`` again (after a change of the targets'
+    definitions): rewrite ``summary.json`` (keeping its ``campaign`` entry) and
+    ``fig_campaign.png`` in ``out_dir``, with no run flown again."""
+    import json
+    from pathlib import Path
+
+    import pyarrow.parquet as pq
+
+    from ..outputs import write_json
+
+    out = Path(out_dir)
+    old = json.loads((out / "summary.json").read_text()).get("campaign", {})
+    keep = {k: v for k, v in old.items() if k not in ("draws", "controllers", "simulated_s", "run_wall_time_s")}
+    summary = envelope_summary(pq.read_table(out / "campaign.parquet").to_pydict(), keep)
+    write_json(out / "summary.json", summary)
+    figure_envelope(summary, out / "fig_campaign.png")
+    return summary
+
+
+if __name__ == "__main__":
+    import sys
+
+    if len(sys.argv) != 2:
+        sys.exit("usage: python -m vtoladapt.experiments.envelope CAMPAIGN_DIR  (re-judges campaign.parquet)")
+    resummarize(sys.argv[1])
