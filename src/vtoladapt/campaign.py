@@ -15,6 +15,14 @@ address with ``--listen``); connecting to a given scheduler gives up after
 
 All draws come from ``numpy.random.default_rng(scenario seed)``: the same command gives the same
 campaign, whatever the cluster.
+
+A campaign file (a TOML file holding one ``[campaign]`` table, e.g. ``scenarios/envelope.toml``;
+``vtoladapt campaign FILE --out DIR``) names a base scenario, the controllers and what varies:
+ranges (``[[campaign.vary]]``: Latin hypercube or uniform, optionally relative to the vehicle's
+Table I, a vector set by one number, reported in bands or angle sectors), discrete choices
+(``[campaign.choices]``) and fixed changes (``[campaign.set]``). Every draw is flown by every
+controller on the same seed; the rows and the summary are those of
+:mod:`vtoladapt.experiments.envelope` (README "Campaign files").
 """
 from __future__ import annotations
 

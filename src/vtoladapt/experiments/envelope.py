@@ -42,7 +42,7 @@ from typing import Iterable, Optional, Sequence
 
 import numpy as np
 
-from ..control.registry import ADAPTIVE_IDS, COMPOSITE_IDS, CONTROLLERS
+from ..control.registry import ADAPTIVE_IDS, COMPOSITE_IDS, PAPER_BASELINE_IDS
 from ..metrics import AIRSPEED_BINS_MPS, airspeed_bin_labels, run_metrics
 from ..stats import fraction_holding, median_iqr
 
@@ -56,8 +56,8 @@ MIN_BIN_TIME_S = 1.0
 """Least flight time in an airspeed bin for a per-bin RMS velocity error (s)."""
 TARGET_FRACTION = 0.95
 """Each target should hold in at least this fraction of the draws."""
-BASELINE_IDS = ("pid", "pd")
-"""The controllers every adaptive controller should beat."""
+BASELINE_IDS = PAPER_BASELINE_IDS
+"""The controllers every adaptive controller should beat: the paper's baselines (IV PID, V PD)."""
 HEADLINE_CONTROLLER = "composite"
 """The controller the prediction-error and alpha targets are judged on (others in the per-controller table)."""
 
