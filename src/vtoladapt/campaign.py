@@ -15,20 +15,31 @@ address with ``--listen``); connecting to a given scheduler gives up after
 
 All draws come from ``numpy.random.default_rng(scenario seed)``: the same command gives the same
 campaign, whatever the cluster.
+
+A campaign file (a TOML file holding one ``[campaign]`` table, e.g. ``scenarios/envelope.toml``;
+``vtoladapt campaign FILE --out DIR``) names a base scenario, the controllers and what varies:
+ranges (``[[campaign.vary]]``: Latin hypercube or uniform, optionally relative to the vehicle's
+Table I, a vector set by one number, reported in bands or angle sectors), discrete choices
+(``[campaign.choices]``) and fixed changes (``[campaign.set]``). Every draw is flown by every
+controller on the same seed; the rows and the summary are those of
+:mod:`vtoladapt.experiments.envelope` (README "Campaign files").
 """
 from __future__ import annotations
 
 import copy
 import math
 import os
+import re
 import sys
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
 import numpy as np
 
-from .config import ConfigError, check_flag, read_toml
+from .config import PATH_PATTERN, ConfigError, build, check_flag, read_toml, setting
+from .control.registry import CONTROLLER_IDS
 from .outputs import OutputDir, add_force_argument, output_path, write_json, write_parquet
 
 SCHEDULER_CONNECT_TIMEOUT_S = 5.0
@@ -63,12 +74,18 @@ class Variation:
 
 @dataclass(frozen=True)
 class RunSpec:
-    """One run of a campaign: the scenario mapping to validate and run, and what was drawn."""
+    """One run of a campaign: the scenario mapping to validate and run, and what was drawn.
+
+    A campaign file's runs also name their ``controller`` (every controller of a draw shares
+    ``index``, ``mapping`` and seed) and the draw's condition ``groups`` (group name -> label).
+    """
 
     index: int
     mapping: dict
     source: str
     drawn: dict
+    controller: Optional[str] = None
+    groups: dict = field(default_factory=dict)
 
 
 def _set_dotted(mapping: dict, key: str, value) -> None:
@@ -127,6 +144,289 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
     return specs
 
 
+# --- campaign files: a [campaign] table -----------------------------------------------------------
+SAMPLINGS = ("latin_hypercube", "uniform")
+MAX_CAMPAIGN_DRAWS = 100_000
+"""Most draws of a campaign file (each flown by every controller)."""
+DOTTED_KEY_PATTERN = r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*"
+LABEL_PATTERN = r"[^\x00\n]{0,64}"
+CAMPAIGN_OWNED_KEYS = ("seed", "experiment", "controller.kind")
+"""Scenario keys a campaign file sets itself (each draw's seed, single runs, each controller)."""
+
+
+@dataclass(frozen=True)
+class VaryEntry:
+    """A ``[[campaign.vary]]`` entry: scenario keys drawn in ``[low, high]`` for every draw."""
+
+    keys: tuple[str, ...] = setting("-", "dotted scenario keys (e.g. plant.stall_angle_deg), each drawn on its own",
+                                    pattern=DOTTED_KEY_PATTERN)
+    low: float = setting("the key's unit", "lower end of the range (a factor when relative_to_vehicle)")
+    high: float = setting("the key's unit", "upper end of the range (a factor when relative_to_vehicle)")
+    relative_to_vehicle: bool = setting(
+        "-", "low and high are factors on the draw's vehicle's [force_model] value (keys "
+        "plant.coefficients.<name>)", default=False)
+    components: Optional[tuple[float, ...]] = setting(
+        "-", "write the drawn x as the list [c1 x, c2 x, ...]: one number sets a vector key", default=None,
+        ge=-1e3, le=1e3)
+    label: str = setting("-", "the dimension's name in tables and figures (default: its key)", default="",
+                         pattern=LABEL_PATTERN)
+    bands: int = setting("-", "report the targets in this many equal bands of the range (0: no breakdown)",
+                         default=0, ge=0, le=12)
+    angle: bool = setting("-", "the range is a full circle of angles: bands are sectors centred on low, "
+                          "low + width, ... (so 4 bands of 0-360 deg are N, E, S, W)", default=False)
+
+    def _check(self, source: str) -> None:
+        where = f"{source}: [[campaign.vary]] keys = {list(self.keys)}"
+        if not self.keys or len(set(self.keys)) != len(self.keys):
+            raise ConfigError(f"{where}: must name at least one key, without repeats")
+        if not self.low <= self.high:
+            raise ConfigError(f"{where}: low = {self.low:g}, high = {self.high:g}: need low <= high")
+        for k in self.keys:
+            if any(k == o or k.startswith(o + ".") for o in CAMPAIGN_OWNED_KEYS):
+                raise ConfigError(f"{where}: {k!r} is set by the campaign itself; allowed: any key but "
+                                  f"{', '.join(CAMPAIGN_OWNED_KEYS)}")
+            if self.relative_to_vehicle and not re.fullmatch(r"plant\.coefficients\.\w+", k):
+                raise ConfigError(f"{where}: relative_to_vehicle = true: {k!r} is not a key "
+                                  "plant.coefficients.<name>; allowed: the plant's coefficients")
+        if self.components is not None and not self.components:
+            raise ConfigError(f"{where}: components = []: give one factor per element of the vector")
+        if (self.bands or self.angle) and len(self.keys) != 1:
+            raise ConfigError(f"{where}: bands/angle need exactly one key, got {len(self.keys)}")
+        if self.angle and not self.bands:
+            raise ConfigError(f"{where}: angle = true needs bands >= 1 (the sectors it reports)")
+
+    @property
+    def name(self) -> str:
+        """The dimension's name in tables: ``label``, or the (first) key."""
+        return self.label or self.keys[0]
+
+    def band(self, x: float, unit: Optional[str]) -> str:
+        """The label of the band (or sector) holding ``x``: ``"[12,14) deg"``, ``"[315,45) deg"``."""
+        width = (self.high - self.low) / self.bands
+        suffix = f" {unit}" if unit else ""
+        if width <= 0:
+            return f"[{self.low:g},{self.high:g}]{suffix}"
+        if self.angle:
+            span = self.high - self.low
+            k = int(math.floor(((x - self.low + width / 2) % span) / width)) % self.bands
+            lo = self.low + (k - 0.5) * width
+            lo = lo + span if lo < self.low else lo
+            hi = self.low + (k + 0.5) * width
+            return f"[{lo:g},{hi:g}){suffix}"
+        k = min(int((x - self.low) / width), self.bands - 1)
+        lo, hi = self.low + k * width, self.low + (k + 1) * width
+        return f"[{lo:g},{hi:g}{']' if k == self.bands - 1 else ')'}{suffix}"
+
+
+@dataclass(frozen=True)
+class CampaignConfig:
+    """A campaign file's ``[campaign]`` table; its ``set`` and ``choices`` sub-tables are free-form
+    (dotted scenario keys) and read by :func:`load_campaign_file`."""
+
+    base: str = setting("-", "scenario every draw starts from (path relative to the campaign file)",
+                        pattern=PATH_PATTERN)
+    runs: int = setting("-", "number of draws, each flown by every controller", ge=1, le=MAX_CAMPAIGN_DRAWS)
+    seed: int = setting("-", "seed of every draw: numpy.random.default_rng(seed)", ge=0, le=2**63 - 1)
+    controllers: tuple[str, ...] = setting("-", "controllers flying every draw (same seed, same conditions)",
+                                           choices=CONTROLLER_IDS)
+    sampling: str = setting("-", "'latin_hypercube': every dimension stratified into runs equal strata "
+                            "(choices: each option equally often); 'uniform': independent draws",
+                            default="latin_hypercube", choices=SAMPLINGS)
+    description: str = setting("-", "what the campaign is for", default="")
+    vary: tuple[VaryEntry, ...] = setting("-", "[[campaign.vary]] entries: ranges drawn per draw", default=())
+
+    def _check(self, source: str) -> None:
+        if not self.controllers or len(set(self.controllers)) != len(self.controllers):
+            raise ConfigError(f"{source}: [campaign] controllers = {list(self.controllers)}: must be a "
+                              f"non-empty list without repeats; allowed: {', '.join(CONTROLLER_IDS)}")
+        keys = [k for v in self.vary for k in v.keys]
+        if len(set(keys)) != len(keys):
+            dup = next(k for k in keys if keys.count(k) > 1)
+            raise ConfigError(f"{source}: [[campaign.vary]] {dup!r}: drawn twice; allowed: each key once")
+
+
+@dataclass(frozen=True)
+class CampaignFile:
+    """A validated campaign file: its ``[campaign]`` table, fixed ``set`` values and ``choices``."""
+
+    path: Path
+    config: CampaignConfig
+    set_values: dict
+    """dotted scenario key -> value, applied to the base scenario of every draw."""
+    choices: dict
+    """dimension -> option name -> {dotted scenario key: value}; each draw picks one option per dimension."""
+
+    @property
+    def base_path(self) -> Path:
+        """The base scenario's path."""
+        base = Path(self.config.base)
+        return base if base.is_absolute() else self.path.parent / base
+
+
+def _flatten(table: dict, prefix: str = "") -> dict:
+    """``{"wind": {"fan_array": {"schedule": x}}}`` and ``{"wind.fan_array.schedule": x}`` alike
+    -> ``{"wind.fan_array.schedule": x}``."""
+    out = {}
+    for k, v in table.items():
+        key = f"{prefix}.{k}" if prefix else str(k)
+        if isinstance(v, dict):
+            out.update(_flatten(v, key))
+        else:
+            out[key] = v
+    return out
+
+
+def _check_dotted(source: str, section: str, table) -> dict:
+    if not isinstance(table, dict):
+        raise ConfigError(f"{source}: [{section}] = {table!r:.60}: must be a table of scenario keys")
+    flat = _flatten(table)
+    for key in flat:
+        if not re.fullmatch(DOTTED_KEY_PATTERN, key):
+            raise ConfigError(f"{source}: [{section}] {key!r}: not a dotted scenario key; allowed: "
+                              "names of letters, digits and '_' joined by '.'")
+        if any(key == o or key.startswith(o + ".") for o in CAMPAIGN_OWNED_KEYS):
+            raise ConfigError(f"{source}: [{section}] {key!r}: set by the campaign itself; allowed: "
+                              f"any key but {', '.join(CAMPAIGN_OWNED_KEYS)}")
+    return flat
+
+
+def is_campaign_file(path: str | Path) -> bool:
+    """Whether the TOML file at ``path`` is a campaign file (has a ``[campaign]`` table)."""
+    return "campaign" in read_toml(path)
+
+
+def load_campaign_file(path: str | Path) -> CampaignFile:
+    """Read and validate a campaign file (one-line :class:`ConfigError` naming file, table, key,
+    value and what is allowed). Each draw's scenario is validated by :func:`plan_campaign_file`."""
+    path = Path(path)
+    data = read_toml(path)
+    unknown = [k for k in data if k != "campaign"]
+    if unknown:
+        raise ConfigError(f"{path}: {unknown[0]} = {data[unknown[0]]!r:.60}: unknown key; a campaign file "
+                          "holds only a [campaign] table (scenario keys go in [campaign.set] or the base scenario)")
+    raw = data["campaign"]
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{path}: campaign = {raw!r:.60}: must be a table ([campaign])")
+    raw = dict(raw)
+    set_values = _check_dotted(str(path), "campaign.set", raw.pop("set", {}))
+    raw_choices = raw.pop("choices", {})
+    if not isinstance(raw_choices, dict):
+        raise ConfigError(f"{path}: [campaign] choices = {raw_choices!r:.60}: must be a table of "
+                          "[campaign.choices.<dimension>.<option>] tables")
+    choices = {}
+    for dim, options in raw_choices.items():
+        if not re.fullmatch(LABEL_PATTERN, dim) or not isinstance(options, dict) or not options or \
+                not all(isinstance(o, dict) for o in options.values()):
+            raise ConfigError(f"{path}: [campaign.choices.{dim}] = {options!r:.60}: must hold one or more "
+                              f"option tables [campaign.choices.{dim}.<option>] of scenario keys")
+        choices[dim] = {name: _check_dotted(str(path), f"campaign.choices.{dim}.{name}", opt)
+                        for name, opt in options.items()}
+    config = build(CampaignConfig, raw, source=str(path), section="campaign")
+    names = [v.name for v in config.vary if v.bands] + list(choices)
+    if len(set(names)) != len(names):
+        dup = next(n for n in names if names.count(n) > 1)
+        raise ConfigError(f"{path}: [campaign] {dup!r}: two dimensions report under this name; give "
+                          "each [[campaign.vary]] a distinct label")
+    return CampaignFile(path, config, set_values, choices)
+
+
+def latin_hypercube(rng: np.random.Generator, n: int, d: int) -> np.ndarray:
+    """``n`` points in ``[0, 1)^d`` with exactly one in each of the ``n`` equal strata of every
+    dimension (McKay et al. 1979): a random permutation of the strata per dimension, a uniform
+    position inside each stratum."""
+    u = np.empty((n, d))
+    for j in range(d):
+        u[:, j] = (rng.permutation(n) + rng.random(n)) / n
+    return u
+
+
+def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
+                       seed: Optional[int] = None) -> tuple[CampaignFile, list[RunSpec]]:
+    """Draw and validate every run of a campaign file before any runs: ``runs`` draws (default
+    ``[campaign] runs``), each flown by every ``[campaign] controllers`` entry on the same seed.
+
+    Per draw, from ``numpy.random.default_rng(seed or [campaign] seed)``: a run seed, then one
+    point of a Latin hypercube (or uniform) over the dimensions, the ``[[campaign.vary]]`` keys
+    first, then the ``[campaign.choices]`` (an option is the stratum ``floor(u n_options)``).
+    """
+    from .config import check_value
+    from .limits import check_campaign_runs, check_run_size
+    from .scenario import scenario_from_mapping
+
+    cf = load_campaign_file(path)
+    cfg = cf.config
+    runs = cfg.runs if runs is None else check_flag("--runs", runs, ge=1, le=MAX_CAMPAIGN_DRAWS, integer=True)
+    seed = cfg.seed if seed is None else check_value(CampaignConfig, "seed", seed, "--seed")
+    base = read_toml(cf.base_path)
+    if "campaign" in base:
+        raise ConfigError(f"{cf.path}: [campaign] base = {cfg.base!r}: is itself a campaign file; "
+                          "allowed: a scenario file")
+    for key, value in cf.set_values.items():
+        _set_dotted(base, key, copy.deepcopy(value))
+    source = str(cf.base_path)
+    where = f"{cf.path} ([campaign] base {cfg.base} with [campaign.set])"
+    base_scenario = scenario_from_mapping({**base, "experiment": {"kind": "single"}}, where)
+    check_campaign_runs(runs * len(cfg.controllers), base)
+    check_run_size(base_scenario, f"{where} (each campaign run)", n_runs=os.cpu_count() or 1)
+
+    dims = [(v, k) for v in cfg.vary for k in v.keys]
+    rng = np.random.default_rng(seed)
+    seeds = rng.integers(0, 2**31 - 1, size=runs)
+    n_dims = len(dims) + len(cf.choices)
+    u = latin_hypercube(rng, runs, n_dims) if cfg.sampling == "latin_hypercube" else rng.random((runs, n_dims))
+    specs: list[RunSpec] = []
+    for i in range(runs):
+        mapping = copy.deepcopy(base)
+        drawn: dict = {"seed": int(seeds[i])}
+        groups: dict = {}
+        mapping["seed"] = drawn["seed"]
+        mapping["experiment"] = {"kind": "single"}
+        for j, (dim, options) in enumerate(cf.choices.items()):
+            names = list(options)
+            pick = names[min(int(u[i, len(dims) + j] * len(names)), len(names) - 1)]
+            for key, value in options[pick].items():
+                _set_dotted(mapping, key, copy.deepcopy(value))
+            drawn[f"choice.{dim}"] = pick
+            groups[dim] = pick
+        vehicle = None
+        if any(v.relative_to_vehicle for v, _ in dims):
+            vehicle = scenario_from_mapping(mapping, f"{cf.path} (campaign draw {i})").load_vehicle()
+        for j, (v, key) in enumerate(dims):
+            x = v.low + float(u[i, j]) * (v.high - v.low)
+            value = x
+            if v.relative_to_vehicle:
+                name = key.rsplit(".", 1)[1]
+                if not hasattr(vehicle.force_model, name):
+                    raise ConfigError(f"{cf.path}: [[campaign.vary]] {key!r}: relative_to_vehicle: the vehicle's "
+                                      f"[force_model] has no {name!r}")
+                value = x * getattr(vehicle.force_model, name)
+            _set_dotted(mapping, key, [c * value for c in v.components] if v.components is not None else value)
+            drawn[key] = value
+            if v.relative_to_vehicle:
+                drawn[f"{key}:factor"] = x
+            if v.bands:
+                groups[v.name] = v.band(x, _setting_unit(key))
+        mapping["controller"] = {**mapping.get("controller", {}), "kind": cfg.controllers[0]}
+        shown = {k: (round(val, 4) if isinstance(val, float) else val) for k, val in drawn.items()}
+        scenario_from_mapping(mapping, f"{cf.path} (campaign draw {i}: {shown})")
+        specs += [RunSpec(i, mapping, source, drawn, cid, groups) for cid in cfg.controllers]
+    return cf, specs
+
+
+def _run_controller(spec: RunSpec) -> dict:
+    """One controller's run of a campaign-file draw, reduced to its row (the envelope metrics)."""
+    from .experiments.envelope import envelope_run_metrics
+    from .scenario import scenario_from_mapping
+    from .simulate import simulate
+
+    mapping = dict(spec.mapping)
+    mapping["controller"] = {**spec.mapping.get("controller", {}), "kind": spec.controller}
+    scenario = scenario_from_mapping(mapping, spec.source)
+    result = simulate(scenario)
+    return {"run": spec.index, "controller": spec.controller, **spec.drawn,
+            **{f"group.{k}": v for k, v in spec.groups.items()}, **envelope_run_metrics(result, scenario)}
+
+
 def run_one(spec: RunSpec) -> dict:
     """Run one campaign member (executed on a Dask worker) and return its row."""
     from .experiments import fan_throttle_series
@@ -134,6 +434,8 @@ def run_one(spec: RunSpec) -> dict:
     from .scenario import scenario_from_mapping
     from .simulate import simulate
 
+    if spec.controller is not None:
+        return _run_controller(spec)
     scenario = scenario_from_mapping(spec.mapping, spec.source)
     result = simulate(scenario)
     row = {"run": spec.index, **spec.drawn}
@@ -188,16 +490,20 @@ def _check_scheduler(address: str) -> None:
 
 def run_campaign(specs: list[RunSpec], out: Path, scheduler: Optional[str] = "local",
                  n_workers: Optional[int] = None, show_progress: bool = True,
-                 listen: str = LOOPBACK) -> list[dict]:
+                 listen: str = LOOPBACK, campaign: Optional[dict] = None) -> list[dict]:
     """Run the planned campaign and write ``campaign.parquet``, ``summary.json``, ``fig_campaign.png``.
 
     ``scheduler``: ``"local"`` (a LocalCluster, one single-threaded process per core, every
     socket on ``listen``), ``"none"`` (in this process, ``n_workers`` threads, default one per
-    core), or a scheduler address.
+    core), or a scheduler address. Runs of a campaign file (specs naming a controller) write one
+    row per draw and controller and the envelope summary
+    (:func:`vtoladapt.experiments.envelope.envelope_summary`, with ``campaign`` merged into its
+    ``campaign`` entry) and its figure.
     """
     if n_workers is not None:
         check_flag("--workers", n_workers, ge=1, le=MAX_WORKERS, integer=True)
     out = Path(out)
+    wall0 = time.perf_counter()
     rows: list[dict] = []
     if scheduler in (None, "none"):
         # the compiled loop releases the GIL: threads give every core a run without new processes
@@ -233,10 +539,31 @@ def run_campaign(specs: list[RunSpec], out: Path, scheduler: Optional[str] = "lo
             client.close()
             if cluster is not None:
                 cluster.close()
-    rows.sort(key=lambda r: r["run"])
     out.mkdir(parents=True, exist_ok=True)
+    if specs and specs[0].controller is not None:
+        order = {s.controller: i for i, s in enumerate(specs) if s.index == specs[0].index}
+        rows.sort(key=lambda r: (r["run"], order.get(r["controller"], len(order))))
+        _write_envelope_outputs(rows, out, dict(campaign or {}, wall_time_s=time.perf_counter() - wall0))
+        return rows
+    rows.sort(key=lambda r: r["run"])
     _write_outputs(rows, out, tuple(k for k in specs[0].drawn if k != "seed") if specs else ())
     return rows
+
+
+def _write_envelope_outputs(rows: list[dict], out: Path, campaign: dict) -> dict:
+    """``campaign.parquet`` (one row per draw and controller), ``summary.json`` (the envelope
+    targets' fractions) and ``fig_campaign.png`` (the fractions with their intervals)."""
+    import pyarrow as pa
+
+    from .experiments.envelope import envelope_summary, figure_envelope
+
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    columns = {k: [r.get(k) for r in rows] for k in keys}
+    write_parquet(pa.table(columns), out / "campaign.parquet")
+    summary = envelope_summary(columns, campaign)
+    write_json(out / "summary.json", summary)
+    figure_envelope(summary, out / "fig_campaign.png")
+    return summary
 
 
 class _NoProgress:
@@ -310,8 +637,10 @@ def register_cli(subparsers) -> None:
     """Add the ``campaign`` sub-command to ``subparsers`` (its handler raises on bad input)."""
     p = subparsers.add_parser("campaign", help="Monte-Carlo campaign of a scenario on Dask",
                               description=__doc__.split("\n\n")[1])
-    p.add_argument("scenario", help="scenario TOML")
-    p.add_argument("--runs", type=int, required=True, help="number of runs")
+    p.add_argument("scenario", help="scenario TOML, or a campaign file (a [campaign] table: base scenario, "
+                                    "controllers, draws, variations; e.g. scenarios/envelope.toml)")
+    p.add_argument("--runs", type=int, default=None,
+                   help="number of runs (required for a scenario; for a campaign file: draws, default its [campaign] runs)")
     p.add_argument("--vary", action="append", default=[], metavar="KEY=LOW:HIGH",
                    help="draw this dotted scenario key uniformly per run (repeatable)")
     p.add_argument("--out", type=output_path, required=True, help="output directory")
@@ -344,6 +673,11 @@ def _check_listen(host: str) -> None:
 
 
 def _cmd_campaign(args) -> int:
+    if is_campaign_file(args.scenario):
+        return _cmd_campaign_file(args)
+    if args.runs is None:
+        raise ConfigError(f"--runs: required with a scenario file ({args.scenario} has no [campaign] "
+                          "table); allowed: a whole number >= 1")
     variations = [Variation.parse(v) for v in args.vary]
     _check_listen(args.listen)
     _check_scheduler(args.scheduler)
@@ -357,4 +691,42 @@ def _cmd_campaign(args) -> int:
     v = np.array([r["vel_err_rms_mps"] for r in rows])
     print(f"{len(rows)} runs: RMS velocity error mean {v.mean():.4f} m/s, max {v.max():.4f} m/s; "
           f"wrote {args.out}/campaign.parquet, summary.json, fig_campaign.png")
+    return 0
+
+
+def _cmd_campaign_file(args) -> int:
+    """``vtoladapt campaign FILE --out DIR`` for a campaign file: every draw flown by every controller."""
+    for flag, value in (("--vary", args.vary), ("--controller", args.controller)):
+        if value:
+            raise ConfigError(f"{flag} {value if isinstance(value, str) else value[0]!r}: not with a campaign "
+                              f"file ({args.scenario} has a [campaign] table); allowed: set it in the file's "
+                              "[[campaign.vary]] or [campaign] controllers")
+    _check_listen(args.listen)
+    _check_scheduler(args.scheduler)
+    target = OutputDir(args.out, "campaign", force=args.force)
+    if args.workers is not None:
+        check_flag("--workers", args.workers, ge=1, le=MAX_WORKERS, integer=True)
+    cf, specs = plan_campaign_file(args.scenario, args.runs, args.seed)
+    info = {"file": str(args.scenario), "base": cf.config.base,
+            "seed": cf.config.seed if args.seed is None else args.seed,
+            "sampling": cf.config.sampling, "description": cf.config.description,
+            "duration_s": float(specs[0].mapping.get("duration_s", float("nan")))}
+    with target:
+        run_campaign(specs, target.path, args.scheduler, args.workers, not args.quiet,
+                     listen=args.listen, campaign=info)
+    import json
+
+    from .experiments.envelope import TARGETS
+
+    summary = json.loads((Path(args.out) / "summary.json").read_text())
+    n_draws = summary["campaign"]["draws"]
+    print(f"{n_draws} draws x {len(cf.config.controllers)} controllers; targets (fraction of draws, 95 % CI):")
+    for name in TARGETS:
+        t = summary["targets"][name]
+        if t["fraction"] is None:
+            print(f"  {name}: not judged")
+        else:
+            print(f"  {name}: {t['fraction']:.2f} ({t['successes']}/{t['n']}) "
+                  f"[{t['ci95'][0]:.2f}, {t['ci95'][1]:.2f}]")
+    print(f"wrote {args.out}/campaign.parquet, summary.json, fig_campaign.png")
     return 0
