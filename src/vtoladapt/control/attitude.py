@@ -41,21 +41,30 @@ Where the wing solution is undefined
 
 Heading: weathervane into the wind, the reference yaw in hover
 --------------------------------------------------------------
-The wing solution faces the flow by construction (its x axis lies in the plane of ``v_i``), so
-with the wind from the side or from behind it is 90-180 deg from the reference yaw. Slerping two
-solutions that far apart across the blend band, as before, swept the heading across 90-180 deg
-within the band's 2 m/s, flew large sideslip in between (flow the linear-in-parameters model
-does not describe: its side force and drag are fitted for the flow from ahead), and the slerp's
-path was ambiguous at 180 deg. Now:
+Why the side wind was bad (issue #11, from the logs of ``array_bearing_deg = 90``): the airflow
+probe cannot measure a flow from the side; its calibration reports "invalid" and a zero
+vector, exactly what it reports in still air. (From behind, the simulated pressure probe reports
+a *valid* reading of the mirrored flow, v_i ~ -v_i,true: no controller can tell that from a
+headwind, so that case is left to the probe model.) The front end took that for
+still air (:mod:`.frontend`), so the controller flew the whole run as a multirotor facing north
+with 85 deg of sideslip it did not know about: no wing, no turn into the wind, and every
+adaptive law adapted on a regressor without the wind (the side force is in no column of Phi at
+``v_i = 0``), hence worse than PID. Now:
 
+* **Unseen flow** (:mod:`.frontend`): an invalid probe reading is taken as still air only while
+  the body-horizontal prediction error is small (``unseen_flow_accel_mps2``): the model has no
+  horizontal force in still air, the accelerometer feels the wind's.
 * The **commanded heading** ``psi_c`` (state, :func:`heading_step`) approaches a target with a
-  first-order lag (``heading_time_constant_s``) at most at ``heading_rate_max_degps``: the
-  direction of the air-relative velocity ``atan2(v_i,E, v_i,N)`` (nose into the wind) while the
-  horizontal airspeed is above the weathervane airspeed (``weathervane_airspeed_mps``, with
-  hysteresis), the reference yaw below it (the reference's own change is passed through
-  unfiltered, so yaw ramps in hover are tracked). It moves continuously in time whatever the
-  target does; a target ~180 deg away keeps the direction of the turn under way.
-* The multirotor solution holds the position at heading ``psi_c``: a multirotor can hold station
+  first-order lag (``heading_time_constant_s``), at most at ``heading_rate_max_degps``:
+  the direction of the air-relative velocity ``atan2(v_i,E, v_i,N)`` (nose into the wind) while
+  the horizontal airspeed is above the weathervane airspeed (``weathervane_airspeed_mps``, with
+  hysteresis); while the probe cannot see the flow (unseen flow), the direction opposite to the
+  unexplained horizontal force (``R e``, the model's force minus the measured: the drag points
+  downwind) -- as PX4's weathervane turns into the direction it leans -- until the flow enters
+  the probe's cone; otherwise the reference yaw (its own change passed through unfiltered, so a
+  yaw ramp in hover is tracked without lag). ``psi_c`` is continuous in time whatever the target
+  does; a target ~180 deg away keeps the direction of the turn under way.
+* The multirotor solution holds the position at heading ``psi_c``: a multirotor holds station
   facing any way, so it carries the aircraft while the heading turns.
 * The wing solution's weight is ``w(V) a(psi_c, v_i)``, ``a`` = :func:`heading_alignment_weight`:
   full once ``psi_c`` is within ``wing_heading_tolerance_deg[0]`` of the flow, none beyond
@@ -63,29 +72,32 @@ path was ambiguous at 180 deg. Now:
   joins solutions within ~30 deg of heading, so ``q_d`` is continuous in every input (wind
   direction, airspeed, heading) and never meets the 180 deg ambiguity.
 
-Why weathervane rather than fly the wing sideways: the wing solution needs the flow along the
-body x-z plane (eq:Rd flies sideslip 0); the alternative, staying at the reference heading in a
-side wind, gives up the wing's lift and flies large sideslip, where both the model and the plant's
-side force disagree. In hover (below the weathervane airspeed) the reference yaw is honoured.
+Why weathervane rather than fly the wing sideways or hold the reference heading: eq:Rd flies
+sideslip 0, so the wing needs the flow in the body x-z plane; held at the reference heading in
+a side wind the aircraft gives up the wing's lift, flies large sideslip where neither the model
+nor the probe works. In hover (below the weathervane airspeed) the reference yaw is honoured.
 
 Flow-angle protection (the measured alpha kept below alpha_max)
 ---------------------------------------------------------------
-eq:alphad limits the *desired* angle of attack; the flown alpha differs by the attitude loop's
-error (a pitch-moment bias of the plant that the loop's proportional law leaves as a standing
-error, the motor lag), by turbulence and by the slerp with the multirotor solution. The probe
-measures the flown alpha, so the limit is closed around it here, in the reference shaping
-(before the attitude loop and the allocation): the measured alpha (low-passed at
-``alpha_protect_filter_hz``, :func:`measured_angle_of_attack`) minus ``alpha_max`` is integrated
-(``alpha_protect_gain_per_s``, weighted by the wing weight, clipped at 0: anti-windup) into a
-trim that lowers the alpha_d limit (:func:`alpha_protection_step`; the same below ``alpha_min``).
-A standing excess is removed with the integral's time constant; what the wing no longer lifts,
-the allocation (eq:f_proj) gives to the lift rotors, since it computes the aerodynamic force at
-the measured flow. Why here and not in the attitude loop or the allocation: the attitude loop
-tracks ``R_d`` whatever it is (adding an alpha term there would fight the desired attitude and
-change the moment law of eq:m_ctrl), and the allocation cannot change the angle of attack; only
-the desired attitude sets alpha. The target is ``alpha_max`` (the vehicle file's
-``[envelope] alpha_max_deg``, at most its believed stall minus margin); gusts faster than the
-filter are what the margin is for. The controller never reads the plant's stall angle.
+eq:alphad limits the *desired* angle of attack. In the logs of the shipped comparison the
+measured alpha sat at alpha_d = alpha_max = 12 deg on average, and turbulence and the attitude
+loop's pitch error (the mixer saturates at 9 m/s) swung it by +-3 deg around that, so the true
+alpha was above 12 deg half the flying time and reached 17-19 deg. The probe measures the
+flown alpha, so the limit is closed around it here, in the reference shaping (before the
+attitude loop and the allocation): the *guarded* alpha -- the measured alpha low-passed at
+``alpha_protect_filter_hz`` (:func:`measured_angle_of_attack`) plus ``alpha_protect_sigmas``
+standard deviations of its fluctuation about that (estimated over
+``alpha_protect_spread_time_constant_s`` while the wing flies) -- minus ``alpha_max`` is
+integrated (``alpha_protect_gain_per_s``, weighted by the wing weight, clipped at 0:
+anti-windup) into a trim that lowers the alpha_d limit (:func:`alpha_protection_step`; the same
+below ``alpha_min``). In steady turbulence the mean alpha settles ``n sigma`` below alpha_max;
+what the wing no longer lifts, the allocation (eq:f_proj) gives to the lift rotors, since it
+computes the aerodynamic force at the measured flow. Why here and not in the attitude loop or
+the allocation: only the desired attitude sets alpha; an alpha term in the attitude loop would
+fight R_d and change eq:m_ctrl, and the allocation cannot change alpha. The target is
+``alpha_max`` (the vehicle file's ``[envelope] alpha_max_deg``, at most its believed stall minus
+margin); gusts faster than the filter are what the margin is for. The controller never reads
+the plant's stall angle.
 """
 from __future__ import annotations
 

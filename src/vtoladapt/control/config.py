@@ -142,12 +142,12 @@ class SharedControllerConfig:
         "1/s", "flow-angle protection: integral gain lowering the alpha_d limit by the measured alpha's "
         "excess over alpha_max (0: off)", default=2.0, ge=0.0, le=100.0)
     alpha_protect_filter_hz: float = setting(
-        "Hz", "flow-angle protection: low-pass of the probe's measured alpha", default=2.0, gt=0.0, le=125.0)
+        "Hz", "flow-angle protection: low-pass of the probe's measured alpha", default=1.0, gt=0.0, le=125.0)
     alpha_protect_trim_max_deg: float = setting(
         "deg", "flow-angle protection: largest shift of an alpha_d limit", default=10.0, ge=0.0, le=45.0)
     alpha_protect_sigmas: float = setting(
         "-", "flow-angle protection: the guarded alpha is the filtered measured alpha plus (minus) this many "
-        "of its measured standard deviations", default=2.0, ge=0.0, le=10.0)
+        "of its measured standard deviations", default=3.0, ge=0.0, le=10.0)
     alpha_protect_spread_time_constant_s: float = setting(
         "s", "flow-angle protection: time constant of the measured alpha's variance estimate",
         default=1.0, gt=0.0, le=100.0)
