@@ -35,8 +35,69 @@ Where the wing solution is undefined
   command still gives an upright attitude), heading from the reference yaw. Between ``V_lo`` and
   ``V_hi`` (``vehicle.envelope.hover_blend_airspeed_mps``) the two solutions are slerped with the
   weight ``w = s^2 (3 - 2 s)``, ``s = (V - V_lo)/(V_hi - V_lo)``: C1 in V, no jump at either
-  end. (If the two solutions are exactly 180 deg apart, e.g. a reference heading opposite to the
-  airflow, the slerp's path is ambiguous; it stays continuous in V.)
+  end. The multirotor solution's heading is the *commanded heading* below (not the reference
+  yaw itself), and the wing weight is also multiplied by the heading alignment weight, so the two
+  solutions slerped are never far apart in heading (never the 180 deg case).
+
+Heading: weathervane into the wind, the reference yaw in hover
+--------------------------------------------------------------
+Why the side wind was bad (issue #11, from the logs of ``array_bearing_deg = 90``): the airflow
+probe cannot measure a flow from the side; its calibration reports "invalid" and a zero
+vector, exactly what it reports in still air. (From behind, the simulated pressure probe reports
+a *valid* reading of the mirrored flow, v_i ~ -v_i,true: no controller can tell that from a
+headwind, so that case is left to the probe model.) The front end took that for
+still air (:mod:`.frontend`), so the controller flew the whole run as a multirotor facing north
+with 85 deg of sideslip it did not know about: no wing, no turn into the wind, and every
+adaptive law adapted on a regressor without the wind (the side force is in no column of Phi at
+``v_i = 0``), hence worse than PID. Now:
+
+* **Unseen flow** (:mod:`.frontend`): an invalid probe reading is taken as still air only while
+  the body-horizontal prediction error is small (``unseen_flow_accel_mps2``): the model has no
+  horizontal force in still air, the accelerometer feels the wind's.
+* The **commanded heading** ``psi_c`` (state, :func:`heading_step`) approaches a target with a
+  first-order lag (``heading_time_constant_s``), at most at ``heading_rate_max_degps``:
+  the direction of the air-relative velocity ``atan2(v_i,E, v_i,N)`` (nose into the wind) while
+  the horizontal airspeed is above the weathervane airspeed (``weathervane_airspeed_mps``, with
+  hysteresis); while the probe cannot see the flow (unseen flow), the direction opposite to the
+  unexplained horizontal force (``R e``, the model's force minus the measured: the drag points
+  downwind) -- as PX4's weathervane turns into the direction it leans -- until the flow enters
+  the probe's cone; otherwise the reference yaw (its own change passed through unfiltered, so a
+  yaw ramp in hover is tracked without lag). ``psi_c`` is continuous in time whatever the target
+  does; a target ~180 deg away keeps the direction of the turn under way.
+* The multirotor solution holds the position at heading ``psi_c``: a multirotor holds station
+  facing any way, so it carries the aircraft while the heading turns.
+* The wing solution's weight is ``w(V) a(psi_c, v_i)``, ``a`` = :func:`heading_alignment_weight`:
+  full once ``psi_c`` is within ``wing_heading_tolerance_deg[0]`` of the flow, none beyond
+  ``[1]``. The wing is flown only once the nose points into the wind, and the slerp only ever
+  joins solutions within ~30 deg of heading, so ``q_d`` is continuous in every input (wind
+  direction, airspeed, heading) and never meets the 180 deg ambiguity.
+
+Why weathervane rather than fly the wing sideways or hold the reference heading: eq:Rd flies
+sideslip 0, so the wing needs the flow in the body x-z plane; held at the reference heading in
+a side wind the aircraft gives up the wing's lift, flies large sideslip where neither the model
+nor the probe works. In hover (below the weathervane airspeed) the reference yaw is honoured.
+
+Flow-angle protection (the measured alpha kept below alpha_max)
+---------------------------------------------------------------
+eq:alphad limits the *desired* angle of attack. In the logs of the shipped comparison the
+measured alpha sat at alpha_d = alpha_max = 12 deg on average, and turbulence and the attitude
+loop's pitch error (the mixer saturates at 9 m/s) swung it by +-3 deg around that, so the true
+alpha was above 12 deg half the flying time and reached 17-19 deg. The probe measures the
+flown alpha, so the limit is closed around it here, in the reference shaping (before the
+attitude loop and the allocation): the *guarded* alpha -- the measured alpha low-passed at
+``alpha_protect_filter_hz`` (:func:`measured_angle_of_attack`) plus ``alpha_protect_sigmas``
+standard deviations of its fluctuation about that (estimated over
+``alpha_protect_spread_time_constant_s`` while the wing flies) -- minus ``alpha_max`` is
+integrated (``alpha_protect_gain_per_s``, weighted by the wing weight, clipped at 0:
+anti-windup) into a trim that lowers the alpha_d limit (:func:`alpha_protection_step`; the same
+below ``alpha_min``). In steady turbulence the mean alpha settles ``n sigma`` below alpha_max;
+what the wing no longer lifts, the allocation (eq:f_proj) gives to the lift rotors, since it
+computes the aerodynamic force at the measured flow. Why here and not in the attitude loop or
+the allocation: only the desired attitude sets alpha; an alpha term in the attitude loop would
+fight R_d and change eq:m_ctrl, and the allocation cannot change alpha. The target is
+``alpha_max`` (the vehicle file's ``[envelope] alpha_max_deg``, at most its believed stall minus
+margin); gusts faster than the filter are what the margin is for. The controller never reads
+the plant's stall angle.
 """
 from __future__ import annotations
 
@@ -240,10 +301,14 @@ def _quat_from_rows(R_rows) -> tuple:
 
 @njit(cache=True)
 def desired_attitude(f_r_W, v_i_W, yaw_rad, CL0, CL1, aero_scale_per_m, alpha_min_rad, alpha_max_rad,
-                     V_lo, V_hi, tilt_max_rad, min_lift_mps2, y_prev_W, have_y_prev) -> tuple:
+                     V_lo, V_hi, tilt_max_rad, min_lift_mps2, y_prev_W, have_y_prev, cos_align_full=-2.0,
+                     cos_align_zero=-3.0) -> tuple:
     """Desired attitude ``q_d`` (scalar first) blending the multirotor and the wing solutions.
 
-    See the module notes.
+    See the module notes. ``yaw_rad`` is the commanded heading (the multirotor solution's
+    heading, :func:`heading_step`); the wing weight is the airspeed blend times
+    :func:`heading_alignment_weight` with ``cos_align_full``, ``cos_align_zero`` (the defaults,
+    below -1, make the alignment weight 1 whatever the heading).
 
     Returns
     -------
@@ -255,6 +320,8 @@ def desired_attitude(f_r_W, v_i_W, yaw_rad, CL0, CL1, aero_scale_per_m, alpha_mi
     """
     V = np.sqrt(v_i_W[0] ** 2 + v_i_W[1] ** 2 + v_i_W[2] ** 2)
     w = hover_blend_weight(V, V_lo, V_hi)
+    if w > 0.0:
+        w *= heading_alignment_weight(v_i_W, yaw_rad, cos_align_full, cos_align_zero)
     alpha_d = 0.0
     formed = V > V_WING_MIN_MPS
     q_w = (1.0, 0.0, 0.0, 0.0)
@@ -270,6 +337,105 @@ def desired_attitude(f_r_W, v_i_W, yaw_rad, CL0, CL1, aero_scale_per_m, alpha_mi
     if w <= 0.0:
         return q_mc, y_i, alpha_d, w, formed
     return quat_slerp(q_mc, q_w, w), y_i, alpha_d, w, formed
+
+
+@njit(cache=True)
+def smoothstep(x) -> float:
+    """``s^2 (3 - 2 s)`` of ``s = clip(x, 0, 1)``: C1, 0 at and below 0, 1 at and above 1 (NaN: 0)."""
+    if not x > 0.0:
+        return 0.0
+    if x >= 1.0:
+        return 1.0
+    return x * x * (3.0 - 2.0 * x)
+
+
+@njit(cache=True)
+def heading_alignment_weight(v_i_W, heading_rad, cos_full, cos_zero) -> float:
+    """How far the wing solution may take over at heading ``heading_rad``: 0 to 1, continuous.
+
+    ``c = (cos psi, sin psi, 0) . v_i/|v_i|`` is the cosine of the angle between the commanded
+    heading and the air-relative velocity (horizontal flow: the heading error; steep flow: less).
+    The weight is ``smoothstep((c - cos_zero) / (cos_full - cos_zero))``: 1 when the heading is
+    within the first tolerance of the flow, 0 beyond the second, so the wing solution (which
+    faces the flow) is only ever slerped with a multirotor solution of nearly the same heading.
+    ``cos_full <= cos_zero`` (or ``cos_full < -1``): 1 (no alignment required).
+    """
+    if not cos_full > cos_zero or cos_full < -1.0:
+        return 1.0
+    V = np.sqrt(v_i_W[0] ** 2 + v_i_W[1] ** 2 + v_i_W[2] ** 2)
+    if not V > V_WING_MIN_MPS:
+        return 0.0
+    c = (np.cos(heading_rad) * v_i_W[0] + np.sin(heading_rad) * v_i_W[1]) / V
+    return smoothstep((c - cos_zero) / (cos_full - cos_zero))
+
+
+HEADING_REVERSAL_RAD = np.radians(150.0)
+"""A heading error larger than this keeps the direction of the turn already under way."""
+
+
+@njit(cache=True)
+def heading_step(heading_rad, turn_sign, target_rad, feedforward_rad, dt, time_constant_s,
+                 rate_max_radps) -> tuple:
+    """One tick of the commanded heading: first order toward ``target_rad``, rate limited.
+
+    ``heading + feedforward`` (the reference yaw's own change, passed through unfiltered so that
+    a yaw ramp is tracked without lag) moves toward the target by ``e dt/(tau + dt)``, at most
+    ``rate_max dt``, with ``e`` the wrapped error. A target about 180 deg away (the wind from
+    behind) would flip the turn's direction with every small change of the flow direction:
+    beyond :data:`HEADING_REVERSAL_RAD` the turn already under way (``turn_sign``) is kept.
+    The heading is continuous in time whatever the target does (it moves at most
+    ``|feedforward| + rate_max dt`` per tick).
+
+    Returns ``(heading_rad in [-pi, pi], turn_sign in {-1, 0, 1})``.
+    """
+    h = heading_rad + feedforward_rad
+    e = target_rad - h
+    e = np.arctan2(np.sin(e), np.cos(e))
+    if abs(e) > HEADING_REVERSAL_RAD and turn_sign * e < 0.0:
+        e += 2.0 * np.pi * turn_sign
+    step = e * dt / (time_constant_s + dt)
+    lim = rate_max_radps * dt
+    step = min(max(step, -lim), lim)
+    sign = 0.0
+    if e > 0.0:
+        sign = 1.0
+    elif e < 0.0:
+        sign = -1.0
+    h += step
+    return np.arctan2(np.sin(h), np.cos(h)), sign
+
+
+ALPHA_EXCESS_MAX_RAD = np.radians(10.0)
+"""The measured excess over an alpha limit integrated per tick is clipped to this (probe outliers,
+backward flow)."""
+
+
+@njit(cache=True)
+def measured_angle_of_attack(v_i_B) -> float:
+    """``atan2(v_iz, max(v_ix, 0))`` (rad): the probe's alpha, held within +-90 deg in backward flow."""
+    return np.arctan2(v_i_B[2], max(v_i_B[0], 0.0))
+
+
+@njit(cache=True)
+def alpha_protection_step(trim_hi, trim_lo, alpha_meas_rad, alpha_min_rad, alpha_max_rad, weight, gain_per_s,
+                          dt, trim_max_rad, spread_rad=0.0) -> tuple:
+    """One tick of the flow-angle protection: the trims that move the alpha_d limits (rad).
+
+    ``trim_hi >= 0`` integrates the excess of the measured (filtered) alpha plus ``spread_rad``
+    (its upper envelope: n standard deviations of the measured fluctuation) over ``alpha_max``,
+    ``trim_lo <= 0`` the excess of the alpha minus ``spread_rad`` below ``alpha_min``, each at
+    ``gain_per_s`` times the wing weight
+    (the protection acts through alpha_d, which only the wing solution flies) and each clipped to
+    ``[0, trim_max]`` (anti-windup: back to 0 once the measured alpha is inside). Off the wing
+    (weight < 1) they also leak toward 0 at ``(1 - weight) gain``, so a trim learned in one wind
+    does not outlive it. The limits flown are ``alpha_max - trim_hi`` and ``alpha_min - trim_lo``.
+    """
+    e_hi = min(max(alpha_meas_rad + spread_rad - alpha_max_rad, -ALPHA_EXCESS_MAX_RAD), ALPHA_EXCESS_MAX_RAD)
+    e_lo = min(max(alpha_meas_rad - spread_rad - alpha_min_rad, -ALPHA_EXCESS_MAX_RAD), ALPHA_EXCESS_MAX_RAD)
+    k = gain_per_s * dt
+    trim_hi += k * (weight * e_hi - (1.0 - weight) * trim_hi)
+    trim_lo += k * (weight * e_lo - (1.0 - weight) * trim_lo)
+    return min(max(trim_hi, 0.0), trim_max_rad), min(max(trim_lo, -trim_max_rad), 0.0)
 
 
 @njit(cache=True)
@@ -292,5 +458,6 @@ def desired_frame_rate(q_prev, q_now, dt) -> tuple:
     return (k * e1, k * e2, k * e3)
 
 
-__all__ = ["desired_angle_of_attack", "desired_attitude", "desired_frame_rate", "hover_blend_weight",
-           "incident_frame_W", "multirotor_attitude", "quat_slerp", "wing_attitude"]
+__all__ = ["alpha_protection_step", "desired_angle_of_attack", "desired_attitude", "desired_frame_rate",
+           "heading_alignment_weight", "heading_step", "hover_blend_weight", "incident_frame_W",
+           "measured_angle_of_attack", "multirotor_attitude", "quat_slerp", "smoothstep", "wing_attitude"]

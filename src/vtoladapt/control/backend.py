@@ -4,18 +4,22 @@ One call of :func:`back_end` per tick, after the law's update has given the forc
 ``f_r`` (and updated theta-hat, if it adapts):
 
 1. ``|f_r + g|`` limited (``accel_max_mps2``).
-2. **Desired attitude** (:mod:`.attitude`) and, if ``omega_d_feedforward`` is on (default off, see
+2. **Commanded heading and flow-angle protection** (:mod:`.attitude` module notes): the heading
+   weathervanes into the flow above ``weathervane_airspeed_mps`` and follows the reference yaw
+   below, rate limited; the probe's measured alpha beyond ``alpha_max`` (``alpha_min``) lowers
+   (raises) the alpha_d limit through an integral trim.
+3. **Desired attitude** (:mod:`.attitude`) and, if ``omega_d_feedforward`` is on (default off, see
    :mod:`.config`), ``omega_d``, ``omega_d'``: the desired frame's rate ``log(R_d,prev^T R_d)/dt``
    is limited to ``omega_d_max`` and passed through two cascaded first-order low-passes at
    ``omega_d_cutoff_hz``; ``omega_d`` is the second stage's output and ``omega_d'`` its exact
    derivative ``(x_1 - x_2) 2 pi f_c`` (a dirty derivative of a smoothed signal, limited to
    ``omega_d_dot_max``). The reference yaw rate is not used: the change of ``R_d`` already
    contains it.
-3. **Moment command** (eq:wr, eq:m_ctrl) with the constrained quaternion error, limited per axis.
-4. **Thruster allocation** at the current attitude with theta-hat (eq:f_proj, :mod:`.allocation`).
-5. A non-finite command (impossible for finite sanitised inputs, but guarded) is replaced by the
+4. **Moment command** (eq:wr, eq:m_ctrl) with the constrained quaternion error, limited per axis.
+5. **Thruster allocation** at the current attitude with theta-hat (eq:f_proj, :mod:`.allocation`).
+6. A non-finite command (impossible for finite sanitised inputs, but guarded) is replaced by the
    previous command and flagged.
-6. The diagnostics (:data:`.layouts.DIAGNOSTICS`) other than the law's own columns.
+7. The diagnostics (:data:`.layouts.DIAGNOSTICS`) other than the law's own columns.
 """
 from __future__ import annotations
 
@@ -27,8 +31,17 @@ from ..forces import I_CL0, I_CL1, model_at
 from ..frames import GRAVITY_MPS2
 from . import adaptation as ad
 from .allocation import allocate_thrusters
-from .attitude import desired_attitude, desired_frame_rate
-from .frontend import plausible, rotation_rows, rows_times, rows_transpose_times, vec3
+from .attitude import (
+    ALPHA_EXCESS_MAX_RAD,
+    alpha_protection_step,
+    desired_attitude,
+    desired_frame_rate,
+    heading_alignment_weight,
+    heading_step,
+    hover_blend_weight,
+    measured_angle_of_attack,
+)
+from .frontend import plausible, rotation_rows, rows_times, rows_transpose_times, vec3, wrap_angle
 from .layouts import (
     DIAG_A_M, DIAG_ADAPT_ACTIVE, DIAG_ALLOC_RES, DIAG_ALPHA_D, DIAG_AIRSPEED, DIAG_BLEND, DIAG_F_R, DIAG_FAULTS,
     DIAG_INTEGRATOR, DIAG_LYAP_Q, DIAG_LYAP_V, DIAG_OMEGA_D, DIAG_OMEGA_R, DIAG_P_DIAG, DIAG_P_TILDE,
@@ -38,7 +51,10 @@ from .layouts import (
     P_MIN_LIFT, P_MODEL, P_P0, P_TAU_MAX, P_TILT_MAX, P_U_MAX, P_V_HI, P_V_LO, P_WD_DOT_MAX, P_WD_HZ,
     P_WD_MAX, P_WD_ON, S_AM_F, S_GAINS, S_HAVE_MEAS, S_HAVE_QD, S_HAVE_Y_I, S_OMEGA_LAST, S_Q_D_PREV, S_Q_LAST,
     S_RES_PREV_W, S_SAT_PREV, S_STEPS, S_TAU_PREV, S_THETA, S_TIME, S_U_PREV, S_V_PREV, S_WD_X1, S_WD_X2,
-    S_WIND_EST, S_Y_I_PREV,
+    S_WIND_EST, S_Y_I_PREV, DIAG_HEADING, DIAG_WV_ON, DIAG_ALPHA_MEAS, DIAG_ALPHA_LIMITS, P_ALIGN_COS, P_AP_GAIN,
+    P_AP_TAU, P_AP_TRIM_MAX, P_HEADING_RATE, P_HEADING_TAU, P_WV_AIRSPEED, S_ALPHA_F, S_ALPHA_TRIM, S_HAVE_HEADING,
+    S_HEADING, S_TURN_SIGN, S_WV_ON, S_YAW_REF_PREV, DIAG_ALPHA_SPREAD, DIAG_UNSEEN_FLOW, P_AP_SIGMAS, P_AP_SPREAD_TAU,
+    S_ALPHA_VAR, S_UNSEEN_FLOW,
 )
 from .tracking import (
     limit_norm,
@@ -62,7 +78,7 @@ def default_law_diagnostics(params, diag) -> None:
 @njit(cache=True, inline="always")
 def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_ok, R, v_W, v_i, p_tilde, v_r,
              v_tilde_raw, yaw_d) -> None:
-    """Steps 1-6 of the module notes: writes ``cmd`` and ``diag``, updates the shared state."""
+    """Steps 1-7 of the module notes: writes ``cmd`` and ``diag``, updates the shared state."""
     for i in range(3):
         state[S_V_PREV + i] = v_W[i]
     u_max = params[P_U_MAX]
@@ -78,11 +94,59 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
     f_r, _ = limit_norm((f_r[0], f_r[1], f_r[2] + GRAVITY_MPS2), params[P_ACC_MAX])
     f_r = (f_r[0], f_r[1], f_r[2] - GRAVITY_MPS2)
 
-    # 2. desired attitude and the desired frame's rate
+    # 2. commanded heading: into the flow above the weathervane airspeed, the reference yaw below
+    V_h = np.sqrt(v_i_W[0] ** 2 + v_i_W[1] ** 2)
+    if V_h > params[P_WV_AIRSPEED + 1]:
+        state[S_WV_ON] = 1.0
+    elif V_h < params[P_WV_AIRSPEED]:
+        state[S_WV_ON] = 0.0
+    alpha_raw = measured_angle_of_attack(v_i)
+    if state[S_HAVE_HEADING] > 0.0:
+        if not probe_ok and state[S_UNSEEN_FLOW] > 0.0:
+            # blind weathervane: the probe cannot see the flow, the unexplained body-horizontal force
+            # (-e, downwind) can: turn the nose against it, until the flow enters the probe's cone
+            e_W = rows_times(R, (e[0], e[1], 0.0))
+            target, ff = np.arctan2(e_W[1], e_W[0]), 0.0
+        elif state[S_WV_ON] > 0.0:
+            target, ff = np.arctan2(v_i_W[1], v_i_W[0]), 0.0
+        else:
+            target, ff = yaw_d, wrap_angle(yaw_d - state[S_YAW_REF_PREV])
+        heading, turn = heading_step(state[S_HEADING], state[S_TURN_SIGN], target, ff, dt,
+                                     params[P_HEADING_TAU], params[P_HEADING_RATE])
+        alpha_m = ad.lowpass(state[S_ALPHA_F], alpha_raw, dt / (params[P_AP_TAU] + dt))
+    else:
+        heading, turn = yaw_d, 0.0
+        alpha_m = alpha_raw
+    state[S_HEADING] = heading
+    state[S_TURN_SIGN] = turn
+    state[S_YAW_REF_PREV] = yaw_d
+    state[S_HAVE_HEADING] = 1.0
+    state[S_ALPHA_F] = alpha_m
+    # flow-angle protection: the measured alpha's upper (lower) envelope beyond the limits moves the
+    # alpha_d limits; the envelope is the filtered alpha +- n standard deviations of its fluctuation,
+    # estimated only while the wing flies (elsewhere alpha is not the wing's and the estimate fades)
+    w_wing = 0.0
+    if probe_ok:
+        w_wing = hover_blend_weight(airspeed, params[P_V_LO], params[P_V_HI])
+        if w_wing > 0.0:
+            w_wing *= heading_alignment_weight(v_i_W, heading, params[P_ALIGN_COS], params[P_ALIGN_COS + 1])
+    d_a = min(max(alpha_raw - alpha_m, -ALPHA_EXCESS_MAX_RAD), ALPHA_EXCESS_MAX_RAD)
+    alpha_var = state[S_ALPHA_VAR]
+    alpha_var = ad.flush_tiny(alpha_var + (w_wing * d_a * d_a - alpha_var) * dt / (params[P_AP_SPREAD_TAU] + dt))
+    state[S_ALPHA_VAR] = alpha_var
+    spread = np.sqrt(alpha_var)
+    if probe_ok:
+        state[S_ALPHA_TRIM], state[S_ALPHA_TRIM + 1] = alpha_protection_step(
+            state[S_ALPHA_TRIM], state[S_ALPHA_TRIM + 1], alpha_m, params[P_ALPHA_MIN], params[P_ALPHA_MAX], w_wing,
+            params[P_AP_GAIN], dt, params[P_AP_TRIM_MAX], params[P_AP_SIGMAS] * spread)
+    alpha_max_flown = params[P_ALPHA_MAX] - state[S_ALPHA_TRIM]
+    alpha_min_flown = params[P_ALPHA_MIN] - state[S_ALPHA_TRIM + 1]
+
+    # 3. desired attitude and the desired frame's rate
     q_d, y_i, alpha_d, w_blend, formed = desired_attitude(
-        f_r, v_i_W, yaw_d, theta[I_CL0], theta[I_CL1], model[0], params[P_ALPHA_MIN],
-        params[P_ALPHA_MAX], params[P_V_LO], params[P_V_HI], params[P_TILT_MAX], params[P_MIN_LIFT],
-        vec3(state, S_Y_I_PREV), state[S_HAVE_Y_I] > 0.0)
+        f_r, v_i_W, heading, theta[I_CL0], theta[I_CL1], model[0], alpha_min_flown, alpha_max_flown,
+        params[P_V_LO], params[P_V_HI], params[P_TILT_MAX], params[P_MIN_LIFT], vec3(state, S_Y_I_PREV),
+        state[S_HAVE_Y_I] > 0.0, params[P_ALIGN_COS], params[P_ALIGN_COS + 1])
     if formed:
         state[S_Y_I_PREV], state[S_Y_I_PREV + 1], state[S_Y_I_PREV + 2] = y_i
         state[S_HAVE_Y_I] = 1.0
@@ -102,7 +166,7 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
     omega_d_dot, _ = limit_norm((k_wd * (x1[0] - omega_d[0]), k_wd * (x1[1] - omega_d[1]),
                                  k_wd * (x1[2] - omega_d[2])), params[P_WD_DOT_MAX])
 
-    # 3. moment command (eq:wr, eq:m_ctrl)
+    # 4. moment command (eq:wr, eq:m_ctrl)
     q_tilde = quat_error_from_quats(q_d, q_WB)
     if params[P_WD_ON] > 0.0:
         # omega_d and its rate in body axes: R~^T omega_d, R~ = R_d^T R
@@ -122,11 +186,11 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
            min(max(tau[1], -params[P_TAU_MAX + 1]), params[P_TAU_MAX + 1]),
            min(max(tau[2], -params[P_TAU_MAX + 2]), params[P_TAU_MAX + 2]))
 
-    # 4. thruster allocation at the current attitude (eq:f_proj)
+    # 5. thruster allocation at the current attitude (eq:f_proj)
     f_rb = rows_transpose_times(R, f_r)
     u_x, u_z, res, sat_x, sat_z = allocate_thrusters(f_rb, v_i, theta, model, u_max)
 
-    # 5. output, with a last guard against non-finite values
+    # 6. output, with a last guard against non-finite values
     if not (np.isfinite(u_x) and np.isfinite(u_z) and plausible(tau, np.inf)):
         faults |= FAULT_COMMAND
         u_x = state[S_U_PREV]
@@ -148,7 +212,7 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
     state[S_STEPS] += 1.0
     state[S_HAVE_MEAS] = 1.0
 
-    # 6. diagnostics
+    # 7. diagnostics
     for i in range(3):
         diag[DIAG_P_TILDE + i] = p_tilde[i]
         diag[DIAG_V_TILDE + i] = v_tilde_raw[i]
@@ -177,3 +241,10 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
     diag[DIAG_LYAP_V] = 0.5 * (v_tilde_raw[0] ** 2 + v_tilde_raw[1] ** 2 + v_tilde_raw[2] ** 2)
     diag[DIAG_LYAP_Q] = (2.0 - 2.0 * q_tilde[0]) / params[P_GAMMA_LYAP]
     diag[DIAG_FAULTS] = faults
+    diag[DIAG_HEADING] = heading
+    diag[DIAG_WV_ON] = state[S_WV_ON]
+    diag[DIAG_ALPHA_MEAS] = alpha_m
+    diag[DIAG_ALPHA_LIMITS] = alpha_min_flown
+    diag[DIAG_ALPHA_LIMITS + 1] = alpha_max_flown
+    diag[DIAG_ALPHA_SPREAD] = spread
+    diag[DIAG_UNSEEN_FLOW] = state[S_UNSEEN_FLOW]

@@ -125,8 +125,51 @@ class SharedControllerConfig:
         default=2.0, gt=0.0)
     loop_rate_hz: float = setting("Hz", "nominal controller rate (the Python API's first step)",
                                   default=250.0, gt=0.0)
+    weathervane_airspeed_mps: Optional[tuple[float, ...]] = setting(
+        "m/s", "the commanded heading turns into the flow above the second horizontal airspeed and back to "
+        "the reference yaw below the first (hysteresis); default: 0.75 and 1 times the vehicle's "
+        "hover-blend start", default=None, ge=0.0, le=100.0, length=2)
+    heading_time_constant_s: float = setting(
+        "s", "time constant of the commanded heading's approach to its target (flow or reference yaw)",
+        default=1.0, gt=0.0, le=100.0)
+    heading_rate_max_degps: float = setting(
+        "deg/s", "rate limit of the commanded heading's turn (the reference yaw's own change passes "
+        "unlimited)", default=30.0, gt=0.0, le=720.0)
+    wing_heading_tolerance_deg: tuple[float, ...] = setting(
+        "deg", "the wing attitude takes full weight while the commanded heading is within the first angle "
+        "of the flow direction, none beyond the second", default=(10.0, 30.0), gt=0.0, lt=90.0, length=2)
+    alpha_protect_gain_per_s: float = setting(
+        "1/s", "flow-angle protection: integral gain lowering the alpha_d limit by the measured alpha's "
+        "excess over alpha_max (0: off)", default=2.0, ge=0.0, le=100.0)
+    alpha_protect_filter_hz: float = setting(
+        "Hz", "flow-angle protection: low-pass of the probe's measured alpha", default=1.0, gt=0.0, le=125.0)
+    alpha_protect_trim_max_deg: float = setting(
+        "deg", "flow-angle protection: largest shift of an alpha_d limit", default=10.0, ge=0.0, le=45.0)
+    alpha_protect_sigmas: float = setting(
+        "-", "flow-angle protection: the guarded alpha is the filtered measured alpha plus (minus) this many "
+        "of its measured standard deviations", default=3.0, ge=0.0, le=10.0)
+    alpha_protect_spread_time_constant_s: float = setting(
+        "s", "flow-angle protection: time constant of the measured alpha's variance estimate",
+        default=1.0, gt=0.0, le=100.0)
+    unseen_flow_accel_mps2: tuple[float, ...] = setting(
+        "m/s^2", "an invalid probe reading is taken as still air only while the body-horizontal prediction "
+        "error is below the second value (again once it falls below the first); above, the airflow is "
+        "one the probe cannot see (from the side, from behind)", default=(0.2, 0.4), gt=0.0, le=100.0,
+        length=2)
 
     def _check(self, source: str) -> None:
+        wv = self.weathervane_airspeed_mps
+        if wv is not None and not wv[0] < wv[1]:
+            raise ConfigError(f"{source}: [controller] weathervane_airspeed_mps = {list(wv)}: the first "
+                              "(off) must be below the second (on)")
+        un = self.unseen_flow_accel_mps2
+        if not un[0] < un[1]:
+            raise ConfigError(f"{source}: [controller] unseen_flow_accel_mps2 = {list(un)}: the first (off) "
+                              "must be below the second (on)")
+        tol = self.wing_heading_tolerance_deg
+        if not tol[0] < tol[1]:
+            raise ConfigError(f"{source}: [controller] wing_heading_tolerance_deg = {list(tol)}: the first "
+                              "(full wing weight) must be below the second (none)")
         amax = self.alpha_max_deg
         if amax is not None and self.alpha_min_deg is not None and not self.alpha_min_deg < amax:
             raise ConfigError(f"{source}: [controller] alpha_min_deg = {self.alpha_min_deg}: must be "

@@ -11,7 +11,9 @@ for the whole tick):
    gyro is clipped to +-35 rad/s (a real gyro's range).
 3. **Incident velocity.** The probe's ``v_i`` is used if ``meas[MEAS_V_I_VALID] == 1``, finite and
    below ``probe_airspeed_max_mps``; a finite reading flagged invalid only for a low airspeed
-   (below the vehicle's hover-blend airspeed) is used too, since it still measures still air.
+   (below the vehicle's hover-blend airspeed) is used too, since it still measures still air --
+   unless the body-horizontal prediction error (filtered, above ``unseen_flow_accel_mps2``) shows
+   an airflow the probe cannot see (from the side or behind: it reads "invalid, zero" then too).
    Otherwise the fallback is ``v_i = R^T (v - w_hat)`` with ``w_hat`` the wind estimate
    ``v - R v_i`` low-passed (``wind_estimate_time_constant_s``) while the probe was valid, fading
    toward still air (``wind_estimate_fade_s``) while it is not: a short dropout keeps the wind, a
@@ -40,7 +42,7 @@ from .layouts import (
     P_DT_NOMINAL, P_HOLDOFF_S, P_LAMBDA_P, P_LOWPASS_HZ, P_MODEL, P_MOTOR_LAG_ON, P_MOTOR_TAU, P_V_LO,
     P_VCORR_MAX, P_VERR_MAX, P_VPROBE_MAX, P_WD_HZ, P_WIND_FADE, P_WIND_TAU, S_AM_F, S_FILT_INIT, S_GAINS,
     S_GAINS_DT, S_HAVE_REF, S_HAVE_WIND, S_OMEGA_LAST, S_P_LAST, S_Q_LAST, S_REF_LAST, S_STEPS, S_THETA,
-    S_U_EST, S_U_PREV, S_V_LAST, S_VALID_TIME, S_W_F, S_WIND_EST,
+    S_U_EST, S_U_PREV, S_V_LAST, S_VALID_TIME, S_W_F, S_WIND_EST, P_UNSEEN_ACCEL, S_UNSEEN_FLOW,
 )
 from .tracking import limit_norm, reference_velocity
 
@@ -211,7 +213,19 @@ def front_end(params, state, meas, ref, dt) -> tuple:
     # q_inf floor, the probe's minimum airspeed) still says "the air is nearly still": use it.
     # Below the hover-blend airspeed the aerodynamic columns of Phi are ~V^2 ~ 0, so C_Tz keeps
     # adapting in hover instead of pausing whenever the fan is off.
-    if not probe_ok and meas[L.MEAS_V_I_VALID] == 0.0 and all_finite and V_probe < params[P_V_LO]:
+    # But the probe reads the same "invalid, near zero" with the flow outside its cone (wind from the
+    # side or behind), and taking that for still air made every adaptive law adapt on a regressor
+    # without the wind (issue #11). An unseen flow shows in the accelerometer: the body-horizontal
+    # prediction error (the model has no horizontal force in still air) is then large.
+    if state[S_FILT_INIT] > 0.0:
+        e_prev = prediction_error(state)
+        e_h = np.sqrt(e_prev[0] * e_prev[0] + e_prev[1] * e_prev[1])
+        if e_h > params[P_UNSEEN_ACCEL + 1]:
+            state[S_UNSEEN_FLOW] = 1.0
+        elif e_h < params[P_UNSEEN_ACCEL]:
+            state[S_UNSEEN_FLOW] = 0.0
+    if (not probe_ok and meas[L.MEAS_V_I_VALID] == 0.0 and all_finite and V_probe < params[P_V_LO]
+            and not state[S_UNSEEN_FLOW] > 0.0):
         probe_ok = True
     if meas[L.MEAS_V_I_VALID] != 1.0:
         faults |= FAULT_PROBE  # the sensor's own flag is always reported, even when the reading is used

@@ -199,7 +199,10 @@ def controller_params(config, vehicle, theta_0=None, P0_diag=None, theta_lower=N
         ys = [abs(p[1]) for p in vehicle.geometry.lift_rotor_positions_m]
         tau_max = 2.0 * T_rotor * np.array([max(ys), max(xs), vehicle.actuators.yaw_torque_per_thrust_m])
     V_lo, V_hi = vehicle.envelope.hover_blend_airspeed_mps
-
+    wv = config.weathervane_airspeed_mps if config.weathervane_airspeed_mps is not None else (0.75 * V_lo, V_lo)
+    tol = np.radians(config.wing_heading_tolerance_deg)
+    # the two trims together must leave alpha_min - trim_lo below alpha_max - trim_hi
+    trim_max = min(np.radians(config.alpha_protect_trim_max_deg), 0.45 * (alpha_max - alpha_min))
 
     p = SHARED_PARAMS.pack(
         LAW_INDEX=law_index(config.kind), K_V=config.K_v, LAMBDA_P=config.Lambda_p, LAMBDA_Q=config.Lambda_q,
@@ -214,7 +217,12 @@ def controller_params(config, vehicle, theta_0=None, P0_diag=None, theta_lower=N
         TAU_MAX=tau_max, U_MAX=u_max, VPROBE_MAX=config.probe_airspeed_max_mps,
         WIND_TAU=config.wind_estimate_time_constant_s, WIND_FADE=config.wind_estimate_fade_s,
         DT_NOMINAL=1.0 / config.loop_rate_hz, MOTOR_LAG_ON=1.0 if config.regressor_motor_lag else 0.0,
-        MOTOR_TAU=(vehicle.actuators.pusher_motor_time_constant_s, vehicle.actuators.lift_motor_time_constant_s))
+        MOTOR_TAU=(vehicle.actuators.pusher_motor_time_constant_s, vehicle.actuators.lift_motor_time_constant_s),
+        WV_AIRSPEED=wv, HEADING_TAU=config.heading_time_constant_s,
+        HEADING_RATE=np.radians(config.heading_rate_max_degps), ALIGN_COS=(np.cos(tol[0]), np.cos(tol[1])),
+        AP_GAIN=config.alpha_protect_gain_per_s, AP_TAU=1.0 / (2.0 * np.pi * config.alpha_protect_filter_hz),
+        AP_TRIM_MAX=trim_max, AP_SIGMAS=config.alpha_protect_sigmas,
+        AP_SPREAD_TAU=config.alpha_protect_spread_time_constant_s, UNSEEN_ACCEL=config.unseen_flow_accel_mps2)
     law = config.info.law
     ctx = LawContext(config=config, vehicle=vehicle, theta_0=th0, P0=P0, dt_nominal_s=1.0 / config.loop_rate_hz)
     own = np.asarray(law.fill_params(config.law_settings, ctx), dtype=float)

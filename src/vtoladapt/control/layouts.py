@@ -70,11 +70,22 @@ SHARED_PARAMS = BlockLayout("controller parameters (shared)", [
     Field("DT_NOMINAL", 1, "s", "nominal tick, replaces an invalid dt"),
     Field("MOTOR_LAG_ON", 1, "-", "1: the regressor's throttles pass through the nominal motor lag"),
     Field("MOTOR_TAU", 2, "s", "nominal motor time constants: pusher, lift"),
+    Field("WV_AIRSPEED", 2, "m/s", "weathervane: off below the first horizontal airspeed, on above the second"),
+    Field("HEADING_TAU", 1, "s", "time constant of the commanded heading"),
+    Field("HEADING_RATE", 1, "rad/s", "rate limit of the commanded heading"),
+    Field("ALIGN_COS", 2, "-", "cosines of the heading tolerances: wing weight full, zero"),
+    Field("AP_GAIN", 1, "1/s", "flow-angle protection: integral gain on the measured alpha's excess"),
+    Field("AP_TAU", 1, "s", "flow-angle protection: time constant of the measured-alpha filter"),
+    Field("AP_TRIM_MAX", 1, "rad", "flow-angle protection: largest shift of an alpha_d limit"),
+    Field("AP_SIGMAS", 1, "-", "flow-angle protection: guarded alpha = filtered alpha + this many spreads"),
+    Field("AP_SPREAD_TAU", 1, "s", "flow-angle protection: time constant of the alpha spread estimate"),
+    Field("UNSEEN_ACCEL", 2, "m/s^2", "body-horizontal prediction error: unseen flow off below, on above"),
 ])
 (P_LAW_INDEX, P_K_V, P_LAMBDA_P, P_LAMBDA_Q, P_K_OMEGA, P_J, P_MODEL, P_PRIOR, P_LOWPASS_HZ, P_GAMMA_LYAP,
  P_HOLDOFF_S, P_ALPHA_MIN, P_ALPHA_MAX, P_V_LO, P_V_HI, P_TILT_MAX, P_MIN_LIFT, P_ACC_MAX, P_VCORR_MAX,
  P_VERR_MAX, P_WD_ON, P_WD_HZ, P_WD_MAX, P_WD_DOT_MAX, P_TAU_MAX, P_U_MAX, P_VPROBE_MAX, P_WIND_TAU,
- P_WIND_FADE, P_DT_NOMINAL, P_MOTOR_LAG_ON, P_MOTOR_TAU) = SHARED_PARAMS.offsets(*(f.name for f in SHARED_PARAMS.fields))
+ P_WIND_FADE, P_DT_NOMINAL, P_MOTOR_LAG_ON, P_MOTOR_TAU, P_WV_AIRSPEED, P_HEADING_TAU, P_HEADING_RATE, P_ALIGN_COS,
+ P_AP_GAIN, P_AP_TAU, P_AP_TRIM_MAX, P_AP_SIGMAS, P_AP_SPREAD_TAU, P_UNSEEN_ACCEL) = SHARED_PARAMS.offsets(*(f.name for f in SHARED_PARAMS.fields))
 (P_THETA0, P_THETA_INIT, P_LOWER, P_UPPER, P_GAMMA0, P_P0) = SHARED_PARAMS.nested(
     "PRIOR", ad.PRIOR, "THETA0", "THETA_INIT", "LOWER", "UPPER", "GAMMA0", "P0")
 P_LAW = SHARED_PARAMS.size
@@ -126,12 +137,21 @@ SHARED_STATE = BlockLayout("controller state (shared)", [
     Field("V_I_LAW", 3, "m/s", "incident velocity used this tick, body (the laws' model-validity measure)"),
     Field("INFO_SUM", N_THETA * N_THETA, "s (m/s^2 per adaptation unit)^2",
           "un-forgotten information sum of w_pred W^T W dt over the adapting ticks (identifiability)"),
+    Field("HEADING", 1, "rad", "commanded heading (multirotor solution, wing alignment)"),
+    Field("TURN_SIGN", 1, "-", "direction of the heading turn under way: -1, 0, +1"),
+    Field("WV_ON", 1, "-", "1 while the heading weathervanes into the flow"),
+    Field("YAW_REF_PREV", 1, "rad", "last tick's reference yaw (its change is fed forward)"),
+    Field("HAVE_HEADING", 1, "-", "1 once HEADING holds one"),
+    Field("ALPHA_F", 1, "rad", "filtered measured angle of attack"),
+    Field("ALPHA_TRIM", 2, "rad", "flow-angle protection trims: upper (>= 0), lower (<= 0)"),
+    Field("ALPHA_VAR", 1, "rad^2", "variance of the measured alpha about its filtered value"),
+    Field("UNSEEN_FLOW", 1, "-", "1 while the prediction error shows airflow the probe does not report"),
 ])
 (S_ESTIMATE, S_FILT_INIT, S_V_PREV, S_U_PREV, S_TAU_PREV, S_Q_D_PREV, S_WD_X1, S_WD_X2, S_HAVE_QD, S_Y_I_PREV,
  S_HAVE_Y_I, S_WIND_EST, S_HAVE_WIND, S_VALID_TIME, S_P_LAST, S_V_LAST, S_Q_LAST, S_OMEGA_LAST, S_HAVE_MEAS,
  S_REF_LAST, S_HAVE_REF, S_SAT_PREV, S_RES_PREV_W, S_TIME, S_STEPS, S_U_EST, S_GAINS_DT,
- S_GAINS) = SHARED_STATE.offsets(*(f.name for f in SHARED_STATE.fields[:28]))
-S_V_I_LAW, S_INFO_SUM = SHARED_STATE.offsets("V_I_LAW", "INFO_SUM")
+ S_GAINS, S_V_I_LAW, S_INFO_SUM, S_HEADING, S_TURN_SIGN, S_WV_ON, S_YAW_REF_PREV, S_HAVE_HEADING, S_ALPHA_F,
+ S_ALPHA_TRIM, S_ALPHA_VAR, S_UNSEEN_FLOW) = SHARED_STATE.offsets(*(f.name for f in SHARED_STATE.fields))
 S_THETA, S_GAMMA, S_W_F, S_AM_F = SHARED_STATE.nested("ESTIMATE", ad.MEMORY, "THETA", "GAMMA", "W", "A_M")
 S_LAW = SHARED_STATE.size
 """First slot of the law's own state block."""
@@ -178,11 +198,21 @@ DIAGNOSTICS = BlockLayout("controller diagnostics", [
     Field("INTEGRATOR", 3, "m/s^2", "the law's integral term (written by the law; 0 by default)",
           _cols("integrator", _XYZ_NED, "mps2")),
     Field("FAULTS", 1, "-", "sum of the FAULT_* bits", ("fault_flags",)),
+    Field("HEADING", 1, "rad", "commanded heading", ("heading_cmd_rad",)),
+    Field("WV_ON", 1, "-", "1 while weathervaning into the flow", ("weathervane_on",)),
+    Field("ALPHA_MEAS", 1, "rad", "filtered measured angle of attack", ("alpha_meas_filt_rad",)),
+    Field("ALPHA_LIMITS", 2, "rad", "alpha_d limits flown after the flow-angle protection",
+          ("alpha_min_flown_rad", "alpha_max_flown_rad")),
+    Field("ALPHA_SPREAD", 1, "rad", "standard deviation of the measured alpha about its filtered value",
+          ("alpha_meas_spread_rad",)),
+    Field("UNSEEN_FLOW", 1, "-", "1 while the prediction error shows airflow the probe does not report",
+          ("unseen_flow",)),
 ])
 (DIAG_P_TILDE, DIAG_V_TILDE, DIAG_V_R, DIAG_Q_TILDE, DIAG_F_R, DIAG_Q_D, DIAG_OMEGA_D, DIAG_OMEGA_R, DIAG_ALPHA_D,
  DIAG_AIRSPEED, DIAG_BLEND, DIAG_V_I_USED, DIAG_WIND_EST, DIAG_THETA_HAT, DIAG_P_DIAG, DIAG_PRED_ERR, DIAG_A_M,
  DIAG_W_THETA, DIAG_ALLOC_RES, DIAG_SAT_X, DIAG_SAT_Z, DIAG_PROBE_VALID, DIAG_ADAPT_ACTIVE, DIAG_PROJ_ACTIVE,
- DIAG_LYAP_V, DIAG_LYAP_Q, DIAG_INTEGRATOR, DIAG_FAULTS) = DIAGNOSTICS.offsets(*(f.name for f in DIAGNOSTICS.fields))
+ DIAG_LYAP_V, DIAG_LYAP_Q, DIAG_INTEGRATOR, DIAG_FAULTS, DIAG_HEADING, DIAG_WV_ON, DIAG_ALPHA_MEAS,
+ DIAG_ALPHA_LIMITS, DIAG_ALPHA_SPREAD, DIAG_UNSEEN_FLOW) = DIAGNOSTICS.offsets(*(f.name for f in DIAGNOSTICS.fields))
 DIAG_SIZE = DIAGNOSTICS.size
 CONTROLLER_DIAG_COLUMNS: tuple[str, ...] = DIAGNOSTICS.columns
 """Names of the ``diag`` entries, in order, with units in the names. ``sat_u_*``: -1 (throttle at
