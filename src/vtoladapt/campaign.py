@@ -474,10 +474,15 @@ def local_cluster(n_workers: Optional[int] = None, listen: str = LOOPBACK):
     (loopback by default, so nothing is reachable from the network), each on a free port so two
     campaigns can run at once.
     """
+    import logging
+
     from dask.distributed import LocalCluster
 
+    # Dask's own log lines are kept to the critical ones: at shutdown a worker whose heartbeat
+    # meets the closing scheduler logs a three-part traceback at ERROR, which is noise; a failed
+    # or lost run still surfaces through its future as a one-line error.
     return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, host=listen,
-                        dashboard_address=f"{listen}:0")
+                        dashboard_address=f"{listen}:0", silence_logs=logging.CRITICAL)
 
 
 def _check_scheduler(address: str) -> None:

@@ -55,26 +55,30 @@ def readme_tables(metrics: dict) -> str:
     return "\n".join(table_markdown(t) for t in parts)
 
 
-def readme_block(text: str) -> str:
-    """The generated block of a README's text (between the markers, exclusive)."""
+def readme_block(text: str, begin: str = BEGIN, end: str = END) -> str:
+    """The generated block of a README's text (between the markers ``begin`` and ``end``, exclusive)."""
     try:
-        start = text.index(BEGIN) + len(BEGIN)
-        end = text.index(END, start)
+        start = text.index(begin) + len(begin)
+        stop = text.index(end, start)
     except ValueError:
-        raise ValueError(f"README has no block between {BEGIN!r} and {END!r}") from None
-    return text[start:end].strip("\n") + "\n"
+        raise ValueError(f"README has no block between {begin!r} and {end!r}") from None
+    return text[start:stop].strip("\n") + "\n"
+
+
+def replace_readme_block(readme_path: Path, block: str, begin: str = BEGIN, end: str = END) -> None:
+    """Rewrite the generated block of the README at ``readme_path`` with ``block`` (Markdown)."""
+    text = Path(readme_path).read_text()
+    readme_block(text, begin, end)  # the markers must be there
+    start = text.index(begin) + len(begin)
+    stop = text.index(end, start)
+    Path(readme_path).write_text(text[:start] + "\n\n" + block + "\n" + text[stop:])
 
 
 def update_readme(metrics_path: Path, readme_path: Path) -> None:
     """Rewrite the README's generated block from ``metrics_path`` and keep a copy of the metrics
     in ``docs/reproduce_metrics.json`` next to the README."""
     metrics = json.loads(Path(metrics_path).read_text())
-    text = Path(readme_path).read_text()
-    readme_block(text)  # the markers must be there
-    start = text.index(BEGIN) + len(BEGIN)
-    end = text.index(END, start)
-    text = text[:start] + "\n\n" + readme_tables(metrics) + "\n" + text[end:]
-    Path(readme_path).write_text(text)
+    replace_readme_block(readme_path, readme_tables(metrics))
     docs = Path(readme_path).parent / "docs" / "reproduce_metrics.json"
     if Path(metrics_path).resolve() != docs.resolve():
         shutil.copyfile(metrics_path, docs)
