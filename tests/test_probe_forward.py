@@ -51,11 +51,16 @@ def test_sphere_potential_flow_stagnation_and_equator():
                                                    (60.0, 1.8, -0.02)])
 def test_differential_pressures_match_closed_forms(port_angle_deg, K, cps):
     """q_alpha = 2K sin(2d) q n_x n_z, q_beta = 2K sin(2d) q n_x n_y,
-    q_inf = q (1 - K (1 - n_x^2) - C_ps) (the tip law's closed forms)."""
+    q_inf = q (1 - K (1 - n_x^2) - C_ps) (the tip law's closed forms, for directions where every
+    port is windward; leeward ports read the wake law)."""
     rng = np.random.default_rng(3)
     tip = ProbeTip(port_angle_deg=port_angle_deg, pressure_factor=K,
                    static_port_coefficient=cps)
-    n = _random_directions(rng, 500)
+    n = _random_directions(rng, 4000)
+    c, s = math.cos(math.radians(port_angle_deg)), math.sin(math.radians(port_angle_deg))
+    windward = (n[:, 0] >= 0) & (c * n[:, 0] - s * np.abs(n[:, 2]) >= 0) & (c * n[:, 0] - s * np.abs(n[:, 1]) >= 0)
+    n = n[windward][:500]
+    assert len(n) == 500
     V = rng.uniform(1.0, 30.0, 500)
     rho = rng.uniform(0.9, 1.3, 500)
     v = n * V[:, None]
@@ -165,3 +170,34 @@ def test_settings_build_from_config_tables():
     assert tip.port_angle_deg == 40.0
     with pytest.raises(ConfigError, match="unknown key"):
         build(SDP33Sensor, {"noise_Pa": 0.1}, source="vehicle.toml", section="probe.sensor")
+
+
+def test_a_flow_from_behind_reads_the_wake_not_a_headwind():
+    """Straight from behind every port sits in the separated wake: the centre port reads the base
+    pressure CP_WAKE q (not a stagnation q), the pairs read nothing, and the q_inf the probe's
+    calibration needs is negative, so the reading is refused as a real probe's would be."""
+    from vtoladapt.probe.tip import CP_WAKE, ProbeTip, probe_differential_pressures
+
+    tip = ProbeTip()
+    rho, V = 1.2, 8.0
+    q = np.empty(3)
+    probe_differential_pressures(np.array([-V, 0.0, 0.0]), rho, tip.to_kernel(), q)
+    np.testing.assert_allclose(q, [CP_WAKE * 0.5 * rho * V * V, 0.0, 0.0], atol=1e-12)
+    probe_differential_pressures(np.array([V, 0.0, 0.0]), rho, tip.to_kernel(), q)
+    assert q[0] == pytest.approx(0.5 * rho * V * V)  # head-on: the full dynamic pressure
+
+
+@pytest.mark.parametrize("K", [1.0, 2.25, 3.0])
+def test_port_pressure_is_continuous_at_ninety_degrees_and_potential_flow_windward(K):
+    """Cp(theta) is continuous across 90 deg, equals 1 - K sin^2 on the windward side and reaches
+    CP_WAKE at 180 deg."""
+    from vtoladapt.probe.tip import CP_WAKE, port_pressure_coefficient
+
+    eps = 1e-9
+    assert port_pressure_coefficient(eps, K) == pytest.approx(port_pressure_coefficient(-eps, K), abs=1e-8)
+    for theta in np.radians([0.0, 20.0, 45.0, 65.0, 89.0]):
+        assert port_pressure_coefficient(np.cos(theta), K) == pytest.approx(1.0 - K * np.sin(theta) ** 2)
+    assert port_pressure_coefficient(-1.0, K) == pytest.approx(CP_WAKE)
+    thetas = np.radians(np.linspace(0.0, 180.0, 3601))
+    cp = np.array([port_pressure_coefficient(np.cos(t), K) for t in thetas])
+    assert np.max(np.abs(np.diff(cp))) < 4 * K * np.radians(0.05)  # no jump anywhere

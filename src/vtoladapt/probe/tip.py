@@ -36,11 +36,18 @@ direction the air comes from (the stagnation direction ``v_i_B / V``). We use
 applied to the cone's face normal, ``d = 90 deg - cone half-angle``, with ``K`` as an empirical
 factor). Port pressures (gauge, relative to free-stream static) are ``p_j = q Cp_j`` with
 ``q = rho V^2 / 2``; the static reference reads ``q * C_ps`` (``C_ps`` =
-:attr:`ProbeTip.static_port_coefficient`, 0 for a perfect static source). The model is valid
-for the flow arriving over the front of the tip (cone angle well below ``90 deg - d``); it gives
-finite numbers for any direction.
+:attr:`ProbeTip.static_port_coefficient`, 0 for a perfect static source).
 
-Closed forms that follow (used in the tests): with ``n = v_i_B / V``,
+A port facing away from the flow (``theta_j > 90 deg``) sits in the tip's separated wake, not in
+a second potential-flow stagnation region: its ``Cp`` goes from the potential value ``1 - K`` at
+90 deg to the wake's base pressure :data:`CP_WAKE` at 180 deg (weight ``cos^2 theta_j``; continuous
+at 90 deg). The symmetric law alone made a flow from straight behind stagnate on the centre port
+and read as a valid headwind of the same speed; in the wake every port reads about the base
+pressure, ``q_inf`` is negative and the calibration flags the reading invalid, as a real probe's
+would be. Inside the calibrated cone every port is windward (``theta_j <= d + cone < 90 deg``),
+so the calibration and everything below are unchanged by it.
+
+Closed forms that follow while every port is windward (used in the tests): with ``n = v_i_B / V``,
 ``q_alpha = 2 K sin(2 d) q n_x n_z``, ``q_beta = 2 K sin(2 d) q n_x n_y`` and
 ``q_inf = q (1 - K (1 - n_x^2) - C_ps)``; so eq:aoa is exact to first order in the flow angles
 with ``k = 1 / (2 K sin 2d)`` (:meth:`ProbeTip.ideal_k`).
@@ -66,6 +73,10 @@ TIP_PARAMS = BlockLayout("probe tip parameters", [
 TIP_PORT_ANGLE_RAD, TIP_PRESSURE_FACTOR, TIP_STATIC_COEFFICIENT = TIP_PARAMS.offsets(
     "PORT_ANGLE", "PRESSURE_FACTOR", "STATIC_COEFFICIENT")
 TIP_KERNEL_SIZE = TIP_PARAMS.size
+
+CP_WAKE = -0.3
+"""Base pressure coefficient behind the tip, where the flow has separated: a sphere's base pressure
+is -0.2 to -0.4 at the probe's Reynolds numbers (1e3-1e5; Achenbach 1972, J. Fluid Mech. 54)."""
 
 # Order of the ports in probe_port_pressures' output.
 PORT_NAMES = ("centre", "bottom", "top", "right", "left", "static")
@@ -169,6 +180,19 @@ def _as_batch(v_i_B, rho) -> tuple[np.ndarray, np.ndarray, bool]:
     return v, r, single
 
 
+@njit(cache=True, inline="always")
+def port_pressure_coefficient(cos_theta, K):
+    """``Cp`` of a port whose normal makes ``theta`` with the direction the air comes from.
+
+    Windward (``cos theta >= 0``): ``1 - K sin^2 theta``; leeward: from ``1 - K`` at 90 deg to
+    :data:`CP_WAKE` at 180 deg with weight ``cos^2 theta`` (see the module notes).
+    """
+    c2 = cos_theta * cos_theta
+    if cos_theta >= 0.0:
+        return 1.0 - K * (1.0 - c2)
+    return (1.0 - K) * (1.0 - c2) + CP_WAKE * c2
+
+
 # inline="always" here and below: the simulator's sensors_step calls these every tick, and
 # as separate calls their array arguments' reference counting cost more than their arithmetic.
 @njit(cache=True, inline="always")
@@ -195,17 +219,17 @@ def _ports(v_i_B, rho, tip):
     cos_t = c * nx - s * nz
     cos_r = c * nx + s * ny
     cos_l = c * nx - s * ny
-    return (q * (1.0 - K * (1.0 - nx * nx)),
-            q * (1.0 - K * (1.0 - cos_b * cos_b)),
-            q * (1.0 - K * (1.0 - cos_t * cos_t)),
-            q * (1.0 - K * (1.0 - cos_r * cos_r)),
-            q * (1.0 - K * (1.0 - cos_l * cos_l)),
+    return (q * port_pressure_coefficient(nx, K),
+            q * port_pressure_coefficient(cos_b, K),
+            q * port_pressure_coefficient(cos_t, K),
+            q * port_pressure_coefficient(cos_r, K),
+            q * port_pressure_coefficient(cos_l, K),
             q * tip[TIP_STATIC_COEFFICIENT])
 
 
 @njit(cache=True)
 def probe_port_pressures(v_i_B, rho, tip, out_p):
-    """Port pressures of the tip for incident velocity ``v_i_B`` (potential-flow law).
+    """Port pressures of the tip for incident velocity ``v_i_B`` (potential flow; the wake law on leeward ports).
 
     Parameters
     ----------
