@@ -100,6 +100,7 @@ def _spd_checks(Gamma, P0):
     return P
 
 
+@pytest.mark.slow  # 16 s; in the default suite the closed-loop tests check that the composite law learns the model
 def test_persistent_excitation_converges_to_the_truth(caltech):
     th0, P0, G0, lo, hi = _prior(caltech)
     theta_true = th0 * (1 + np.array([0.1, -0.05, 0.3, 0.2, -0.3, 0.15, -0.2, 0.1]))
