@@ -125,10 +125,13 @@ def controller_prior(scenario: Scenario, vehicle: Vehicle):
 def run_chunk(run: PreparedRun, x: np.ndarray, k0: int, k1: int, log: np.ndarray) -> tuple[int, int]:
     """Advance ``run`` (state ``x``) over ticks ``k0 .. k1-1`` into ``log`` (``k1 - k0`` rows).
 
-    Returns ``(ticks_done, reason)`` of :func:`vtoladapt.compiled_loop.run_closed_loop`.
+    Returns ``(ticks_done, reason)`` of :func:`vtoladapt.compiled_loop.run_closed_loop`. Raises
+    KeyboardInterrupt first if Ctrl-C was pressed (:func:`vtoladapt.errors.check_interrupt`): a
+    Ctrl-C Python dropped inside a C callback still stops every caller's run at its next chunk.
     """
     from .compiled_loop import run_closed_loop
 
+    check_interrupt()
     sc = run.scenario
     done, reason = run_closed_loop(
         x, run.plant_params, run.mixer_params, run.controller_params, run.controller_state,
@@ -136,12 +139,6 @@ def run_chunk(run: PreparedRun, x: np.ndarray, k0: int, k1: int, log: np.ndarray
         k0 * sc.dt_control_s, sc.dt_control_s, sc.plant_substeps, run.rng, run.theta_true, run.gamma,
         run.fault_schedule, run.fault_state, run.envelope, log)
     return int(done), int(reason)
-
-
-def _information_sum(state: np.ndarray) -> np.ndarray:
-    from .control.kernel import information_sum
-
-    return information_sum(state)
 
 
 def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) -> SimulationResult:
@@ -152,6 +149,7 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
     (:mod:`vtoladapt.monitor`); nothing is raised (``result.raise_if_diverged()`` does).
     """
     from .compiled_loop import LOG_COLUMNS, N_LOG
+    from .control.kernel import information_sum
 
     run = prepare(scenario)
     n = scenario.n_ticks
@@ -161,7 +159,6 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
     wall0 = time.perf_counter()
     n_done, reason = n, 0
     for k0 in range(0, n, chunk):
-        check_interrupt()  # a Ctrl-C Python dropped inside a C callback still stops the run here
         k1 = min(n, k0 + chunk)
         done, reason = run_chunk(run, x, k0, k1, log[k0:k1])
         if reason != 0:
@@ -190,7 +187,7 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
         "faults": [dataclasses.asdict(f) for f in scenario.faults],
         "plant_coefficients": run.plant_coefficients,
         # the adaptation's un-forgotten information sum (identifiability; zero for non-adaptive laws)
-        "information_sum": _information_sum(run.controller_state).tolist(),
+        "information_sum": information_sum(run.controller_state).tolist(),
     }
     return SimulationResult(LOG_COLUMNS, log, metadata)
 
