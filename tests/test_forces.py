@@ -202,13 +202,20 @@ def test_regressor_rows_equals_rowwise_regressor(rng):
 # --- Jacobian against finite differences -------------------------------------------------------
 
 def _fd_jacobian(fun, v, ux, uz, hv=1e-4, hu=1e-4):
+    """Five-point central differences, truncation O(h^4). The three-point stencil's error
+    h^2 f'''(v)/6 reaches 5e-7 inside the 8 deg stall blend at 1.5 m/s airspeed (the smoothstep's
+    third derivative is 12/w^3), above the 1e-6 relative bound, although the analytic Jacobian
+    agrees with this stencil to 1e-12 there (caltech_vtol, v_i = [1.4375, 0, 0.625] m/s)."""
+    def d5(g, h):
+        return (-g(2 * h) + 8 * g(h) - 8 * g(-h) + g(-2 * h)) / (12 * h)
+
     J_v = np.empty((3, 3))
     for j in range(3):
-        d = np.zeros(3)
-        d[j] = hv
-        J_v[:, j] = (fun(v + d, ux, uz) - fun(v - d, ux, uz)) / (2 * hv)
-    J_u = np.column_stack([(fun(v, ux + hu, uz) - fun(v, ux - hu, uz)) / (2 * hu),
-                           (fun(v, ux, uz + hu) - fun(v, ux, uz - hu)) / (2 * hu)])
+        e = np.zeros(3)
+        e[j] = 1.0
+        J_v[:, j] = d5(lambda h: fun(v + h * e, ux, uz), hv)
+    J_u = np.column_stack([d5(lambda h: fun(v, ux + h, uz), hu),
+                           d5(lambda h: fun(v, ux, uz + h), hu)])
     return J_v, J_u
 
 
@@ -232,6 +239,7 @@ def test_jacobian_matches_central_differences(name, vx, vy, vz, ux, uz):
 
 @given(vehicle_name, vel, vel, vel, st.floats(0.0, 1.0), st.floats(0.05, 1.0),
        st.lists(st.floats(0.2, 2.0), min_size=8, max_size=8))
+@example("caltech_vtol", 1.4375, 0.0, 0.625, 0.0, 0.05, [1.0] * 8)  # inside the stall blend
 def test_kernel_jacobian_with_random_theta(name, vx, vy, vz, ux, uz, factors):
     assume(_smooth_point(vx, vy, vz))
     veh = VEHICLES[name]
