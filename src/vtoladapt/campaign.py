@@ -582,9 +582,9 @@ class _NoProgress:
 def _progress(total: int, show: bool):
     if not show:
         return _NoProgress()
-    from tqdm import tqdm
+    from .progress import progress_bar
 
-    return tqdm(total=total, unit="run", desc="campaign", file=sys.stderr)
+    return progress_bar(total=total, unit="run", desc="campaign")
 
 
 def _write_outputs(rows: list[dict], out: Path, varied: tuple[str, ...] = ()) -> None:

@@ -44,13 +44,12 @@ from .metrics import (THETA_SCALED_UNITS, comparison_metrics, convergence_metric
                       fan_throttle_series)
 from .distribution import (ABLATION_EFFECTS, WIND_CONDITIONS, ablation, comparison_distribution,
                            convergence_distribution, variant_seeds, wind_table)
-from .readme import readme_tables
 from .report import Report, build_report, render_html, render_markdown, write_report
 from .running import reproduce, run_comparison, run_convergence, run_experiment
 
 __all__ = [
     "ABLATION_EFFECTS", "WIND_CONDITIONS", "ablation", "comparison_distribution",
-    "convergence_distribution", "readme_tables", "variant_seeds", "wind_table",
+    "convergence_distribution", "variant_seeds", "wind_table",
     "ADAPTIVE_IDS", "CLAIM_UNITS", "COMPOSITE_IDS", "CONTROLLER_COLORS", "CONTROLLER_LABELS",
     "PLOT_FILTER_HZ", "PRED_ERR_COLUMNS", "Report", "THETA_SCALED_UNITS", "build_report",
     "check_claims", "comparison_metrics", "controller_style", "convergence_metrics",

@@ -39,11 +39,11 @@ class _Progress:
     def __init__(self, total_s: float, show: bool, desc: str):
         self.bar = None
         if show:
-            from tqdm import tqdm
+            from ..progress import progress_bar
 
-            self.bar = tqdm(total=round(total_s, 1), unit="sim s", desc=desc, file=sys.stderr,
-                            bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.0f}/{total:.0f} sim s "
-                                       "[{elapsed}<{remaining}]")
+            self.bar = progress_bar(total=round(total_s, 1), unit="sim s", desc=desc,
+                                    bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.0f}/{total:.0f} "
+                                               "sim s [{elapsed}<{remaining}]")
         self.done = 0.0
 
     def callback(self):

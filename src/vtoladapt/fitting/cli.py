@@ -325,7 +325,7 @@ def cmd_fit_realdata(args: argparse.Namespace) -> int:
 
 def cmd_fit_validate(args: argparse.Namespace) -> int:
     """Handler of ``vtoladapt fit-validate``; returns the exit code."""
-    from tqdm import tqdm
+    from ..progress import progress_bar
 
     from .bayes import SamplerSettings
     from .report import validation_fit_count, validation_report
@@ -336,9 +336,9 @@ def cmd_fit_validate(args: argparse.Namespace) -> int:
     repeats = (1, 4) if args.quick else (1, 4, 16)
     target = OutputDir(args.out, "fit-validate", force=args.force)
     # a bar over the fits: a full validation takes minutes, and each fit is silent
-    bar = tqdm(total=validation_fit_count(n_seeds, repeats), unit="fit", desc="fit-validate",
-               file=sys.stderr, disable=args.quiet,
-               bar_format="{desc}: {n_fmt}/{total_fmt} fits |{bar}| [{elapsed}<{remaining}] {postfix}")
+    bar = progress_bar(total=validation_fit_count(n_seeds, repeats), unit="fit", desc="fit-validate",
+                       disable=args.quiet,
+                       bar_format="{desc}: {n_fmt}/{total_fmt} fits |{bar}| [{elapsed}<{remaining}] {postfix}")
     started = [False]
 
     def progress(what: str) -> None:
