@@ -12,11 +12,12 @@ cache line between the cores at every slice. The actions, operations, tick count
 are one array each for the whole batch, each chunk stepping through its rows (views): a step
 copies the actions in once and the outputs out once, whatever the number of chunks.
 
-Threads: ``workers - 1`` persistent threads (:class:`_Workers`) and the calling thread claim
-chunks one at a time until none is left, so a thread that the operating system delays (a busy
-machine) leaves its share to the others instead of holding the whole step up; a hand-off is a
-semaphore, not a ``concurrent.futures`` future (measured: the pool's submit and result cost
-about 100 us of CPU per step, 0.4 us per env-step at 256 environments).
+Threads: ``workers - 1`` persistent threads (:class:`_Workers`) and the calling thread step the
+chunks, each its own share first, then whatever another has not started (:class:`_Claims`), so a
+thread that the operating system delays (a busy machine) leaves most of its share to the others
+instead of holding the whole step up. A hand-off is a semaphore, not a ``concurrent.futures``
+future (measured on a busy machine: the pool's submit and result cost about 100 us of CPU per
+step, 0.4 us per env-step at 256 environments).
 """
 from __future__ import annotations
 
@@ -36,7 +37,7 @@ from ..scenario import Scenario
 from ..sensors import SENSOR_STATE
 from ..simulate import PreparedRun, prepare
 from .config import HoldEnvConfig
-from .kernel import (B_SENS_S, BLOCKS, MODE_DIRECT, MODE_RESIDUAL, OP_BEGIN, OP_SKIP, OP_STEP, SET_ACTION_COST,
+from .kernel import (B_SENS_S, BLOCKS, O_SHARED, SHARED_BLOCKS, MODE_DIRECT, MODE_RESIDUAL, OP_BEGIN, OP_SKIP, OP_STEP, SET_ACTION_COST,
                      SET_COS_TILT_MAX, SET_DT_S, SET_MAX_ERR_M, SET_MODE, SET_N_SUB, SET_N_TICKS,
                      SET_PREFETCH_END, SET_RESIDUAL_SCALE, SET_U_MAX, SETTINGS_SIZE, step_batch)
 from .spaces import ACTION_SIZE, OBS_SIZE
@@ -47,7 +48,7 @@ others, few enough that the per-chunk call (about 3 us, unboxing its arguments) 
 MIN_CHUNK_ENVS = 16
 """No fewer environments per chunk (except when there are fewer than ``workers`` x this)."""
 
-_PER_RUN = BLOCKS[BLOCKS.index("plant_params"):]
+_PER_RUN = BLOCKS[BLOCKS.index("plant_params"):] + SHARED_BLOCKS
 """The blocks loaded from a :class:`~vtoladapt.simulate.PreparedRun` (attributes of that name)."""
 _SCRATCH_SIZES = {"x": X_SIZE, "v_wind": 3, "f_B": 3, "v_i": 3, "meas": MEAS_SIZE, "cmd": CMD_SIZE,
                   "base": CMD_SIZE, "diag": DIAG_SIZE, "motor": N_MOTORS, "work": RK4_WORK_SIZE}
@@ -58,9 +59,11 @@ _SENSOR_RING = SENSOR_STATE.offset("RING")
 
 
 def block_offsets(template: PreparedRun) -> np.ndarray:
-    """Column where each block of :data:`~vtoladapt.gym.kernel.BLOCKS` starts, and the row width last."""
+    """Column where each block of :data:`~vtoladapt.gym.kernel.BLOCKS` starts and the row width, then
+    the same for the shared table's :data:`~vtoladapt.gym.kernel.SHARED_BLOCKS` (from index ``O_SHARED``)."""
     sizes = [_SCRATCH_SIZES[b] if b in _SCRATCH_SIZES else getattr(template, b).size for b in BLOCKS]
-    return np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    shared = [getattr(template, b).size for b in SHARED_BLOCKS]
+    return np.concatenate([[0], np.cumsum(sizes), [0], np.cumsum(shared)]).astype(np.int64)
 
 
 class _Chunk:
@@ -70,7 +73,13 @@ class _Chunk:
         m = hi - lo
         self.lo, self.hi = lo, hi
         self.off = block_offsets(template)
-        self.S = np.zeros((m, int(self.off[-1])))
+        self.S = np.zeros((m, int(self.off[O_SHARED - 1])))
+        # the shared blocks' distinct values, one table row each, counted by the rows using them
+        self.P = np.zeros((m, int(self.off[-1])))
+        self.pidx = np.zeros(m, dtype=np.int64)
+        self._p_rows: dict[bytes, list[int]] = {}  # value -> [table row, rows using it]
+        self._p_key: list[Optional[bytes]] = [None] * m
+        self._p_free = list(range(m - 1, -1, -1))
         # views of the batch's arrays: written and read by the batch once per step for all chunks
         self.K = batch.K[lo:hi]
         self.op = batch.op[lo:hi]
@@ -90,23 +99,51 @@ class _Chunk:
                                                                     - self.off[B_SENS_S])
         # every array is updated in place, so the arguments are bound once
         self.args = (self.rngs, self.op, self.actions, self.settings, batch.tau_max.copy(), batch.ref_table.copy(),
-                     self.S, self.off, self.K, self.obs, self.reward, self.terminated, self.truncated)
+                     self.S, self.off, self.P, self.pidx, self.K, self.obs, self.reward, self.terminated,
+                     self.truncated)
 
     def block(self, j: int, name: str) -> np.ndarray:
-        """Row ``j``'s block ``name`` (a view)."""
+        """Row ``j``'s block ``name`` (a view; a shared block's is the table row it uses)."""
+        if name in SHARED_BLOCKS:
+            b = O_SHARED + SHARED_BLOCKS.index(name)
+            return self.P[self.pidx[j], self.off[b]:self.off[b + 1]]
         b = BLOCKS.index(name)
         return self.S[j, self.off[b]:self.off[b + 1]]
+
+    def _columns(self, key: str, value: np.ndarray, name: str) -> slice:
+        b = O_SHARED + SHARED_BLOCKS.index(key) if key in SHARED_BLOCKS else BLOCKS.index(key)
+        if value.size != self.off[b + 1] - self.off[b]:
+            raise ValueError(f"episode scenario {name!r}: {key} has {value.size} entries, the batch "
+                             f"{self.off[b + 1] - self.off[b]}; the randomisation must not change array sizes")
+        return slice(int(self.off[b]), int(self.off[b + 1]))
+
+    def _share(self, j: int, shared: np.ndarray) -> None:
+        """Point row ``j`` at the table row holding ``shared`` (stored there if no row holds it yet)."""
+        old = self._p_key[j]
+        if old is not None:
+            entry = self._p_rows[old]
+            entry[1] -= 1
+            if entry[1] == 0:
+                self._p_free.append(entry[0])
+                del self._p_rows[old]
+        key = shared.tobytes()
+        entry = self._p_rows.get(key)
+        if entry is None:
+            # at most m values are in use and row j's old one was just released: a row is free
+            entry = self._p_rows[key] = [self._p_free.pop(), 0]
+            self.P[entry[0]] = shared
+        entry[1] += 1
+        self._p_key[j] = key
+        self.pidx[j] = entry[0]
 
     def load(self, j: int, run: PreparedRun, name: str) -> None:
         row = self.S[j]
         row[:] = 0.0
+        shared = np.zeros(self.P.shape[1])
         for key in _PER_RUN:
             value = getattr(run, key)
-            b = BLOCKS.index(key)
-            if value.size != self.off[b + 1] - self.off[b]:
-                raise ValueError(f"episode scenario {name!r}: {key} has {value.size} entries, the batch "
-                                 f"{self.off[b + 1] - self.off[b]}; the randomisation must not change array sizes")
-            row[self.off[b]:self.off[b + 1]] = value
+            (shared if key in SHARED_BLOCKS else row)[self._columns(key, value, name)] = value
+        self._share(j, shared)
         self.block(j, "x")[:] = run.x0
         self.K[j] = 0
         self.generators[j] = run.rng
@@ -119,48 +156,68 @@ class _Chunk:
 
 
 class _Claims:
-    """The chunks of one step, handed out one at a time to whichever thread asks first."""
+    """The chunks of one step, handed out one at a time to the threads that ask.
 
-    def __init__(self, chunks: list[_Chunk]):
+    Thread ``t`` first takes its own contiguous share of the chunks, in order, so on an idle
+    machine each thread steps the same environments at every step (their rows stay in its
+    core's caches when they fit); a thread that runs out takes the last chunk left in the
+    largest remaining share, so a thread the machine delays holds the step up by one chunk at most.
+    """
+
+    def __init__(self, chunks: list[_Chunk], threads: int):
         self.chunks = chunks
         self.lock = threading.Lock()
-        self.next = len(chunks)
+        edges = np.linspace(0, len(chunks), threads + 1).round().astype(int)
+        self.own = [(int(edges[t]), int(edges[t + 1])) for t in range(threads)]
+        self.front = [hi for _, hi in self.own]  # nothing to claim until start()
+        self.back = [hi for _, hi in self.own]
         self.error: Optional[BaseException] = None
 
     def start(self) -> None:
-        self.next = 0
+        self.front = [lo for lo, _ in self.own]
+        self.back = [hi for _, hi in self.own]
         self.error = None
 
-    def run_until_empty(self) -> None:
-        """Step chunks until none is left (an exception is kept for the calling thread to raise)."""
-        chunks, lock = self.chunks, self.lock
+    def _claim(self, t: int) -> int:
+        with self.lock:
+            if self.front[t] < self.back[t]:
+                self.front[t] += 1
+                return self.front[t] - 1
+            left = [b - f for f, b in zip(self.front, self.back)]
+            u = int(np.argmax(left))
+            if left[u] <= 0:
+                return -1
+            self.back[u] -= 1
+            return self.back[u]
+
+    def run_until_empty(self, t: int) -> None:
+        """Step chunks as thread ``t`` until none is left (an exception is kept for the caller to raise)."""
         while True:
-            with lock:
-                j = self.next
-                if j >= len(chunks):
-                    return
-                self.next = j + 1
+            j = self._claim(t)
+            if j < 0:
+                return
             try:
-                chunks[j].run()
+                self.chunks[j].run()
             except BaseException as exc:  # re-raised by the thread that called RunBatch.advance
-                with lock:
+                with self.lock:
                     self.error = exc
-                    self.next = len(chunks)
+                    self.back = list(self.front)
                 return
 
 
-def _work(claims: _Claims, go: threading.Semaphore, done: threading.Semaphore, stop: threading.Event) -> None:
-    """A worker thread: at every ``go``, step chunks until none is left, then signal ``done``."""
+def _work(claims: _Claims, t: int, go: threading.Semaphore, done: threading.Semaphore,
+          stop: threading.Event) -> None:
+    """Worker thread ``t``: at every ``go``, step chunks until none is left, then signal ``done``."""
     while True:
         go.acquire()
         if stop.is_set():
             return
-        claims.run_until_empty()
+        claims.run_until_empty(t)
         done.release()
 
 
 class _Workers:
-    """``n`` persistent daemon threads that help the calling thread through a step's chunks.
+    """``n`` persistent daemon threads that help the calling thread (thread 0) through a step's chunks.
 
     The threads hold the chunks but not the batch, so a batch that is dropped without ``close``
     is still collected; its finaliser stops them.
@@ -168,27 +225,27 @@ class _Workers:
 
     def __init__(self, claims: _Claims, n: int):
         self.claims = claims
-        self.go = threading.Semaphore(0)
+        self.go = [threading.Semaphore(0) for _ in range(n)]
         self.done = threading.Semaphore(0)
         self.stop = threading.Event()
-        self.threads = [threading.Thread(target=_work, args=(claims, self.go, self.done, self.stop),
-                                         name=f"vtoladapt-gym-{i}", daemon=True) for i in range(n)]
+        self.threads = [threading.Thread(target=_work, args=(claims, t + 1, self.go[t], self.done, self.stop),
+                                         name=f"vtoladapt-gym-{t + 1}", daemon=True) for t in range(n)]
         for t in self.threads:
             t.start()
 
     def run(self) -> None:
         """Step every chunk: release the workers, work alongside them, wait for all of them."""
         self.claims.start()
-        for _ in self.threads:
-            self.go.release()
-        self.claims.run_until_empty()
+        for go in self.go:
+            go.release()
+        self.claims.run_until_empty(0)
         for _ in self.threads:
             self.done.acquire()
 
     def close(self) -> None:
         self.stop.set()
-        for _ in self.threads:
-            self.go.release()
+        for go in self.go:
+            go.release()
         for t in self.threads:
             t.join()
 
@@ -235,7 +292,7 @@ class RunBatch:
         edges = np.linspace(0, n, n_chunks + 1).round().astype(int)
         self.chunks = [_Chunk(self, int(edges[c]), int(edges[c + 1]), template) for c in range(n_chunks)]
         self._chunk_of = np.repeat(np.arange(n_chunks), np.diff(edges))
-        self._claims = _Claims(self.chunks)
+        self._claims = _Claims(self.chunks, workers)
         self._workers = _Workers(self._claims, workers - 1) if workers > 1 else None
         if self._workers is not None:
             self._finalizer = weakref.finalize(self, self._workers.close)
