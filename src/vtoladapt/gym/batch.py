@@ -184,7 +184,7 @@ class _Claims:
                 self.front[t] += 1
                 return self.front[t] - 1
             left = [b - f for f, b in zip(self.front, self.back)]
-            u = int(np.argmax(left))
+            u = max(range(len(left)), key=left.__getitem__)
             if left[u] <= 0:
                 return -1
             self.back[u] -= 1
@@ -205,9 +205,8 @@ class _Claims:
                 return
 
 
-def _work(claims: _Claims, t: int, go: threading.Semaphore, done: threading.Semaphore,
-          stop: threading.Event) -> None:
-    """Worker thread ``t``: at every ``go``, step chunks until none is left, then signal ``done``."""
+def _work(claims: _Claims, t: int, go, done, stop: threading.Event) -> None:
+    """Worker thread ``t``: whenever ``go`` is released, step chunks until none is left, then release ``done``."""
     while True:
         go.acquire()
         if stop.is_set():
@@ -219,16 +218,21 @@ def _work(claims: _Claims, t: int, go: threading.Semaphore, done: threading.Sema
 class _Workers:
     """``n`` persistent daemon threads that help the calling thread (thread 0) through a step's chunks.
 
-    The threads hold the chunks but not the batch, so a batch that is dropped without ``close``
-    is still collected; its finaliser stops them.
+    Each hand-off is a bare lock used as a binary semaphore (held = nothing to do; released by the
+    other side), which waits in C with the GIL released: ``threading.Semaphore`` and futures are
+    built on ``threading.Condition`` in Python, several times the cost. The threads hold the
+    chunks but not the batch, so a batch that is dropped without ``close`` is still collected;
+    its finaliser stops them.
     """
 
     def __init__(self, claims: _Claims, n: int):
         self.claims = claims
-        self.go = [threading.Semaphore(0) for _ in range(n)]
-        self.done = threading.Semaphore(0)
+        self.go = [threading.Lock() for _ in range(n)]
+        self.done = [threading.Lock() for _ in range(n)]
+        for lock in self.go + self.done:
+            lock.acquire()
         self.stop = threading.Event()
-        self.threads = [threading.Thread(target=_work, args=(claims, t + 1, self.go[t], self.done, self.stop),
+        self.threads = [threading.Thread(target=_work, args=(claims, t + 1, self.go[t], self.done[t], self.stop),
                                          name=f"vtoladapt-gym-{t + 1}", daemon=True) for t in range(n)]
         for t in self.threads:
             t.start()
@@ -238,9 +242,11 @@ class _Workers:
         self.claims.start()
         for go in self.go:
             go.release()
-        self.claims.run_until_empty(0)
-        for _ in self.threads:
-            self.done.acquire()
+        try:
+            self.claims.run_until_empty(0)
+        finally:  # never return while a worker still steps: the next step would race it
+            for done in self.done:
+                done.acquire()
 
     def close(self) -> None:
         self.stop.set()
