@@ -15,9 +15,8 @@ copies the actions in once and the outputs out once, whatever the number of chun
 Threads: ``workers - 1`` persistent threads (:class:`_Workers`) and the calling thread step the
 chunks, each its own share first, then whatever another has not started (:class:`_Claims`), so a
 thread that the operating system delays (a busy machine) leaves most of its share to the others
-instead of holding the whole step up. A hand-off is a semaphore, not a ``concurrent.futures``
-future (measured on a busy machine: the pool's submit and result cost about 100 us of CPU per
-step, 0.4 us per env-step at 256 environments).
+instead of holding the whole step up. A hand-off is a bare lock, not a ``concurrent.futures``
+future.
 """
 from __future__ import annotations
 
@@ -37,9 +36,9 @@ from ..scenario import Scenario
 from ..sensors import SENSOR_STATE
 from ..simulate import PreparedRun, prepare
 from .config import HoldEnvConfig
-from .kernel import (B_SENS_S, BLOCKS, O_SHARED, SHARED_BLOCKS, MODE_DIRECT, MODE_RESIDUAL, OP_BEGIN, OP_SKIP, OP_STEP, SET_ACTION_COST,
-                     SET_COS_TILT_MAX, SET_DT_S, SET_MAX_ERR_M, SET_MODE, SET_N_SUB, SET_N_TICKS,
-                     SET_PREFETCH_END, SET_RESIDUAL_SCALE, SET_U_MAX, SETTINGS_SIZE, step_batch)
+from .kernel import (B_SENS_S, BLOCKS, MODE_DIRECT, MODE_RESIDUAL, O_SHARED, OP_BEGIN, OP_SKIP, OP_STEP,
+                     SET_ACTION_COST, SET_COS_TILT_MAX, SET_DT_S, SET_MAX_ERR_M, SET_MODE, SET_N_SUB, SET_N_TICKS,
+                     SET_PREFETCH_END, SET_RESIDUAL_SCALE, SET_U_MAX, SETTINGS_SIZE, SHARED_BLOCKS, step_batch)
 from .spaces import ACTION_SIZE, OBS_SIZE
 
 CHUNKS_PER_WORKER = 4
@@ -219,10 +218,10 @@ class _Workers:
     """``n`` persistent daemon threads that help the calling thread (thread 0) through a step's chunks.
 
     Each hand-off is a bare lock used as a binary semaphore (held = nothing to do; released by the
-    other side), which waits in C with the GIL released: ``threading.Semaphore`` and futures are
-    built on ``threading.Condition`` in Python, several times the cost. The threads hold the
-    chunks but not the batch, so a batch that is dropped without ``close`` is still collected;
-    its finaliser stops them.
+    other side), which waits in C with the GIL released (``threading.Semaphore`` and futures wait
+    on a ``threading.Condition`` written in Python). The threads hold the chunks but not the
+    batch, so a batch that is dropped without ``close`` is still collected; its finaliser stops
+    them.
     """
 
     def __init__(self, claims: _Claims, n: int):

@@ -154,7 +154,8 @@ def step_batch(rngs, op, actions, settings, tau_max, ref_table, S, off, P, pidx,
 
     ``S`` holds one row per environment, block ``b`` of :data:`BLOCKS` in columns
     ``off[b] .. off[b + 1] - 1``, advanced in place; row ``pidx[i]`` of ``P`` holds environment
-    ``i``'s :data:`SHARED_BLOCKS`, block ``b`` in columns ``off[O_SHARED + b] .. off[O_SHARED + b + 1] - 1``; ``rngs[i]`` is environment ``i``'s generator,
+    ``i``'s :data:`SHARED_BLOCKS`, block ``b`` in columns ``off[O_SHARED + b] ..
+    off[O_SHARED + b + 1] - 1`` (read only); ``rngs[i]`` is environment ``i``'s generator,
     ``K[i]`` the tick it senses next, ``actions[i]`` its action. ``settings`` holds the ``SET_*``
     entries (mode, scales, limits, ``dt``, substeps, ticks per episode, the prefetched length of
     a row); ``ref_table`` (``n_ticks + 1`` rows) is shared. Outputs per environment: ``obs``
