@@ -8,7 +8,10 @@ residual mode (so every step also runs the composite controller) unless said oth
 * vector environment (``HoldVectorEnv``): 64 and 256 environments on one thread and on one thread
   per core, and 256 with the plant at 1 kHz; steady state (no episode ends in the timed steps);
 * a whole 20 s episode of 256 environments, the autoreset of all of them included;
-* the reset cost per episode (drawing and preparing its scenario, sensing tick 0).
+* the reset cost per episode (drawing and preparing its scenario, sensing tick 0);
+* where a vector env-step's time goes (256 environments): the compiled batch step alone on one
+  thread, and the Python around it per ``step`` call (the same call with the compiled step
+  replaced by nothing).
 
 Each rate is the best of five timed repeats: the machine is shared, and the best repeat is the
 one least disturbed. CPU time per env-step (this process's CPU time, all threads, per
@@ -118,9 +121,41 @@ def _vector_rows() -> list[tuple[str, float, str]]:
     return rows
 
 
+def _split_rows() -> list[tuple[str, float, str]]:
+    from vtoladapt.gym import HoldVectorEnv
+    from vtoladapt.gym.kernel import OP_STEP
+
+    num_envs, steps = 256, 100
+    actions = np.random.default_rng(1).uniform(-0.1, 0.1, (steps, num_envs, 5)).astype(np.float32)
+    venv = HoldVectorEnv(num_envs=num_envs, workers=1, residual=True)
+    venv.reset(seed=0)
+    for a in actions[:10]:
+        venv.step(a)
+    chunk = venv._batch.chunks[0]  # one thread: one chunk of all the environments
+
+    def kernel_only(k):
+        chunk.op[:] = OP_STEP
+        chunk.run()
+
+    _, kernel_cpu = _best_rate(kernel_only, steps, num_envs)
+    venv.close()
+    name = f"vector env-step split, {num_envs} envs"
+    rows = [(f"{name}: compiled batch step alone, 1 thread, CPU time per env-step", 1e6 / kernel_cpu, "us")]
+    for workers in sorted({1, os.cpu_count() or 1}):
+        venv = HoldVectorEnv(num_envs=num_envs, workers=workers, residual=True)
+        venv.reset(seed=0)
+        for c in venv._batch.chunks:
+            c.run = lambda: None  # what remains of step() is the Python (and thread hand-off) around it
+        wall, python_cpu = _best_rate(lambda k: venv.step(actions[k]), steps, 1)
+        venv.close()
+        rows.append((f"{name}: Python around it, {workers} thread(s), CPU time per step call", 1e6 / python_cpu, "us"))
+        rows.append((f"{name}: Python around it, {workers} thread(s), wall time per step call", 1e6 / wall, "us"))
+    return rows
+
+
 def run() -> list[tuple[str, float, str]]:
     """Rows ``(name, value, unit)`` for ``benchmarks/run_benchmarks.py``."""
-    return _loop_rows() + _single_rows() + _vector_rows()
+    return _loop_rows() + _single_rows() + _vector_rows() + _split_rows()
 
 
 if __name__ == "__main__":

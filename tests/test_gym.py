@@ -274,9 +274,13 @@ def test_residual_command_and_reward_bounds_hold_for_any_action(actions, seed):
             break
 
 
-def test_vector_env_same_seed_same_run_whatever_the_thread_count():
+def test_vector_env_same_seed_same_run_whatever_the_thread_count(monkeypatch):
     """Chunking over threads changes no number: 1, 2 and 3 threads give bit-identical steps,
     through autoresets, and a rerun with the same seed repeats them."""
+    import vtoladapt.gym.batch as gym_batch
+
+    # one environment per chunk: several chunks per thread, so threads also take others' leftovers
+    monkeypatch.setattr(gym_batch, "MIN_CHUNK_ENVS", 1)
     n, steps = 5, 60
     scenario = short_hold(0.1)  # 25 steps: two autoresets per environment
     actions = np.random.default_rng(7).uniform(-1, 1, (steps, n, 5))
@@ -321,3 +325,32 @@ def test_tumbling_vehicle_gives_finite_observations_and_ends_the_episode():
         n_done += int(was_done.sum())
     assert n_done >= n  # every environment ended at least once (150 steps per episode)
     venv.close()
+
+
+def test_equal_controller_parameters_are_stored_once_and_others_apart():
+    """Rows whose controller and mixer parameters are equal share one row of the chunk's table; a
+    row loaded with other parameters holds its own (those of its scenario) and gives it back when
+    reloaded with the shared ones."""
+    from vtoladapt.gym.batch import RunBatch
+    from vtoladapt.simulate import prepare
+
+    variant = short_hold(0.1)
+    variant.setdefault("controller", {}).setdefault("composite", {})["forgetting_lambda"] = 0.37
+    base = make_config({"scenario": short_hold(0.1)}).scenario
+    other = make_config({"scenario": variant}).scenario
+    assert not np.array_equal(prepare(base).controller_params, prepare(other).controller_params)
+    batch = RunBatch(make_config({"scenario": base}), 3, workers=1)
+    chunk = batch.chunks[0]
+    for i, scenario in enumerate((base, base, other)):
+        batch.load(i, scenario)
+    assert chunk.pidx[0] == chunk.pidx[1] != chunk.pidx[2]
+    for i, scenario in enumerate((base, base, other)):
+        run = prepare(scenario)
+        np.testing.assert_array_equal(chunk.block(i, "controller_params"), run.controller_params)
+        np.testing.assert_array_equal(chunk.block(i, "mixer_params"), run.mixer_params)
+    batch.load(2, base)
+    assert len(set(chunk.pidx.tolist())) == 1 and len(chunk._p_rows) == 1
+    batch.load(0, other)  # the freed table row is reused
+    np.testing.assert_array_equal(chunk.block(0, "controller_params"), prepare(other).controller_params)
+    np.testing.assert_array_equal(chunk.block(1, "controller_params"), prepare(base).controller_params)
+    batch.close()

@@ -1,19 +1,28 @@
-"""Kernel state of a batch of episodes in one array per thread, and the one call per thread that steps them.
+"""Kernel state of a batch of episodes in one array per chunk, and the compiled calls that step them.
 
 :class:`RunBatch` is shared by the single environment (a batch of one) and the vector
 environment, so both step through the same compiled :func:`~vtoladapt.gym.kernel.step_batch` and
 an environment of a batch is, draw for draw, the single environment with the same seed.
 
-Each thread owns a :class:`_Chunk`: one 2-D array whose rows are its environments' whole kernel
-state (the blocks of :data:`~vtoladapt.gym.kernel.BLOCKS`), its outputs and its own copy of the
-shared tables. Numba counts references to an array's buffer atomically whenever the kernel takes
-a slice of it, so two threads slicing one allocation would bounce that counter's cache line
-between the cores at every slice.
+Each :class:`_Chunk` (a contiguous range of environments) owns one 2-D array whose rows are its
+environments' whole kernel state (the blocks of :data:`~vtoladapt.gym.kernel.BLOCKS`) and its own
+copy of the shared tables: Numba counts references to an array's buffer atomically whenever the
+kernel takes a slice of it, so two threads slicing one allocation would bounce that counter's
+cache line between the cores at every slice. The actions, operations, tick counters and outputs
+are one array each for the whole batch, each chunk stepping through its rows (views): a step
+copies the actions in once and the outputs out once, whatever the number of chunks.
+
+Threads: ``workers - 1`` persistent threads (:class:`_Workers`) and the calling thread step the
+chunks, each its own share first, then whatever another has not started (:class:`_Claims`), so a
+thread that the operating system delays (a busy machine) leaves most of its share to the others
+instead of holding the whole step up. A hand-off is a bare lock, not a ``concurrent.futures``
+future.
 """
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
+import threading
+import weakref
 from typing import Optional
 
 import numpy as np
@@ -27,12 +36,18 @@ from ..scenario import Scenario
 from ..sensors import SENSOR_STATE
 from ..simulate import PreparedRun, prepare
 from .config import HoldEnvConfig
-from .kernel import (B_SENS_S, BLOCKS, MODE_DIRECT, MODE_RESIDUAL, OP_BEGIN, OP_SKIP, OP_STEP, SET_ACTION_COST,
-                     SET_COS_TILT_MAX, SET_DT_S, SET_MAX_ERR_M, SET_MODE, SET_N_SUB, SET_N_TICKS,
-                     SET_PREFETCH_END, SET_RESIDUAL_SCALE, SET_U_MAX, SETTINGS_SIZE, step_batch)
+from .kernel import (B_SENS_S, BLOCKS, MODE_DIRECT, MODE_RESIDUAL, O_SHARED, OP_BEGIN, OP_SKIP, OP_STEP,
+                     SET_ACTION_COST, SET_COS_TILT_MAX, SET_DT_S, SET_MAX_ERR_M, SET_MODE, SET_N_SUB, SET_N_TICKS,
+                     SET_PREFETCH_END, SET_RESIDUAL_SCALE, SET_U_MAX, SETTINGS_SIZE, SHARED_BLOCKS, step_batch)
 from .spaces import ACTION_SIZE, OBS_SIZE
 
-_PER_RUN = BLOCKS[BLOCKS.index("plant_params"):]
+CHUNKS_PER_WORKER = 4
+"""Chunks per thread: enough that a thread delayed by the machine's other work leaves a few for the
+others, few enough that the per-chunk call (about 3 us, unboxing its arguments) stays small."""
+MIN_CHUNK_ENVS = 16
+"""No fewer environments per chunk (except when there are fewer than ``workers`` x this)."""
+
+_PER_RUN = BLOCKS[BLOCKS.index("plant_params"):] + SHARED_BLOCKS
 """The blocks loaded from a :class:`~vtoladapt.simulate.PreparedRun` (attributes of that name)."""
 _SCRATCH_SIZES = {"x": X_SIZE, "v_wind": 3, "f_B": 3, "v_i": 3, "meas": MEAS_SIZE, "cmd": CMD_SIZE,
                   "base": CMD_SIZE, "diag": DIAG_SIZE, "motor": N_MOTORS, "work": RK4_WORK_SIZE}
@@ -43,9 +58,11 @@ _SENSOR_RING = SENSOR_STATE.offset("RING")
 
 
 def block_offsets(template: PreparedRun) -> np.ndarray:
-    """Column where each block of :data:`~vtoladapt.gym.kernel.BLOCKS` starts, and the row width last."""
+    """Column where each block of :data:`~vtoladapt.gym.kernel.BLOCKS` starts and the row width, then
+    the same for the shared table's :data:`~vtoladapt.gym.kernel.SHARED_BLOCKS` (from index ``O_SHARED``)."""
     sizes = [_SCRATCH_SIZES[b] if b in _SCRATCH_SIZES else getattr(template, b).size for b in BLOCKS]
-    return np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    shared = [getattr(template, b).size for b in SHARED_BLOCKS]
+    return np.concatenate([[0], np.cumsum(sizes), [0], np.cumsum(shared)]).astype(np.int64)
 
 
 class _Chunk:
@@ -55,14 +72,21 @@ class _Chunk:
         m = hi - lo
         self.lo, self.hi = lo, hi
         self.off = block_offsets(template)
-        self.S = np.zeros((m, int(self.off[-1])))
-        self.K = np.zeros(m, dtype=np.int64)
-        self.op = np.zeros(m, dtype=np.int64)
-        self.actions = np.zeros((m, ACTION_SIZE))
-        self.obs = np.zeros((m, OBS_SIZE), dtype=np.float32)
-        self.reward = np.zeros(m)
-        self.terminated = np.zeros(m, dtype=np.bool_)
-        self.truncated = np.zeros(m, dtype=np.bool_)
+        self.S = np.zeros((m, int(self.off[O_SHARED - 1])))
+        # the shared blocks' distinct values, one table row each, counted by the rows using them
+        self.P = np.zeros((m, int(self.off[-1])))
+        self.pidx = np.zeros(m, dtype=np.int64)
+        self._p_rows: dict[bytes, list[int]] = {}  # value -> [table row, rows using it]
+        self._p_key: list[Optional[bytes]] = [None] * m
+        self._p_free = list(range(m - 1, -1, -1))
+        # views of the batch's arrays: written and read by the batch once per step for all chunks
+        self.K = batch.K[lo:hi]
+        self.op = batch.op[lo:hi]
+        self.actions = batch.actions[lo:hi]
+        self.obs = batch.obs[lo:hi]
+        self.reward = batch.reward[lo:hi]
+        self.terminated = batch.terminated[lo:hi]
+        self.truncated = batch.truncated[lo:hi]
         # Python keeps each generator alive; the typed list holds their unboxed form, so a call
         # does not unbox them again (a tuple of generators costs tens of microseconds each)
         self.generators = [template.rng] * m
@@ -74,23 +98,51 @@ class _Chunk:
                                                                     - self.off[B_SENS_S])
         # every array is updated in place, so the arguments are bound once
         self.args = (self.rngs, self.op, self.actions, self.settings, batch.tau_max.copy(), batch.ref_table.copy(),
-                     self.S, self.off, self.K, self.obs, self.reward, self.terminated, self.truncated)
+                     self.S, self.off, self.P, self.pidx, self.K, self.obs, self.reward, self.terminated,
+                     self.truncated)
 
     def block(self, j: int, name: str) -> np.ndarray:
-        """Row ``j``'s block ``name`` (a view)."""
+        """Row ``j``'s block ``name`` (a view; a shared block's is the table row it uses)."""
+        if name in SHARED_BLOCKS:
+            b = O_SHARED + SHARED_BLOCKS.index(name)
+            return self.P[self.pidx[j], self.off[b]:self.off[b + 1]]
         b = BLOCKS.index(name)
         return self.S[j, self.off[b]:self.off[b + 1]]
+
+    def _columns(self, key: str, value: np.ndarray, name: str) -> slice:
+        b = O_SHARED + SHARED_BLOCKS.index(key) if key in SHARED_BLOCKS else BLOCKS.index(key)
+        if value.size != self.off[b + 1] - self.off[b]:
+            raise ValueError(f"episode scenario {name!r}: {key} has {value.size} entries, the batch "
+                             f"{self.off[b + 1] - self.off[b]}; the randomisation must not change array sizes")
+        return slice(int(self.off[b]), int(self.off[b + 1]))
+
+    def _share(self, j: int, shared: np.ndarray) -> None:
+        """Point row ``j`` at the table row holding ``shared`` (stored there if no row holds it yet)."""
+        old = self._p_key[j]
+        if old is not None:
+            entry = self._p_rows[old]
+            entry[1] -= 1
+            if entry[1] == 0:
+                self._p_free.append(entry[0])
+                del self._p_rows[old]
+        key = shared.tobytes()
+        entry = self._p_rows.get(key)
+        if entry is None:
+            # at most m values are in use and row j's old one was just released: a row is free
+            entry = self._p_rows[key] = [self._p_free.pop(), 0]
+            self.P[entry[0]] = shared
+        entry[1] += 1
+        self._p_key[j] = key
+        self.pidx[j] = entry[0]
 
     def load(self, j: int, run: PreparedRun, name: str) -> None:
         row = self.S[j]
         row[:] = 0.0
+        shared = np.zeros(self.P.shape[1])
         for key in _PER_RUN:
             value = getattr(run, key)
-            b = BLOCKS.index(key)
-            if value.size != self.off[b + 1] - self.off[b]:
-                raise ValueError(f"episode scenario {name!r}: {key} has {value.size} entries, the batch "
-                                 f"{self.off[b + 1] - self.off[b]}; the randomisation must not change array sizes")
-            row[self.off[b]:self.off[b + 1]] = value
+            (shared if key in SHARED_BLOCKS else row)[self._columns(key, value, name)] = value
+        self._share(j, shared)
         self.block(j, "x")[:] = run.x0
         self.K[j] = 0
         self.generators[j] = run.rng
@@ -98,8 +150,109 @@ class _Chunk:
         self.op[j] = OP_BEGIN
 
     def run(self) -> None:
+        """Apply the pending operations of this chunk's rows (releases the GIL while it runs)."""
         step_batch(*self.args)
-        self.op[:] = OP_SKIP
+
+
+class _Claims:
+    """The chunks of one step, handed out one at a time to the threads that ask.
+
+    Thread ``t`` first takes its own contiguous share of the chunks, in order, so on an idle
+    machine each thread steps the same environments at every step (their rows stay in its
+    core's caches when they fit); a thread that runs out takes the last chunk left in the
+    largest remaining share, so a thread the machine delays holds the step up by one chunk at most.
+    """
+
+    def __init__(self, chunks: list[_Chunk], threads: int):
+        self.chunks = chunks
+        self.lock = threading.Lock()
+        edges = np.linspace(0, len(chunks), threads + 1).round().astype(int)
+        self.own = [(int(edges[t]), int(edges[t + 1])) for t in range(threads)]
+        self.front = [hi for _, hi in self.own]  # nothing to claim until start()
+        self.back = [hi for _, hi in self.own]
+        self.error: Optional[BaseException] = None
+
+    def start(self) -> None:
+        self.front = [lo for lo, _ in self.own]
+        self.back = [hi for _, hi in self.own]
+        self.error = None
+
+    def _claim(self, t: int) -> int:
+        with self.lock:
+            if self.front[t] < self.back[t]:
+                self.front[t] += 1
+                return self.front[t] - 1
+            left = [b - f for f, b in zip(self.front, self.back)]
+            u = max(range(len(left)), key=left.__getitem__)
+            if left[u] <= 0:
+                return -1
+            self.back[u] -= 1
+            return self.back[u]
+
+    def run_until_empty(self, t: int) -> None:
+        """Step chunks as thread ``t`` until none is left (an exception is kept for the caller to raise)."""
+        while True:
+            j = self._claim(t)
+            if j < 0:
+                return
+            try:
+                self.chunks[j].run()
+            except BaseException as exc:  # re-raised by the thread that called RunBatch.advance
+                with self.lock:
+                    self.error = exc
+                    self.back = list(self.front)
+                return
+
+
+def _work(claims: _Claims, t: int, go, done, stop: threading.Event) -> None:
+    """Worker thread ``t``: whenever ``go`` is released, step chunks until none is left, then release ``done``."""
+    while True:
+        go.acquire()
+        if stop.is_set():
+            return
+        claims.run_until_empty(t)
+        done.release()
+
+
+class _Workers:
+    """``n`` persistent daemon threads that help the calling thread (thread 0) through a step's chunks.
+
+    Each hand-off is a bare lock used as a binary semaphore (held = nothing to do; released by the
+    other side), which waits in C with the GIL released (``threading.Semaphore`` and futures wait
+    on a ``threading.Condition`` written in Python). The threads hold the chunks but not the
+    batch, so a batch that is dropped without ``close`` is still collected; its finaliser stops
+    them.
+    """
+
+    def __init__(self, claims: _Claims, n: int):
+        self.claims = claims
+        self.go = [threading.Lock() for _ in range(n)]
+        self.done = [threading.Lock() for _ in range(n)]
+        for lock in self.go + self.done:
+            lock.acquire()
+        self.stop = threading.Event()
+        self.threads = [threading.Thread(target=_work, args=(claims, t + 1, self.go[t], self.done[t], self.stop),
+                                         name=f"vtoladapt-gym-{t + 1}", daemon=True) for t in range(n)]
+        for t in self.threads:
+            t.start()
+
+    def run(self) -> None:
+        """Step every chunk: release the workers, work alongside them, wait for all of them."""
+        self.claims.start()
+        for go in self.go:
+            go.release()
+        try:
+            self.claims.run_until_empty(0)
+        finally:  # never return while a worker still steps: the next step would race it
+            for done in self.done:
+                done.acquire()
+
+    def close(self) -> None:
+        self.stop.set()
+        for go in self.go:
+            go.release()
+        for t in self.threads:
+            t.join()
 
 
 class RunBatch:
@@ -107,8 +260,9 @@ class RunBatch:
 
     Row ``i`` holds run ``i``'s plant state, kernel parameters and states (from
     :func:`vtoladapt.simulate.prepare` of its episode's scenario), the scratch the two halves of a
-    tick hand each other, its tick counter and its generator. Threads take contiguous chunks of
-    rows; the compiled step releases the GIL.
+    tick hand each other, its tick counter and its generator. The rows are cut into contiguous
+    chunks (:data:`CHUNKS_PER_WORKER` per thread, at least :data:`MIN_CHUNK_ENVS` rows each),
+    which the threads claim as they come free; the compiled step releases the GIL.
     """
 
     def __init__(self, cfg: HoldEnvConfig, n: int, workers: int = 1):
@@ -131,11 +285,22 @@ class RunBatch:
             self.mode, cfg.residual_scale, self.u_max, cfg.max_position_error_m, self.cos_tilt_max, cfg.action_cost,
             self.dt, self.n_sub, self.n_ticks)
         self.scenarios: list[Optional[Scenario]] = [None] * n
+        self.K = np.zeros(n, dtype=np.int64)
+        self.op = np.zeros(n, dtype=np.int64)
+        self.actions = np.zeros((n, ACTION_SIZE))
+        self.obs = np.zeros((n, OBS_SIZE), dtype=np.float32)
+        self.reward = np.zeros(n)
+        self.terminated = np.zeros(n, dtype=np.bool_)
+        self.truncated = np.zeros(n, dtype=np.bool_)
         workers = max(1, min(int(workers), n))
-        edges = np.linspace(0, n, workers + 1).round().astype(int)
-        self.chunks = [_Chunk(self, int(edges[c]), int(edges[c + 1]), template) for c in range(workers)]
-        self._chunk_of = np.repeat(np.arange(workers), np.diff(edges))
-        self._pool = ThreadPoolExecutor(max_workers=workers - 1) if workers > 1 else None
+        n_chunks = workers if workers == 1 else max(workers, min(workers * CHUNKS_PER_WORKER, n // MIN_CHUNK_ENVS))
+        edges = np.linspace(0, n, n_chunks + 1).round().astype(int)
+        self.chunks = [_Chunk(self, int(edges[c]), int(edges[c + 1]), template) for c in range(n_chunks)]
+        self._chunk_of = np.repeat(np.arange(n_chunks), np.diff(edges))
+        self._claims = _Claims(self.chunks, workers)
+        self._workers = _Workers(self._claims, workers - 1) if workers > 1 else None
+        if self._workers is not None:
+            self._finalizer = weakref.finalize(self, self._workers.close)
 
     def load(self, i: int, scenario: Scenario) -> PreparedRun:
         """Put a fresh run of ``scenario`` in row ``i``; the next :meth:`advance` senses its tick 0."""
@@ -145,33 +310,32 @@ class RunBatch:
         self.scenarios[i] = scenario
         return run
 
-    def set_actions(self, actions: np.ndarray, mask: Optional[np.ndarray] = None) -> None:
-        """Step every row (or the rows of ``mask``) with ``actions`` (``(n, 5)``) at the next :meth:`advance`."""
-        for c in self.chunks:
-            c.actions[:] = actions[c.lo:c.hi]
-            if mask is None:
-                c.op[:] = OP_STEP
-            else:
-                c.op[mask[c.lo:c.hi]] = OP_STEP
+    def set_actions(self, mask: Optional[np.ndarray] = None) -> None:
+        """Step every row (or the rows of ``mask``) with :attr:`actions` at the next :meth:`advance`.
+
+        The caller writes the ``(n, 5)`` actions into :attr:`actions` (float64) first.
+        """
+        if mask is None:
+            self.op[:] = OP_STEP
+        else:
+            self.op[mask] = OP_STEP
 
     def advance(self) -> None:
-        """Apply the pending operations to every row (other chunks in the pool, the first here)."""
-        if self._pool is None:
-            for c in self.chunks:
-                c.run()
-        else:
-            futures = [self._pool.submit(c.run) for c in self.chunks[1:]]
-            self.chunks[0].run()
-            for f in futures:
-                f.result()
+        """Apply the pending operations to every row, then mark every row to skip."""
+        try:
+            if self._workers is None:
+                for c in self.chunks:
+                    c.run()
+            else:
+                self._workers.run()
+                if self._claims.error is not None:
+                    raise self._claims.error
+        finally:
+            self.op[:] = OP_SKIP
 
     def outputs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """New arrays ``(obs, reward, terminated, truncated)`` of every row, from the last :meth:`advance`."""
-        if len(self.chunks) == 1:
-            c = self.chunks[0]
-            return c.obs.copy(), c.reward.copy(), c.terminated.copy(), c.truncated.copy()
-        return tuple(np.concatenate([getattr(c, name) for c in self.chunks])
-                     for name in ("obs", "reward", "terminated", "truncated"))
+        return self.obs.copy(), self.reward.copy(), self.terminated.copy(), self.truncated.copy()
 
     def position_error(self, i: int) -> tuple[float, np.ndarray]:
         """``(t_s, p - p_ref)`` of row ``i``: its time and true position error, NED, m."""
@@ -182,6 +346,6 @@ class RunBatch:
 
     def close(self) -> None:
         """Stop the worker threads."""
-        if self._pool is not None:
-            self._pool.shutdown(wait=True)
-            self._pool = None
+        if self._workers is not None:
+            self._finalizer()  # runs _Workers.close once
+            self._workers = None

@@ -33,7 +33,7 @@ from ..config import ConfigError
 from ..scenario import Scenario
 from .batch import RunBatch
 from .config import ENV_ID, HoldEnvConfig, episode_scenario, make_config
-from .kernel import OP_STEP
+from .kernel import OP_SKIP, OP_STEP
 from .spaces import ACTION_SIZE, action_space, observation_space
 
 
@@ -89,7 +89,10 @@ class HoldEnv(gym.Env):
         c = self._chunk  # a batch of one: write its row and call the kernel directly
         c.actions[0] = a
         c.op[0] = OP_STEP
-        c.run()
+        try:
+            c.run()
+        finally:
+            c.op[0] = OP_SKIP
         terminated, truncated = bool(c.terminated[0]), bool(c.truncated[0])
         self._over = terminated or truncated
         return c.obs[0].copy(), float(c.reward[0]), terminated, truncated, self._info()

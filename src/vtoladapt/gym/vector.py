@@ -29,6 +29,12 @@ from .env import check_options, check_render_mode
 from .spaces import ACTION_SIZE, action_space, observation_space
 
 
+def _copy_finite(src: np.ndarray, dst: np.ndarray) -> bool:
+    """Copy ``src`` into the float64 ``dst`` (same shape); whether every value is finite."""
+    np.copyto(dst, src, casting="unsafe")
+    return bool(np.isfinite(dst).all())
+
+
 class HoldVectorEnv(VectorEnv):
     """``num_envs`` copies of :class:`~vtoladapt.gym.env.HoldEnv` in one batch (see the module docstring).
 
@@ -95,18 +101,23 @@ class HoldVectorEnv(VectorEnv):
         """One controller tick in every environment (autoreset on the step after an episode ends)."""
         if not self._started:
             raise RuntimeError(f"{ENV_ID}: step() before reset()")
-        a = np.asarray(actions, dtype=np.float64)
-        if a.shape != (self.num_envs, ACTION_SIZE) or not np.isfinite(a).all():
+        b = self._batch
+        try:
+            a = actions if isinstance(actions, np.ndarray) and actions.dtype.kind in "fiub" else \
+                np.asarray(actions, dtype=np.float64)
+        except (TypeError, ValueError):
+            a = None
+        # one cast-and-copy into the batch's float64 actions (the kernels read them there)
+        if a is None or a.shape != b.actions.shape or not _copy_finite(a, b.actions):
             raise ValueError(f"{ENV_ID}: actions of shape {np.shape(actions)}: must be "
                              f"({self.num_envs}, {ACTION_SIZE}) finite numbers in [-1, 1]")
-        b = self._batch
         resetting = self._autoreset
         if resetting.any():
             for i in np.flatnonzero(resetting):
                 b.load(int(i), episode_scenario(self.config, self.config.scenario, self._rngs[i]))
-            b.set_actions(a, ~resetting)
+            b.set_actions(~resetting)
         else:
-            b.set_actions(a)
+            b.set_actions()
         b.advance()
         obs, reward, terminated, truncated = b.outputs()
         np.logical_or(terminated, truncated, out=self._autoreset)
