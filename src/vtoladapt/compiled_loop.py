@@ -81,7 +81,7 @@ N_LOG = _C_FAULTS + 1
 assert N_LOG == len(LOG_COLUMNS)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True)
 def _lyapunov_of_state(diag, ctrl_state, theta_true, gamma) -> float:
     """:func:`~vtoladapt.control.adaptation.lyapunov_function` of the tick, read from ``diag`` and
     ``ctrl_state`` by offset: the same sums in the same order (bit for bit), without the four array
@@ -98,7 +98,7 @@ def _lyapunov_of_state(diag, ctrl_state, theta_true, gamma) -> float:
     return V + 0.5 * q
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True)
 def tick_sense(x, plant_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state, ref, t, dt, rng,
                run_controller, v_wind, f_B, v_i, meas, cmd, diag, work) -> None:
     """First half of controller tick at time ``t``: steps 1-3 of the module docstring.
@@ -116,7 +116,7 @@ def tick_sense(x, plant_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_
         controller_step(ctrl_p, ctrl_state, meas, ref, dt, cmd, diag)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True)
 def tick_actuate(x, plant_p, mixer_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag,
                  motor_cmd, work, theta_true, gamma, row) -> None:
     """Second half of the tick at time ``t``: steps 4-6 (mix ``cmd``, log, advance the plant by ``dt``).
@@ -129,7 +129,7 @@ def tick_actuate(x, plant_p, mixer_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B
                      saturated, 0.0, work, theta_true, gamma, row)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True)
 def tick_log_advance(x, plant_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag, motor_cmd,
                      saturated, faults_active, work, theta_true, gamma, row) -> None:
     """Steps 5-6 of the tick: log the tick into ``row`` (unless empty), advance the plant with ``motor_cmd``."""
@@ -161,7 +161,7 @@ def tick_log_advance(x, plant_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i
     plant_advance(x, motor_cmd, v_wind, plant_p, dt / n_sub, n_sub, True, work)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True)
 def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state,
                     ref_table, t0, dt, n_sub, rng, theta_true, gamma, faults, fault_state, envelope,
                     log) -> tuple:

@@ -18,9 +18,6 @@ Kernel conventions
 * All forces are per unit mass (m/s^2), body FRD. The force kernels return them as tuples
   (``regressor``: three rows of 8) and also write them into an ``out`` array when one is given:
   tuples pass between compiled functions for free, arrays cost reference counting.
-* The force kernels use NumPy's error model (``error_model="numpy"``): their divisions are
-  guarded, and a ZeroDivisionError exit would make their callers in the closed loop keep an atomic
-  reference-count update per array argument (see :mod:`vtoladapt.plant`).
 
 Where the paper is silent or slips (see SPEC.md)
 ------------------------------------------------
@@ -102,7 +99,7 @@ SIDESLIP_LINEAR_DEG = 30.0
 """Sideslip up to which the wing's dynamic pressure is the paper's ``rho V^2 / 2`` (deg)."""
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def model_at(a, offset: int) -> tuple:
     """The :data:`N_MODEL` model constants stored in ``a`` from ``offset`` on, as a tuple.
 
@@ -125,7 +122,7 @@ def incident_velocity(v_W: np.ndarray, v_wind_W: np.ndarray, R_WB: np.ndarray) -
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def airflow_angles(v_i_B: np.ndarray) -> tuple:
     """Airspeed ``V``, angle of attack ``alpha`` and sideslip ``beta`` (rad) (eq:alphabeta).
 
@@ -138,7 +135,7 @@ def airflow_angles(v_i_B: np.ndarray) -> tuple:
     return V, alpha, beta
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def rotor_flow_angles(v_i_B: np.ndarray) -> tuple:
     """Rotor-disk angle of attack and the in-plane flow direction ``(cos beta_bar, sin beta_bar)``.
 
@@ -153,13 +150,13 @@ def rotor_flow_angles(v_i_B: np.ndarray) -> tuple:
     return alpha_disk, 1.0, 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def thrust(u: float, CT: float) -> float:
     """Thrust per unit mass ``T = C_T u^2`` (eq:model_Txz, eq:model_T with n linear in u)."""
     return CT * u * u
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def side_force_basis(alpha_rad: float, V: float, u_z: float, k1: float, k2: float) -> float:
     """Rotor side-force basis ``G(alpha, V, u_z) = u_z^k1 V^(2-k1) ((pi/2)^2 - alpha^2)(alpha + k2)``.
 
@@ -171,19 +168,19 @@ def side_force_basis(alpha_rad: float, V: float, u_z: float, k1: float, k2: floa
     return u_z**k1 * V ** (2.0 - k1) * (HALF_PI_SQ - alpha_rad * alpha_rad) * (alpha_rad + k2)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def lift_coefficient(alpha_rad: float, CL0: float, CL1: float) -> float:
     """``C_L = C_L0 + C_L1 alpha`` (eq:model_cl), the attached-flow polar."""
     return CL0 + CL1 * alpha_rad
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def drag_coefficient(alpha_rad: float, CD0: float, CD1: float, CD2: float) -> float:
     """``C_D = C_D0 + C_D1 alpha + C_D2 alpha^2`` (eq:model_cd), the attached-flow polar."""
     return CD0 + CD1 * alpha_rad + CD2 * alpha_rad * alpha_rad
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def stall_weight(alpha_rad: float, lo: float, hi: float, inv_w: float) -> tuple:
     """Weight ``sigma`` of the flat plate past the attached-flow range, and ``d sigma / d alpha``.
 
@@ -197,7 +194,7 @@ def stall_weight(alpha_rad: float, lo: float, hi: float, inv_w: float) -> tuple:
     return t * t * (3.0 - 2.0 * t), 6.0 * t * (1.0 - t) * dt_dalpha
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def wing_pressure(V2: float, r2: float, s: float, kc: float) -> float:
     """The wing's dynamic pressure per unit mass, ``s = rho S / (2 m)`` times ``V^2`` (m/s^2 per unit C).
 
@@ -211,7 +208,7 @@ def wing_pressure(V2: float, r2: float, s: float, kc: float) -> float:
     return s * V2
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def wing_coefficients(alpha_rad: float, sin_alpha: float, cos_alpha: float, theta, model) -> tuple:
     """Lift and drag coefficients ``(C_L, C_D)`` at any angle of attack.
 
@@ -229,7 +226,7 @@ def wing_coefficients(alpha_rad: float, sin_alpha: float, cos_alpha: float, thet
     return CL, CD
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def thruster_force(v_i_B, u_x, u_z, theta, model, out=None) -> tuple:
     """Estimated thruster force f_T-hat per unit mass (eq:fThat): ``(f_x, f_y, f_z)``, also into ``out`` if given."""
     V = np.sqrt(v_i_B[0] ** 2 + v_i_B[1] ** 2 + v_i_B[2] ** 2)
@@ -241,7 +238,7 @@ def thruster_force(v_i_B, u_x, u_z, theta, model, out=None) -> tuple:
     return f
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def aero_force(v_i_B, theta, model, out=None) -> tuple:
     """Estimated wing force f_A-hat per unit mass (eq:fAhat, divided by mass): ``(f_x, f_y, f_z)``.
 
@@ -273,7 +270,7 @@ def aero_force(v_i_B, theta, model, out=None) -> tuple:
     return f
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def body_force(v_i_B, u_x, u_z, theta, model, out=None) -> tuple:
     """Estimated body force ``f_b-hat = f_T-hat + f_A-hat`` per unit mass (eq:fb): ``(f_x, f_y, f_z)``.
 
@@ -287,7 +284,7 @@ def body_force(v_i_B, u_x, u_z, theta, model, out=None) -> tuple:
     return f
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def regressor(v_i_B, u_x, u_z, model, Phi=None) -> tuple:
     """The regressor ``Phi(v_i, u_x, u_z)`` (3x8) with ``f_b-hat = Phi theta``.
 

@@ -27,12 +27,7 @@ Kernels take the plant parameter array built once by :meth:`PlantConfig.to_kerne
 rigid-body derivative runs 16 times per controller tick (four RK4 steps at 1 kHz), so the force
 kernels it calls take and return scalars and are inlined into it (``inline="always"``): as
 separate calls, the reference counting of the parameter array alone took a fifth of the
-plant's time. For the same reason the kernels use NumPy's error model (``error_model="numpy"``):
-under Python's, every float division carries a ZeroDivisionError exit, and a function with such
-exits keeps an atomic reference-count update per array argument and call (Numba's pruning of them
-gives up), a tenth of the closed loop's time. The divisions here are guarded (``V > 0``, ``r > 0``,
-``h > 0``) or by constants of the run, so the arithmetic is the same; a division by zero would now
-give inf or NaN, which the divergence monitor stops on, instead of raising.
+plant's time.
 """
 from __future__ import annotations
 
@@ -387,7 +382,7 @@ def true_forces_moments(vx, vy, vz, wx, wy, wz, rotors, p) -> tuple:
     return fx, fy, fz, tx, ty, tz
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def rigid_body_derivative(x, xo, rotors, v_wind_W, p, xdot, do) -> tuple:
     """d/dt of the rigid-body state ``x[xo:xo+N_BODY]`` (p, v, q, omega) into ``xdot[do:do+N_BODY]``.
 
@@ -440,13 +435,13 @@ def rigid_body_derivative(x, xo, rotors, v_wind_W, p, xdot, do) -> tuple:
     return fx, fy, fz, vx, vy, vz
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def motor_time_constant(i, p) -> float:
     """Lag time constant of motor ``i`` (s)."""
     return p[P_TAU_PUSH] if i == MOTOR_PUSHER else p[P_TAU_LIFT]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def plant_derivative(x, motor_cmd, v_wind_W, p, xdot, f_B) -> None:
     """Time derivative of the whole plant state (eq:pos_dyn, eq:att_dyn, motor lag) into ``xdot``.
 
@@ -483,20 +478,20 @@ _W_K1, _W_K2, _W_K3, _W_K4, _W_XT, _W_M_MID, _W_M_END, _W_ROTORS = RK4_WORK.offs
 RK4_WORK_SIZE = RK4_WORK.size
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def _store_rotor_terms(rotors, work) -> None:
     for i in range(ROTOR_TERMS_SIZE):
         work[_W_ROTORS + i] = rotors[i]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def _load_rotor_terms(work) -> tuple:
     w = work
     o = _W_ROTORS
     return (w[o], w[o + 1], w[o + 2], w[o + 3], w[o + 4], w[o + 5], w[o + 6])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def plant_first_stage(x, v_wind_W, p, f_B, v_i_B, work) -> None:
     """Evaluate the first RK4 stage of the next step at ``x`` into ``work``.
 
@@ -516,7 +511,7 @@ def plant_first_stage(x, v_wind_W, p, f_B, v_i_B, work) -> None:
         v_i_B[i] = f[3 + i]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def plant_advance(x, motor_cmd, v_wind_W, p, h, n_steps, first_stage_done, work) -> None:
     """Advance ``x`` in place by ``n_steps`` fixed steps of ``h`` seconds, inputs held.
 

@@ -647,9 +647,7 @@ def _first_step(state, x_true, v_i_B_true):
     state[_ST_INIT] = 1.0
 
 
-# NumPy's error model: no ZeroDivisionError exits, so the reference counting of the array arguments
-# can be pruned (see vtoladapt.plant); the divisions are by dt > 0 and the norm of a unit quaternion.
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def sensors_step(params: np.ndarray, state: np.ndarray, t: float, dt: float, x_true: np.ndarray,
                  specific_force_B: np.ndarray, v_i_B_true: np.ndarray, rng,
                  meas_out: np.ndarray) -> None:

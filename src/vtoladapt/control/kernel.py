@@ -57,10 +57,7 @@ _LAWS = tuple((i, info.law.update) for i, info in enumerate(CONTROLLERS.values()
 warnings.filterwarnings("ignore", message="First-class function type feature is experimental")
 
 
-# NumPy's error model: the inlined front and back ends divide only by guarded or validated
-# quantities, and without ZeroDivisionError exits Numba can prune the atomic reference counting of
-# the array arguments (see vtoladapt.plant).
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
     """One controller tick: front end, the law's update, back end (see :mod:`vtoladapt.control`).
 

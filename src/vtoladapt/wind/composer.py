@@ -184,9 +184,7 @@ def wind_initial_state(params: np.ndarray) -> np.ndarray:
     return state
 
 
-# NumPy's error model: no ZeroDivisionError exits, so the reference counting of the array arguments
-# can be pruned (see vtoladapt.plant).
-@njit(cache=True, error_model="numpy")
+@njit(cache=True)
 def wind_step(params: np.ndarray, state: np.ndarray, t: float, dt: float, p_W: np.ndarray,
               rng, out_v_wind_W: np.ndarray) -> None:
     """Write the total wind at time ``t`` and advance the turbulence to ``t + dt``.
