@@ -104,7 +104,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..frames import rotmat_to_quat
 
 Y_REGULARISATION_MPS2 = 1e-3
 """eta of the y_i regularisation (m/s^2): below this normal force y_i leans on its fallback."""
@@ -291,12 +290,28 @@ def quat_slerp(qa, qb, w) -> tuple:
 @njit(cache=True)
 def _quat_from_rows(R_rows) -> tuple:
     """Quaternion (4-tuple) of a rotation given as three row 3-tuples (:func:`vtoladapt.frames.rotmat_to_quat`)."""
-    R = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            R[i, j] = R_rows[i][j]
-    q = rotmat_to_quat(R)
-    return (q[0], q[1], q[2], q[3])
+    # rotmat_to_quat and its quat_normalize, expression for expression (bit for bit), on tuples:
+    # the 3 x 3 array and the two quaternion arrays they allocate cost more than the arithmetic
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R_rows
+    tr = r00 + r11 + r22
+    if tr >= r00 and tr >= r11 and tr >= r22:
+        s = 2.0 * np.sqrt(max(1.0 + tr, 0.0))
+        q0, q1, q2, q3 = 0.25 * s, (r21 - r12) / s, (r02 - r20) / s, (r10 - r01) / s
+    elif r00 >= r11 and r00 >= r22:
+        s = 2.0 * np.sqrt(max(1.0 + r00 - r11 - r22, 0.0))
+        q0, q1, q2, q3 = (r21 - r12) / s, 0.25 * s, (r01 + r10) / s, (r02 + r20) / s
+    elif r11 >= r22:
+        s = 2.0 * np.sqrt(max(1.0 - r00 + r11 - r22, 0.0))
+        q0, q1, q2, q3 = (r02 - r20) / s, (r01 + r10) / s, 0.25 * s, (r12 + r21) / s
+    else:
+        s = 2.0 * np.sqrt(max(1.0 - r00 - r11 + r22, 0.0))
+        q0, q1, q2, q3 = (r10 - r01) / s, (r02 + r20) / s, (r12 + r21) / s, 0.25 * s
+    if q0 < 0.0:
+        q0, q1, q2, q3 = -q0, -q1, -q2, -q3
+    n = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    if not (n > 1e-300) or not np.isfinite(n):
+        return (1.0, 0.0, 0.0, 0.0)
+    return (q0 / n, q1 / n, q2 / n, q3 / n)
 
 
 @njit(cache=True)

@@ -67,6 +67,22 @@ def accumulate_information(state, weight, dt) -> None:
 
 
 @njit(cache=True)
+def add_information(state, g, weight, dt) -> None:
+    """``INFO_SUM += weight G dt`` for ``G = W^T W`` already formed at ``state[g:]`` (8 x 8, symmetric).
+
+    Bit for bit :func:`accumulate_information` (the same upper-triangle sums, mirrored): the
+    composite step has just formed ``W^T W`` of this ``W`` in its scratch, so it is not formed twice.
+    """
+    n = N_THETA
+    c = weight * dt
+    for i in range(n):
+        for j in range(i, n):
+            v = state[S_INFO_SUM + n * i + j] + c * state[g + n * i + j]
+            state[S_INFO_SUM + n * i + j] = v
+            state[S_INFO_SUM + n * j + i] = v
+
+
+@njit(cache=True)
 def adaptive_estimate(mode, params, state, diag, s_active, s_work, may_adapt, Phi, R, v_tilde, dt, forget_a,
                       forget_b, sigma, trace_max, w_track=1.0, w_pred=1.0, directional=False,
                       gain_scale=1.0) -> tuple:
@@ -86,7 +102,12 @@ def adaptive_estimate(mode, params, state, diag, s_active, s_work, may_adapt, Ph
             mode, state, S_ESTIMATE, s_work, params, P_PRIOR, Phi, R, v_tilde, dt, forget_a, forget_b, sigma,
             trace_max, int(state[s_active]), w_track, w_pred, directional, gain_scale)
         state[s_active] = active_set
-        accumulate_information(state, w_pred, dt)
+        if mode == ad.ADAPT_COMPOSITE:
+            # the composite step leaves W^T W of this tick's W in its scratch (the other modes overwrite
+            # it or never form it)
+            add_information(state, s_work + ad.WK_WTW, w_pred, dt)
+        else:
+            accumulate_information(state, w_pred, dt)
         if n_active < 0:
             faults |= FAULT_ADAPTATION
     else:
