@@ -57,6 +57,32 @@ def test_wing_solution_flies_alpha_d_at_zero_sideslip_and_no_side_force(rng):
     assert n_unsat > 30
 
 
+def test_lift_rotor_reserve_leaves_that_much_lift_to_the_rotors(rng):
+    """With a reserve r the wing's model lift at alpha_d is the demanded lift minus r (eq:alphad solved
+    for lift - r) wherever that is inside the alpha limits; the attitude is otherwise the same
+    construction (same flow axes, sideslip 0), and r = 0 is the paper's alpha_d bit for bit."""
+    reserve = 5.0
+    n_unsat = 0
+    for _ in range(200):
+        V = rng.uniform(V_HI, 25.0)
+        d = rng.normal(size=3)
+        v_i_W = V * d / np.linalg.norm(d)
+        f_r = np.array([0.0, 0.0, -GRAVITY_MPS2]) + rng.normal(0, 3, 3)
+        R0, a0, lift0 = wing_attitude(v_i_W, f_r, CL0, CL1, A, AMIN, AMAX, np.zeros(3), False, 0.0)
+        Rr, ar, liftr = wing_attitude(v_i_W, f_r, CL0, CL1, A, AMIN, AMAX, np.zeros(3), False, 0.0, reserve)
+        Rz, az, _ = wing_attitude(v_i_W, f_r, CL0, CL1, A, AMIN, AMAX, np.zeros(3), False, 0.0, 0.0)
+        assert az == a0 and np.array_equal(np.array(Rz), np.array(R0))
+        assert liftr == lift0                                   # the demanded lift is unchanged
+        assert ar <= a0                                         # the wing never flies higher alpha
+        np.testing.assert_allclose(np.array(Rr)[:, 1], np.array(R0)[:, 1], atol=1e-12)   # same y_i
+        alpha, sin_beta = _angles_in(np.array(Rr), v_i_W)
+        assert alpha == pytest.approx(ar, abs=1e-10) and abs(sin_beta) < 1e-12
+        if AMIN < ar < AMAX:
+            n_unsat += 1
+            assert A * V * V * (CL0 + CL1 * ar) == pytest.approx(lift0 - reserve, rel=1e-10, abs=1e-10)
+    assert n_unsat > 30
+
+
 def test_alpha_d_saturates_on_both_sides_and_is_continuous():
     V = 9.0
     q = A * V * V

@@ -153,7 +153,8 @@ def test_measured_alpha_above_the_limit_moves_the_commanded_attitude_alpha_down(
     """Held at an attitude where the probe reads 16 deg in a 9 m/s wind from ahead, the desired
     attitude's angle of attack (R_d^T v_i) falls below alpha_max, and the alpha_d limit with it."""
     veh = load_vehicle("caltech_vtol")
-    ctrl = Controller(veh, ControllerConfig(kind="nominal"))
+    # without the lift-rotor reserve: at 9 m/s it alone takes alpha_d below alpha_max (its own test)
+    ctrl = Controller(veh, ControllerConfig(kind="nominal", lift_rotor_reserve_mps2=0.0))
     alpha_max = np.radians(veh.envelope.alpha_max_deg)
     a = np.radians(16.0)
     # nose north pitched up by 16 deg in a 9 m/s wind from the north: body v_i = V (cos a, 0, sin a)
@@ -172,7 +173,7 @@ def test_measured_alpha_above_the_limit_moves_the_commanded_attitude_alpha_down(
     assert np.all(np.diff(limits) <= 1e-15)                     # the limit only moves down
     assert alphas[-1] < alpha_max - np.radians(2.0)             # measured excess 4 deg, integrated 2 s
     # switched off, the desired attitude stays at alpha_max
-    ctrl = Controller(veh, ControllerConfig(kind="nominal", alpha_protect_gain_per_s=0.0))
+    ctrl = Controller(veh, ControllerConfig(kind="nominal", alpha_protect_gain_per_s=0.0, lift_rotor_reserve_mps2=0.0))
     for k in range(500):
         ctrl.step(k * 0.004, _flow_meas(q_WB, v_i_B), ref)
     assert ctrl.diagnostics["alpha_max_flown_rad"] == pytest.approx(alpha_max)
@@ -234,7 +235,8 @@ def test_closed_loop_true_alpha_kept_below_the_believed_stall_with_the_plant_sta
         d.update(duration_s=20.0, seed=1)
         d["wind"]["fan_array"]["schedule"] = [[0, 0], [2, 0], [2, 70], [20, 70]]
         d["plant"]["stall_angle_deg"] = 13.0
-        d["controller"] = {"kind": "composite", "alpha_protect_gain_per_s": gain}
+        # the lift-rotor reserve alone keeps alpha_d below alpha_max at 9 m/s: off, to test the protection
+        d["controller"] = {"kind": "composite", "alpha_protect_gain_per_s": gain, "lift_rotor_reserve_mps2": 0.0}
         return scenario_from_mapping(d, "stall13")
 
     on, off = simulate_many([scenario(2.0), scenario(0.0)])

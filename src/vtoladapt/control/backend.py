@@ -54,7 +54,7 @@ from .layouts import (
     S_WIND_EST, S_Y_I_PREV, DIAG_HEADING, DIAG_WV_ON, DIAG_ALPHA_MEAS, DIAG_ALPHA_LIMITS, P_ALIGN_COS, P_AP_GAIN,
     P_AP_TAU, P_AP_TRIM_MAX, P_HEADING_RATE, P_HEADING_TAU, P_WV_AIRSPEED, S_ALPHA_F, S_ALPHA_TRIM, S_HAVE_HEADING,
     S_HEADING, S_TURN_SIGN, S_WV_ON, S_YAW_REF_PREV, DIAG_ALPHA_SPREAD, DIAG_UNSEEN_FLOW, P_AP_SIGMAS, P_AP_SPREAD_TAU,
-    S_ALPHA_VAR, S_UNSEEN_FLOW,
+    S_ALPHA_VAR, S_UNSEEN_FLOW, P_LIFT_RESERVE,
 )
 from .tracking import (
     limit_norm,
@@ -146,7 +146,7 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
     q_d, y_i, alpha_d, w_blend, formed = desired_attitude(
         f_r, v_i_W, heading, theta[I_CL0], theta[I_CL1], model[0], alpha_min_flown, alpha_max_flown,
         params[P_V_LO], params[P_V_HI], params[P_TILT_MAX], params[P_MIN_LIFT], vec3(state, S_Y_I_PREV),
-        state[S_HAVE_Y_I] > 0.0, params[P_ALIGN_COS], params[P_ALIGN_COS + 1])
+        state[S_HAVE_Y_I] > 0.0, params[P_ALIGN_COS], params[P_ALIGN_COS + 1], params[P_LIFT_RESERVE])
     if formed:
         state[S_Y_I_PREV], state[S_Y_I_PREV + 1], state[S_Y_I_PREV + 2] = y_i
         state[S_HAVE_Y_I] = 1.0

@@ -134,7 +134,8 @@ class SharedControllerConfig:
         default=1.0, gt=0.0, le=100.0)
     heading_rate_max_degps: float = setting(
         "deg/s", "rate limit of the commanded heading's turn (the reference yaw's own change passes "
-        "unlimited)", default=30.0, gt=0.0, le=720.0)
+        "unlimited); 90: a tail wind's 180 deg turn takes 2 s, not 6 s flown blind (the rotors' yaw "
+        "authority allows ~2 rad/s^2 on both shipped vehicles)", default=90.0, gt=0.0, le=720.0)
     wing_heading_tolerance_deg: tuple[float, ...] = setting(
         "deg", "the wing attitude takes full weight while the commanded heading is within the first angle "
         "of the flow direction, none beyond the second", default=(10.0, 30.0), gt=0.0, lt=90.0, length=2)
@@ -154,8 +155,14 @@ class SharedControllerConfig:
     unseen_flow_accel_mps2: tuple[float, ...] = setting(
         "m/s^2", "an invalid probe reading is taken as still air only while the body-horizontal prediction "
         "error is below the second value (again once it falls below the first); above, the airflow is "
-        "one the probe cannot see (from the side, from behind)", default=(0.2, 0.4), gt=0.0, le=100.0,
+        "one the probe cannot see (from the side, from behind); (0.1, 0.2): a tail wind's drag at 3.9 m/s "
+        "(~0.37 m/s^2) stayed below 0.4, and the hover p95 is ~0.1", default=(0.1, 0.2), gt=0.0, le=100.0,
         length=2)
+    lift_rotor_reserve_mps2: float = setting(
+        "m/s^2", "lift (per unit mass) the wing solution leaves to the lift rotors, so that their collective "
+        "keeps moment authority at speed (the aircraft's only moment effectors; not in the paper's eq:alphad, "
+        "0 gives it); 5 (~0.5 g): 2.5 still left the mixer saturated 22 % of a fan step to 12.9 m/s, since "
+        "gusts of +-3 deg alpha swing the wing's lift by ~2.3 m/s^2 there", default=5.0, ge=0.0, le=20.0)
 
     def _check(self, source: str) -> None:
         wv = self.weathervane_airspeed_mps

@@ -222,7 +222,8 @@ def controller_params(config, vehicle, theta_0=None, P0_diag=None, theta_lower=N
         HEADING_RATE=np.radians(config.heading_rate_max_degps), ALIGN_COS=(np.cos(tol[0]), np.cos(tol[1])),
         AP_GAIN=config.alpha_protect_gain_per_s, AP_TAU=1.0 / (2.0 * np.pi * config.alpha_protect_filter_hz),
         AP_TRIM_MAX=trim_max, AP_SIGMAS=config.alpha_protect_sigmas,
-        AP_SPREAD_TAU=config.alpha_protect_spread_time_constant_s, UNSEEN_ACCEL=config.unseen_flow_accel_mps2)
+        AP_SPREAD_TAU=config.alpha_protect_spread_time_constant_s, UNSEEN_ACCEL=config.unseen_flow_accel_mps2,
+        LIFT_RESERVE=config.lift_rotor_reserve_mps2)
     law = config.info.law
     ctx = LawContext(config=config, vehicle=vehicle, theta_0=th0, P0=P0, dt_nominal_s=1.0 / config.loop_rate_hz)
     own = np.asarray(law.fill_params(config.law_settings, ctx), dtype=float)

@@ -80,12 +80,14 @@ SHARED_PARAMS = BlockLayout("controller parameters (shared)", [
     Field("AP_SIGMAS", 1, "-", "flow-angle protection: guarded alpha = filtered alpha + this many spreads"),
     Field("AP_SPREAD_TAU", 1, "s", "flow-angle protection: time constant of the alpha spread estimate"),
     Field("UNSEEN_ACCEL", 2, "m/s^2", "body-horizontal prediction error: unseen flow off below, on above"),
+    Field("LIFT_RESERVE", 1, "m/s^2", "lift the wing leaves to the lift rotors (their collective keeps moment authority)"),
 ])
 (P_LAW_INDEX, P_K_V, P_LAMBDA_P, P_LAMBDA_Q, P_K_OMEGA, P_J, P_MODEL, P_PRIOR, P_LOWPASS_HZ, P_GAMMA_LYAP,
  P_HOLDOFF_S, P_ALPHA_MIN, P_ALPHA_MAX, P_V_LO, P_V_HI, P_TILT_MAX, P_MIN_LIFT, P_ACC_MAX, P_VCORR_MAX,
  P_VERR_MAX, P_WD_ON, P_WD_HZ, P_WD_MAX, P_WD_DOT_MAX, P_TAU_MAX, P_U_MAX, P_VPROBE_MAX, P_WIND_TAU,
  P_WIND_FADE, P_DT_NOMINAL, P_MOTOR_LAG_ON, P_MOTOR_TAU, P_WV_AIRSPEED, P_HEADING_TAU, P_HEADING_RATE, P_ALIGN_COS,
- P_AP_GAIN, P_AP_TAU, P_AP_TRIM_MAX, P_AP_SIGMAS, P_AP_SPREAD_TAU, P_UNSEEN_ACCEL) = SHARED_PARAMS.offsets(*(f.name for f in SHARED_PARAMS.fields))
+ P_AP_GAIN, P_AP_TAU, P_AP_TRIM_MAX, P_AP_SIGMAS, P_AP_SPREAD_TAU, P_UNSEEN_ACCEL,
+ P_LIFT_RESERVE) = SHARED_PARAMS.offsets(*(f.name for f in SHARED_PARAMS.fields))
 (P_THETA0, P_THETA_INIT, P_LOWER, P_UPPER, P_GAMMA0, P_P0) = SHARED_PARAMS.nested(
     "PRIOR", ad.PRIOR, "THETA0", "THETA_INIT", "LOWER", "UPPER", "GAMMA0", "P0")
 P_LAW = SHARED_PARAMS.size
