@@ -14,8 +14,12 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
+# The suite in TEST_WORKERS processes (pytest-xdist; tests/conftest.py groups each module, and the
+# modules sharing a session fixture, into one process). TEST_WORKERS=0 runs it in this process.
+TEST_WORKERS ?= 2
+
 test: $(STAMP)
-	$(PY) -m pytest
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadgroup
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -m slow

@@ -2,11 +2,19 @@
 
 Hypothesis runs without a per-example deadline because the first call of a Numba kernel in a
 fresh process may compile it (seconds). Choose another profile with ``HYPOTHESIS_PROFILE``.
+
+``make test`` runs the suite in two processes (pytest-xdist, ``--dist loadgroup``): each test
+module goes to one process whole, so its module-scoped fixtures are computed once, and the
+modules that share an expensive session fixture (:data:`SHARED_SESSION_FIXTURES`) go to the
+same process, so it is computed once too. Plain ``pytest`` runs everything in one process.
 """
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -66,6 +74,51 @@ def reproduced(tmp_path_factory):
     return out
 
 
+@pytest.fixture(scope="session")
+def cli_fit(tmp_path_factory):
+    """``vtoladapt tunnel --seed 3`` then ``vtoladapt fit --fast --seed 1 --truth``, through the
+    CLI's entry point: the folder, the tunnel CSV and truth side file, both exit codes and what
+    the fit printed (shared by the fitting's end-to-end test and the report's R-hat test, so the
+    fit runs once)."""
+    from vtoladapt.cli import main
+
+    root = tmp_path_factory.mktemp("cli_fit")
+    csv_path, side, out = root / "tunnel.csv", root / "tunnel.truth.json", root / "fit"
+    tunnel_rc = main(["tunnel", "--vehicle", "caltech_vtol", "--out", str(csv_path), "--seed", "3"])
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        fit_rc = main(["fit", str(csv_path), "--out", str(out), "--fast", "--seed", "1",
+                       "--truth", str(side)])
+    return SimpleNamespace(csv_path=csv_path, side=side, out=out, tunnel_rc=tunnel_rc,
+                           fit_rc=fit_rc, stdout=printed.getvalue())
+
+
+SHARED_SESSION_FIXTURES = ("reproduced", "cli_fit")
+"""Session fixtures that take seconds: under ``--dist loadgroup`` every module using one runs in
+the same process."""
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """Under ``--dist loadgroup``, one group per module, modules sharing a fixture of
+    :data:`SHARED_SESSION_FIXTURES` merged into one group."""
+    if not config.pluginmanager.hasplugin("xdist") or config.getoption("dist", "no") != "loadgroup":
+        return
+    group = {item.module.__name__: item.module.__name__ for item in items}
+
+    def root(name: str) -> str:
+        while group[name] != name:
+            name = group[name]
+        return name
+
+    for fixture in SHARED_SESSION_FIXTURES:
+        users = sorted({item.module.__name__ for item in items if fixture in item.fixturenames})
+        for name in users[1:]:
+            group[root(name)] = root(users[0])
+    for item in items:
+        item.add_marker(pytest.mark.xdist_group(root(item.module.__name__)))
+
+
 WARM_UP_MIN_TESTS = 300
 """A session of at least this many tests compiles the simulator's kernels first, in two processes."""
 
@@ -77,6 +130,8 @@ def pytest_collection_finish(session):
     (:func:`vtoladapt.simulate.load_kernels`: the controller in a second process), which saves
     about a third of the loop's compile time on two cores; otherwise the first test that flies
     compiles everything in one. A warm cache only loads the code (a second or two).
+    Under pytest-xdist the workers take turns through a file lock: the first compiles, the
+    others then load its cache instead of compiling the same kernels again side by side.
     ``VTOLADAPT_NO_WARM_UP=1`` skips it.
     """
     if len(session.items) < WARM_UP_MIN_TESTS or os.environ.get("VTOLADAPT_NO_WARM_UP", "") not in ("", "0"):
@@ -84,5 +139,23 @@ def pytest_collection_finish(session):
     from vtoladapt.scenario import scenario_from_mapping
     from vtoladapt.simulate import load_kernels
 
-    load_kernels(scenario_from_mapping({"name": "warm-up", "vehicle": "caltech_vtol", "duration_s": 0.1},
-                                       "<warm-up>"))
+    scenario = scenario_from_mapping({"name": "warm-up", "vehicle": "caltech_vtol", "duration_s": 0.1},
+                                     "<warm-up>")
+    if getattr(session.config, "workerinput", None) is None:
+        load_kernels(scenario)
+        return
+    import fcntl
+
+    import vtoladapt
+
+    # beside the kernel cache it guards, so that any two sessions on this install take turns
+    lock_path = Path(vtoladapt.__file__).parent / "__pycache__" / "warm-up.lock"
+    try:
+        lock_path.parent.mkdir(exist_ok=True)
+        lock = open(lock_path, "a")
+    except OSError:  # a read-only install: its cache cannot be written anyway
+        load_kernels(scenario)
+        return
+    with lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        load_kernels(scenario)  # the lock goes with the file's closing

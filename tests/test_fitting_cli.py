@@ -18,13 +18,12 @@ def run(argv) -> int:
     return main([str(a) for a in argv])
 
 
-def test_tunnel_fit_posterior_end_to_end(tmp_path, capsys):
-    csv_path = tmp_path / "tunnel.csv"
-    assert run(["tunnel", "--vehicle", "caltech_vtol", "--out", csv_path, "--seed", "3"]) == 0
-    side = tmp_path / "tunnel.truth.json"
+def test_tunnel_fit_posterior_end_to_end(cli_fit):
+    """tunnel -> fit -> posterior.json -> controller prior (the run: conftest's ``cli_fit``)."""
+    csv_path, side, out = cli_fit.csv_path, cli_fit.side, cli_fit.out
+    assert cli_fit.tunnel_rc == 0
     assert csv_path.exists() and side.exists()
-    out = tmp_path / "fit"
-    assert run(["fit", csv_path, "--out", out, "--fast", "--seed", "1", "--truth", side]) == 0
+    assert cli_fit.fit_rc == 0
     for name in ("posterior.json", "table1.md", "corner.png", "trace.png", "side_force.png",
                  "residuals.png"):
         assert (out / name).stat().st_size > 0, name
@@ -43,8 +42,7 @@ def test_tunnel_fit_posterior_end_to_end(tmp_path, capsys):
     assert np.all(cp.theta_0_scaled < cp.upper_bounds_scaled)
     table = (out / "table1.md").read_text()
     assert "| Thruster | mean ± std | Aero | mean ± std |" in table and "| C_Tx |" in table
-    text = capsys.readouterr().out
-    assert "wrote" in text and "posterior.json" in text
+    assert "wrote" in cli_fit.stdout and "posterior.json" in cli_fit.stdout
 
 
 def test_fit_reports_malformed_csv(tmp_path, capsys):

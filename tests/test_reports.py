@@ -4,7 +4,6 @@ Every check reads what was drawn or written (the figure's artists, the HTML's ta
 text chunk, the CLI's output) and compares it with an independent source: the log's validity flag,
 the declared units of the configuration fields, the metrics file, the TOML parser.
 """
-import argparse
 import dataclasses
 import json
 import re
@@ -232,21 +231,11 @@ def test_vehicle_show_prints_units_and_valid_toml():
 
 
 # --- fitting: one R-hat, readable corner plot ------------------------------------------------------------
-def _fitting_cli(argv) -> int:
-    from vtoladapt.fitting.cli import register_cli
-
-    parser = argparse.ArgumentParser(prog="vtoladapt")
-    register_cli(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args([str(a) for a in argv])
-    return args.handler(args)
-
-
-def test_one_rhat_in_cli_table1_and_trace(tmp_path, capsys):
-    csv_path = tmp_path / "tunnel.csv"
-    assert _fitting_cli(["tunnel", "--out", csv_path, "--seed", "2"]) == 0
-    out = tmp_path / "fit"
-    assert _fitting_cli(["fit", csv_path, "--out", out, "--fast", "--seed", "1"]) == 0
-    printed = re.search(r"largest split R-hat (\d+\.\d{4}) \((\w+)\)", capsys.readouterr().out)
+def test_one_rhat_in_cli_table1_and_trace(cli_fit):
+    """The fit's printed, tabled and plotted largest R-hat are one (the run: conftest's ``cli_fit``)."""
+    assert cli_fit.fit_rc == 0
+    out = cli_fit.out
+    printed = re.search(r"largest split R-hat (\d+\.\d{4}) \((\w+)\)", cli_fit.stdout)
     table = re.search(r"largest split R-hat: (\d+\.\d{4}) \((\w+)\)", (out / "table1.md").read_text())
     with Image.open(out / "trace.png") as img:
         trace = re.search(r"largest split R-hat (\d+\.\d{4}) \((\w+)\)", img.text["Title"])
