@@ -32,13 +32,18 @@ def _angles_in(R_d, v_i_W):
     return np.arctan2(v[2], v[0]), v[1] / np.linalg.norm(v)
 
 
+def _draw_wingborne(rng):
+    """An airspeed above the hover blend, a flow from any direction and a demanded force near 1 g."""
+    V = rng.uniform(V_HI, 25.0)
+    d = rng.normal(size=3)
+    f_r = np.array([0.0, 0.0, -GRAVITY_MPS2]) + rng.normal(0, 3, 3)
+    return V, V * d / np.linalg.norm(d), f_r
+
+
 def test_wing_solution_flies_alpha_d_at_zero_sideslip_and_no_side_force(rng):
     n_unsat = 0
     for _ in range(300):
-        V = rng.uniform(V_HI, 25.0)
-        d = rng.normal(size=3)
-        v_i_W = V * d / np.linalg.norm(d)
-        f_r = np.array([0.0, 0.0, -GRAVITY_MPS2]) + rng.normal(0, 3, 3)
+        V, v_i_W, f_r = _draw_wingborne(rng)
         R_d, alpha_d, lift = wing_attitude(v_i_W, f_r, CL0, CL1, A, AMIN, AMAX, np.zeros(3), False, 0.0)
         R_d = np.array(R_d)
         np.testing.assert_allclose(R_d.T @ R_d, np.eye(3), atol=1e-12)
@@ -64,10 +69,7 @@ def test_lift_rotor_reserve_leaves_that_much_lift_to_the_rotors(rng):
     reserve = 5.0
     n_unsat = 0
     for _ in range(200):
-        V = rng.uniform(V_HI, 25.0)
-        d = rng.normal(size=3)
-        v_i_W = V * d / np.linalg.norm(d)
-        f_r = np.array([0.0, 0.0, -GRAVITY_MPS2]) + rng.normal(0, 3, 3)
+        V, v_i_W, f_r = _draw_wingborne(rng)
         R0, a0, lift0 = wing_attitude(v_i_W, f_r, CL0, CL1, A, AMIN, AMAX, np.zeros(3), False, 0.0)
         Rr, ar, liftr = wing_attitude(v_i_W, f_r, CL0, CL1, A, AMIN, AMAX, np.zeros(3), False, 0.0, reserve)
         Rz, az, _ = wing_attitude(v_i_W, f_r, CL0, CL1, A, AMIN, AMAX, np.zeros(3), False, 0.0, 0.0)
