@@ -22,11 +22,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .control.adaptation import lyapunov_at
 from .control.kernel import (
     CONTROLLER_DIAG_COLUMNS,
     DIAG_Q_TILDE,
     DIAG_V_TILDE,
-    N_THETA,
     S_GAMMA,
     S_THETA,
     controller_step,
@@ -79,23 +79,6 @@ _C_LYAP = _C_DIAG + N_DIAG
 _C_FAULTS = _C_LYAP + 1
 N_LOG = _C_FAULTS + 1
 assert N_LOG == len(LOG_COLUMNS)
-
-
-@njit(cache=True, nogil=True)
-def _lyapunov_of_state(diag, ctrl_state, theta_true, gamma) -> float:
-    """:func:`~vtoladapt.control.adaptation.lyapunov_function` of the tick, read from ``diag`` and
-    ``ctrl_state`` by offset: the same sums in the same order (bit for bit), without the four array
-    views (and a reshape) per tick that calling it costs."""
-    v0 = diag[DIAG_V_TILDE]
-    v1 = diag[DIAG_V_TILDE + 1]
-    v2 = diag[DIAG_V_TILDE + 2]
-    V = 0.5 * (v0 ** 2 + v1 ** 2 + v2 ** 2) + (2.0 - 2.0 * diag[DIAG_Q_TILDE]) / gamma
-    q = 0.0
-    for i in range(N_THETA):
-        di = ctrl_state[S_THETA + i] - theta_true[i]
-        for j in range(N_THETA):
-            q += di * ctrl_state[S_GAMMA + N_THETA * i + j] * (ctrl_state[S_THETA + j] - theta_true[j])
-    return V + 0.5 * q
 
 
 @njit(cache=True, nogil=True)
@@ -156,7 +139,8 @@ def tick_log_advance(x, plant_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i
         row[_C_MOTOR + N_MOTORS] = 1.0 if saturated else 0.0
         for i in range(N_DIAG):
             row[_C_DIAG + i] = diag[i]
-        row[_C_LYAP] = _lyapunov_of_state(diag, ctrl_state, theta_true, gamma)
+        row[_C_LYAP] = lyapunov_at(diag[DIAG_V_TILDE], diag[DIAG_V_TILDE + 1], diag[DIAG_V_TILDE + 2],
+                                   diag[DIAG_Q_TILDE], ctrl_state, S_THETA, ctrl_state, S_GAMMA, theta_true, gamma)
         row[_C_FAULTS] = faults_active
     plant_advance(x, motor_cmd, v_wind, plant_p, dt / n_sub, n_sub, True, work)
 

@@ -227,12 +227,20 @@ def wing_coefficients(alpha_rad: float, sin_alpha: float, cos_alpha: float, thet
 
 
 @njit(cache=True)
+def thruster_force_at(u_x, u_z, theta, G, cos_beta_bar, sin_beta_bar) -> tuple:
+    """eq:fThat with the rotor flow already evaluated: ``G`` the side-force basis
+    (:func:`side_force_basis`) and the in-plane flow direction ``(cos beta_bar, sin beta_bar)``
+    (:func:`rotor_flow_angles`); :func:`thruster_force` evaluates them from ``v_i``."""
+    FS = theta[I_CS] * G
+    return (thrust(u_x, theta[I_CTX]) - FS * cos_beta_bar, -FS * sin_beta_bar, -thrust(u_z, theta[I_CTZ]))
+
+
+@njit(cache=True)
 def thruster_force(v_i_B, u_x, u_z, theta, model, out=None) -> tuple:
     """Estimated thruster force f_T-hat per unit mass (eq:fThat): ``(f_x, f_y, f_z)``, also into ``out`` if given."""
     V = np.sqrt(v_i_B[0] ** 2 + v_i_B[1] ** 2 + v_i_B[2] ** 2)
     alpha_disk, cb, sb = rotor_flow_angles(v_i_B)
-    FS = theta[I_CS] * side_force_basis(alpha_disk, V, u_z, model[M_K1], model[M_K2])
-    f = (thrust(u_x, theta[I_CTX]) - FS * cb, -FS * sb, -thrust(u_z, theta[I_CTZ]))
+    f = thruster_force_at(u_x, u_z, theta, side_force_basis(alpha_disk, V, u_z, model[M_K1], model[M_K2]), cb, sb)
     if out is not None:
         out[0], out[1], out[2] = f
     return f

@@ -92,19 +92,22 @@ def quat_conjugate(q: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
+def quat_to_rotmat_rows(q) -> tuple:
+    """:func:`quat_to_rotmat` as three row 3-tuples: no array allocated (the controller's every tick)."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    return ((1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)),
+            (2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)),
+            (2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)))
+
+
+@njit(cache=True)
 def quat_to_rotmat(q: np.ndarray) -> np.ndarray:
     """Rotation matrix of a unit quaternion ``q_WB`` -> ``R_WB``."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
+    rows = quat_to_rotmat_rows(q)
     R = np.empty((3, 3))
-    R[0, 0] = 1.0 - 2.0 * (y * y + z * z)
-    R[0, 1] = 2.0 * (x * y - w * z)
-    R[0, 2] = 2.0 * (x * z + w * y)
-    R[1, 0] = 2.0 * (x * y + w * z)
-    R[1, 1] = 1.0 - 2.0 * (x * x + z * z)
-    R[1, 2] = 2.0 * (y * z - w * x)
-    R[2, 0] = 2.0 * (x * z - w * y)
-    R[2, 1] = 2.0 * (y * z + w * x)
-    R[2, 2] = 1.0 - 2.0 * (x * x + y * y)
+    for i in range(3):
+        for j in range(3):
+            R[i, j] = rows[i][j]
     return R
 
 
@@ -128,42 +131,44 @@ def quats_to_rotmats(q_WB: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def rotmat_to_quat(R: np.ndarray) -> np.ndarray:
-    """Unit quaternion (scalar first, ``w >= 0``) of a rotation matrix.
+def rotmat_rows_to_quat(R_rows) -> tuple:
+    """Unit quaternion (scalar first, ``w >= 0``, a 4-tuple) of a rotation given as three row 3-tuples.
 
     Shepperd's method: pick the largest of ``w, x, y, z`` to divide by, so the result stays
-    accurate near 180-degree rotations where ``w -> 0``.
+    accurate near 180-degree rotations where ``w -> 0``; then normalised as :func:`quat_normalize`
+    (the identity if the norm is zero or not finite). On tuples: the controller calls it every tick.
     """
-    tr = R[0, 0] + R[1, 1] + R[2, 2]
-    q = np.empty(4)
-    if tr >= R[0, 0] and tr >= R[1, 1] and tr >= R[2, 2]:
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R_rows
+    tr = r00 + r11 + r22
+    if tr >= r00 and tr >= r11 and tr >= r22:
         s = 2.0 * np.sqrt(max(1.0 + tr, 0.0))
-        q[0] = 0.25 * s
-        q[1] = (R[2, 1] - R[1, 2]) / s
-        q[2] = (R[0, 2] - R[2, 0]) / s
-        q[3] = (R[1, 0] - R[0, 1]) / s
-    elif R[0, 0] >= R[1, 1] and R[0, 0] >= R[2, 2]:
-        s = 2.0 * np.sqrt(max(1.0 + R[0, 0] - R[1, 1] - R[2, 2], 0.0))
-        q[0] = (R[2, 1] - R[1, 2]) / s
-        q[1] = 0.25 * s
-        q[2] = (R[0, 1] + R[1, 0]) / s
-        q[3] = (R[0, 2] + R[2, 0]) / s
-    elif R[1, 1] >= R[2, 2]:
-        s = 2.0 * np.sqrt(max(1.0 - R[0, 0] + R[1, 1] - R[2, 2], 0.0))
-        q[0] = (R[0, 2] - R[2, 0]) / s
-        q[1] = (R[0, 1] + R[1, 0]) / s
-        q[2] = 0.25 * s
-        q[3] = (R[1, 2] + R[2, 1]) / s
+        q0, q1, q2, q3 = 0.25 * s, (r21 - r12) / s, (r02 - r20) / s, (r10 - r01) / s
+    elif r00 >= r11 and r00 >= r22:
+        s = 2.0 * np.sqrt(max(1.0 + r00 - r11 - r22, 0.0))
+        q0, q1, q2, q3 = (r21 - r12) / s, 0.25 * s, (r01 + r10) / s, (r02 + r20) / s
+    elif r11 >= r22:
+        s = 2.0 * np.sqrt(max(1.0 - r00 + r11 - r22, 0.0))
+        q0, q1, q2, q3 = (r02 - r20) / s, (r01 + r10) / s, 0.25 * s, (r12 + r21) / s
     else:
-        s = 2.0 * np.sqrt(max(1.0 - R[0, 0] - R[1, 1] + R[2, 2], 0.0))
-        q[0] = (R[1, 0] - R[0, 1]) / s
-        q[1] = (R[0, 2] + R[2, 0]) / s
-        q[2] = (R[1, 2] + R[2, 1]) / s
-        q[3] = 0.25 * s
-    if q[0] < 0.0:
-        for i in range(4):
-            q[i] = -q[i]
-    return quat_normalize(q)
+        s = 2.0 * np.sqrt(max(1.0 - r00 - r11 + r22, 0.0))
+        q0, q1, q2, q3 = (r10 - r01) / s, (r02 + r20) / s, (r12 + r21) / s, 0.25 * s
+    if q0 < 0.0:
+        q0, q1, q2, q3 = -q0, -q1, -q2, -q3
+    n = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    if not (n > 1e-300) or not np.isfinite(n):
+        return (1.0, 0.0, 0.0, 0.0)
+    return (q0 / n, q1 / n, q2 / n, q3 / n)
+
+
+@njit(cache=True)
+def rotmat_to_quat(R: np.ndarray) -> np.ndarray:
+    """Unit quaternion (scalar first, ``w >= 0``) of a rotation matrix (:func:`rotmat_rows_to_quat`)."""
+    q = rotmat_rows_to_quat(((R[0, 0], R[0, 1], R[0, 2]), (R[1, 0], R[1, 1], R[1, 2]),
+                             (R[2, 0], R[2, 1], R[2, 2])))
+    out = np.empty(4)
+    for i in range(4):
+        out[i] = q[i]
+    return out
 
 
 @njit(cache=True)

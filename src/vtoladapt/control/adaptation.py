@@ -758,13 +758,22 @@ def lyapunov_function(v_tilde, q0_tilde, theta_hat, P_inv, theta_true, gamma) ->
     ``theta~ = theta-hat - theta``; ``theta_true`` comes from the simulator's plant (the controller
     never sees it); ``P_inv`` is the controller's information matrix (8 x 8).
     """
-    V = 0.5 * (v_tilde[0] ** 2 + v_tilde[1] ** 2 + v_tilde[2] ** 2) + (2.0 - 2.0 * q0_tilde) / gamma
-    n = theta_hat.shape[0]
+    return lyapunov_at(v_tilde[0], v_tilde[1], v_tilde[2], q0_tilde, theta_hat, 0,
+                       np.ascontiguousarray(P_inv).ravel(), 0, theta_true, gamma)
+
+
+@njit(cache=True)
+def lyapunov_at(v0, v1, v2, q0_tilde, theta_buf, i_theta, P_inv_buf, i_P_inv, theta_true, gamma) -> float:
+    """:func:`lyapunov_function` with ``theta-hat`` at ``theta_buf[i_theta:]`` and ``P^-1`` (n x n,
+    row-major) at ``P_inv_buf[i_P_inv:]``: the simulator's log reads them from the controller state
+    by offset every tick, without array views."""
+    V = 0.5 * (v0 ** 2 + v1 ** 2 + v2 ** 2) + (2.0 - 2.0 * q0_tilde) / gamma
+    n = theta_true.shape[0]
     q = 0.0
     for i in range(n):
-        di = theta_hat[i] - theta_true[i]
+        di = theta_buf[i_theta + i] - theta_true[i]
         for j in range(n):
-            q += di * P_inv[i, j] * (theta_hat[j] - theta_true[j])
+            q += di * P_inv_buf[i_P_inv + n * i + j] * (theta_buf[i_theta + j] - theta_true[j])
     return V + 0.5 * q
 
 
@@ -774,4 +783,4 @@ __all__ = ["ADAPT_COMPOSITE", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "M
            "WORK_SIZE", "adaptation_step", "bound_sides", "cap_information", "cholesky_lower",
            "cholesky_solve", "directional_information_update", "factor_apply", "factor_diag", "flush_tiny", "forgetting_weights", "gram",
            "gram_of_factor", "information_update", "inverse_factor", "lowpass", "lowpass_gain",
-           "lyapunov_function", "prediction_error", "project_direction", "spd_inverse", "weighted_adaptation_step"]
+           "lyapunov_at", "lyapunov_function", "prediction_error", "project_direction", "spd_inverse", "weighted_adaptation_step"]

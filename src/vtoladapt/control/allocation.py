@@ -113,10 +113,8 @@ def allocate_thrusters(f_rb_B, v_i_B, theta, model, u_max) -> tuple:
         u_z = _refine_lift_throttle(f_rb_B[0] - fa[0] - ctx * u2, f_rb_B[2] - fa[2], theta[forces.I_CS] * cb,
                                     ctz, G, u_z, model[forces.M_K1], u_max)
         G = forces.side_force_basis(alpha_disk, V, u_z, model[forces.M_K1], model[forces.M_K2])
-    # f_T-hat at (u_x, u_z): forces.thruster_force's expressions with the flow angles and G above
-    # (the same values: it would evaluate them again from v_i, an atan2 and two powers)
-    FS = theta[forces.I_CS] * G
-    ft = (forces.thrust(u_x, theta[forces.I_CTX]) - FS * cb, -FS * sb, -forces.thrust(u_z, theta[forces.I_CTZ]))
+    # f_T-hat at (u_x, u_z) from the flow angles and G above (thruster_force would evaluate them again)
+    ft = forces.thruster_force_at(u_x, u_z, theta, G, cb, sb)
     residual_B = (f_rb_B[0] - fa[0] - ft[0], f_rb_B[1] - fa[1] - ft[1], f_rb_B[2] - fa[2] - ft[2])
     return u_x, u_z, residual_B, sat_x, sat_z
 

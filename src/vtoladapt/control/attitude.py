@@ -123,6 +123,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..frames import rotmat_rows_to_quat
+
 
 Y_REGULARISATION_MPS2 = 1e-3
 """eta of the y_i regularisation (m/s^2): below this normal force y_i leans on its fallback."""
@@ -310,33 +312,6 @@ def quat_slerp(qa, qb, w) -> tuple:
 
 
 @njit(cache=True)
-def _quat_from_rows(R_rows) -> tuple:
-    """Quaternion (4-tuple) of a rotation given as three row 3-tuples (:func:`vtoladapt.frames.rotmat_to_quat`)."""
-    # rotmat_to_quat and its quat_normalize, expression for expression (bit for bit), on tuples:
-    # the 3 x 3 array and the two quaternion arrays they allocate cost more than the arithmetic
-    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R_rows
-    tr = r00 + r11 + r22
-    if tr >= r00 and tr >= r11 and tr >= r22:
-        s = 2.0 * np.sqrt(max(1.0 + tr, 0.0))
-        q0, q1, q2, q3 = 0.25 * s, (r21 - r12) / s, (r02 - r20) / s, (r10 - r01) / s
-    elif r00 >= r11 and r00 >= r22:
-        s = 2.0 * np.sqrt(max(1.0 + r00 - r11 - r22, 0.0))
-        q0, q1, q2, q3 = (r21 - r12) / s, 0.25 * s, (r01 + r10) / s, (r02 + r20) / s
-    elif r11 >= r22:
-        s = 2.0 * np.sqrt(max(1.0 - r00 + r11 - r22, 0.0))
-        q0, q1, q2, q3 = (r02 - r20) / s, (r01 + r10) / s, 0.25 * s, (r12 + r21) / s
-    else:
-        s = 2.0 * np.sqrt(max(1.0 - r00 - r11 + r22, 0.0))
-        q0, q1, q2, q3 = (r10 - r01) / s, (r02 + r20) / s, (r12 + r21) / s, 0.25 * s
-    if q0 < 0.0:
-        q0, q1, q2, q3 = -q0, -q1, -q2, -q3
-    n = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
-    if not (n > 1e-300) or not np.isfinite(n):
-        return (1.0, 0.0, 0.0, 0.0)
-    return (q0 / n, q1 / n, q2 / n, q3 / n)
-
-
-@njit(cache=True)
 def desired_attitude(f_r_W, v_i_W, yaw_rad, CL0, CL1, aero_scale_per_m, alpha_min_rad, alpha_max_rad,
                      V_lo, V_hi, tilt_max_rad, min_lift_mps2, y_prev_W, have_y_prev, cos_align_full=-2.0,
                      cos_align_zero=-3.0, lift_reserve_mps2=0.0) -> tuple:
@@ -368,10 +343,10 @@ def desired_attitude(f_r_W, v_i_W, yaw_rad, CL0, CL1, aero_scale_per_m, alpha_mi
         R_w, alpha_d, _ = wing_attitude(v_i_W, f_r_W, CL0, CL1, aero_scale_per_m, alpha_min_rad,
                                         alpha_max_rad, y_prev_W, have_y_prev, yaw_rad, lift_reserve_mps2)
         y_i = (R_w[0][1], R_w[1][1], R_w[2][1])
-        q_w = _quat_from_rows(R_w)
+        q_w = rotmat_rows_to_quat(R_w)
     if w >= 1.0:
         return q_w, y_i, alpha_d, w, formed
-    q_mc = _quat_from_rows(multirotor_attitude(f_r_W, yaw_rad, tilt_max_rad, min_lift_mps2))
+    q_mc = rotmat_rows_to_quat(multirotor_attitude(f_r_W, yaw_rad, tilt_max_rad, min_lift_mps2))
     if w <= 0.0:
         return q_mc, y_i, alpha_d, w, formed
     return quat_slerp(q_mc, q_w, w), y_i, alpha_d, w, formed

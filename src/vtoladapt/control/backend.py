@@ -28,7 +28,7 @@ from numba import njit
 
 from .. import layout as L
 from ..forces import I_CL0, I_CL1, model_at
-from ..frames import GRAVITY_MPS2
+from ..frames import GRAVITY_MPS2, quat_to_rotmat_rows
 from . import adaptation as ad
 from .allocation import allocate_thrusters
 from .attitude import (
@@ -41,7 +41,7 @@ from .attitude import (
     hover_blend_weight,
     measured_angle_of_attack,
 )
-from .frontend import plausible, rotation_rows, rows_times, rows_transpose_times, vec3, wrap_angle
+from .frontend import plausible, rows_times, rows_transpose_times, vec3, wrap_angle
 from .layouts import (
     DIAG_A_M, DIAG_ADAPT_ACTIVE, DIAG_ALLOC_RES, DIAG_ALPHA_D, DIAG_AIRSPEED, DIAG_BLEND, DIAG_F_R, DIAG_FAULTS,
     DIAG_INTEGRATOR, DIAG_LYAP_Q, DIAG_LYAP_V, DIAG_OMEGA_D, DIAG_OMEGA_R, DIAG_P_DIAG, DIAG_P_TILDE,
@@ -170,7 +170,7 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
     q_tilde = quat_error_from_quats(q_d, q_WB)
     if params[P_WD_ON] > 0.0:
         # omega_d and its rate in body axes: R~^T omega_d, R~ = R_d^T R
-        Rt = rotation_rows(q_tilde)
+        Rt = quat_to_rotmat_rows(q_tilde)
         omega_d_B = rows_transpose_times(Rt, omega_d)
         omega_d_dot_B = rows_transpose_times(Rt, omega_d_dot)
     else:

@@ -34,7 +34,7 @@ from numba import njit
 
 from .. import layout as L
 from ..forces import model_at, regressor
-from ..frames import euler_from_quat
+from ..frames import euler_from_quat, quat_to_rotmat_rows
 from . import adaptation as ad
 from .layouts import (
     FAULT_ACCEL, FAULT_ATTITUDE, FAULT_DT, FAULT_GYRO, FAULT_POSITION, FAULT_PROBE, FAULT_REFERENCE,
@@ -69,16 +69,6 @@ def plausible(x, bound) -> bool:
     for i in range(len(x)):
         ok = ok and np.isfinite(x[i]) and abs(x[i]) <= bound
     return ok
-
-
-@njit(cache=True)
-def rotation_rows(q) -> tuple:
-    """``R(q)`` (:func:`vtoladapt.frames.quat_to_rotmat`) as three row 3-tuples."""
-    # the same expressions as quat_to_rotmat (bit for bit), without allocating its 3 x 3 array per tick
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    return ((1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)),
-            (2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)),
-            (2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)))
 
 
 @njit(cache=True)
@@ -177,7 +167,7 @@ def front_end(params, state, meas, ref, dt) -> tuple:
     p_W = vec3(state, S_P_LAST)
     v_W = vec3(state, S_V_LAST)
     q_WB = (state[S_Q_LAST], state[S_Q_LAST + 1], state[S_Q_LAST + 2], state[S_Q_LAST + 3])
-    R = rotation_rows(q_WB)
+    R = quat_to_rotmat_rows(q_WB)
 
     # sanitise the reference (groups: position, velocity, acceleration, yaw)
     have_ref = state[S_HAVE_REF] > 0.0
