@@ -22,9 +22,20 @@ from hypothesis import settings
 
 from vtoladapt import load_vehicle
 
+HYPOTHESIS_PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "vtoladapt")
+THOROUGH_EXAMPLES = 2000
 settings.register_profile("vtoladapt", deadline=None)
-settings.register_profile("thorough", deadline=None, max_examples=2000)
-settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "vtoladapt"))
+settings.register_profile("thorough", deadline=None, max_examples=THOROUGH_EXAMPLES)
+settings.load_profile(HYPOTHESIS_PROFILE)
+
+
+def examples(n: int) -> int:
+    """A property's example count: ``n``, or at least :data:`THOROUGH_EXAMPLES` under the ``thorough`` profile.
+
+    A test's own ``@settings(max_examples=...)`` overrides the loaded profile, so every property
+    that sets its count goes through this, or ``HYPOTHESIS_PROFILE=thorough`` would not reach it.
+    """
+    return max(n, THOROUGH_EXAMPLES) if HYPOTHESIS_PROFILE == "thorough" else n
 
 REPO_DATA_DIR = Path(__file__).resolve().parents[1] / "data"
 """The real data vendored in the repository (small subsets); each folder has a SOURCE.md."""

@@ -12,6 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import examples
 from vtoladapt import forces
 from vtoladapt.control import adaptation as ad
 from vtoladapt.control.config import ControllerConfig
@@ -62,7 +63,7 @@ def test_directional_forgetting_keeps_the_information_of_unexcited_directions(rn
     assert np.all(np.diag(out.reshape(N, N))[3:] < np.diag(G)[3:])
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(seed=st.integers(0, 2 ** 32 - 1), rank=st.integers(0, 3), lam_dt=st.floats(1e-4, 5.0))
 def test_directional_forgetting_stays_between_the_prior_and_the_data(seed, rank, lam_dt):
     """``Gamma_0 <= Gamma_k+1`` (SPD, P <= P0) and ``Gamma_k+1 <= Gamma_k + b W^T W`` for any W, even rank-deficient."""

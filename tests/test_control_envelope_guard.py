@@ -14,6 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import examples
 from vtoladapt.control import Controller, ControllerConfig, Measurement, Reference
 from vtoladapt.control.attitude import (
     HEADING_REVERSAL_RAD,
@@ -57,7 +58,7 @@ elevations = st.floats(-0.5, 0.5, allow_nan=False)
 horizontal = st.floats(-4.0, 4.0, allow_nan=False)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(V=airspeeds, az=angles, el=elevations, heading=angles, fx=horizontal, fy=horizontal)
 def test_q_d_lipschitz_in_wind_direction_airspeed_and_heading(V, az, el, heading, fx, fy):
     f_r = (fx, fy, -GRAVITY_MPS2)
@@ -85,7 +86,7 @@ def test_wing_weight_needs_the_heading_into_the_flow(rel_deg):
         assert a == 0.0
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(h=angles, target=angles, ff=st.floats(-0.05, 0.05), sign=st.sampled_from([-1.0, 0.0, 1.0]))
 def test_heading_step_is_bounded_and_turns_toward_the_target(h, target, ff, sign):
     dt, tau, rate = 0.004, 1.0, np.radians(30)

@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import examples
 from vtoladapt import layout as L
 from vtoladapt.control import ControllerConfig, controller_arrays
 from vtoladapt.control.config import CONTROLLER_KINDS
@@ -80,7 +81,7 @@ def _reference(draw):
 
 
 @pytest.mark.parametrize("kind", CONTROLLER_KINDS)
-@settings(max_examples=60)
+@settings(max_examples=examples(60))
 @given(data=st.data())
 def test_invariants_over_any_input(caltech, kind, data):
     params, state = controller_arrays(caltech, ControllerConfig(kind=kind))

@@ -14,6 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.stats import binomtest
 
+from conftest import examples
 from vtoladapt.campaign import VaryEntry, load_campaign_file, plan_campaign_file, run_campaign
 from vtoladapt.cli import main
 from vtoladapt.config import ConfigError
@@ -233,7 +234,7 @@ def test_summary_fractions_and_wilson_intervals_on_a_hand_built_parquet(tmp_path
     assert PRED_ERR_BOUND_G == 0.05
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(st.lists(st.tuples(st.booleans(), st.booleans()), min_size=1, max_size=60),
        st.floats(0.001, 0.1))
 def test_alpha_excursions_match_a_plain_loop(samples, dt):

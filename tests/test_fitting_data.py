@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
+from conftest import examples
 from vtoladapt import forces
 from vtoladapt.config import ConfigError
 from vtoladapt.fitting.data import (FitDataError, ForceBalanceData, incident_velocity_from_angles,
@@ -40,7 +41,7 @@ def make_data(n, rng, with_optional=True):
         label=tuple(f"run{i}" for i in range(n)) if with_optional else None)
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=examples(25), deadline=None)
 @given(seed=st.integers(0, 2**31), n=st.integers(1, 30), opt=st.booleans())
 def test_round_trip(tmp_path_factory, seed, n, opt):
     d = make_data(n, np.random.default_rng(seed), opt)
@@ -55,7 +56,7 @@ def test_round_trip(tmp_path_factory, seed, n, opt):
         np.testing.assert_allclose(e.air_density_kgpm3, d.air_density_kgpm3, rtol=1e-9)
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=examples(50), deadline=None)
 @given(V=st.floats(0.1, 30), a=st.floats(-1.5, 1.5), b=st.floats(-1.5, 1.5))
 def test_incident_velocity_inverts_airflow_angles(V, a, b):
     """v_i from (V, alpha, beta) gives back the same angles through the control kernel (eq:alphabeta)."""

@@ -6,6 +6,7 @@ import pytest
 from hypothesis import example, given, settings, strategies as st
 
 import vtoladapt
+from conftest import examples
 from vtoladapt import models
 from vtoladapt.fitting import bayes, tunnel
 from vtoladapt.fitting.posterior import (POSTERIOR_FORMAT, POSTERIOR_NAMES, PosteriorError,
@@ -94,7 +95,7 @@ def test_controller_prior_of_table1_is_the_vehicles_own_prior(veh):
     np.testing.assert_allclose(cp.theta_0_scaled - cp.lower_bounds_scaled, half, rtol=1e-12)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(scale=st.lists(st.floats(0.2, 5.0), min_size=10, max_size=10),
        rel_sd=st.lists(st.floats(1e-6, 2.0), min_size=10, max_size=10),
        n_sigma=st.floats(0.0, 5.0), frac=st.floats(0.0, 2.0))

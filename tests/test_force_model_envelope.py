@@ -35,6 +35,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import examples
 from vtoladapt import forces, load_vehicle, models
 from vtoladapt.fitting import tunnel
 
@@ -161,7 +162,7 @@ def test_backward_flow_is_continuous_across_alpha_pi():
 
 
 # --- exactly the paper inside the attached-flow range --------------------------------------------
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=examples(150), deadline=None)
 @given(vehicle_name, st.floats(0.0, 30.0), st.floats(-1.0, 1.0), st.floats(-30.0, 30.0),
        st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.lists(st.floats(0.2, 2.0), min_size=8, max_size=8))
 def test_inside_the_range_the_model_is_the_papers(name, V, alpha_frac, beta_deg, ux, uz, factors):
@@ -206,7 +207,7 @@ def test_tunnel_design_wing_rows_lie_inside_the_range():
 
 
 # --- the documented continuation ------------------------------------------------------------------
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(vehicle_name, st.floats(0.0, 30.0), unit, st.lists(st.floats(0.2, 2.0), min_size=8, max_size=8))
 def test_wing_matches_the_documented_continuation(name, radius, d, factors):
     veh = VEHICLES[name]
@@ -218,7 +219,7 @@ def test_wing_matches_the_documented_continuation(name, radius, d, factors):
                                atol=1e-12 * veh.aero_scale_per_m * radius**2 * C + 1e-300)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(vehicle_name, st.one_of(st.just(0.0), st.floats(1e-150, 1e-3), st.floats(0.0, 30.0)), unit,
        st.floats(0.0, 1.0), st.floats(0.0, 1.0), theta_factors)
 def test_regressor_times_theta_is_the_force_everywhere(name, radius, d, ux, uz, factors):
@@ -236,7 +237,7 @@ def test_regressor_times_theta_is_the_force_everywhere(name, radius, d, ux, uz, 
 
 
 # --- continuity ----------------------------------------------------------------------------------
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(vehicle_name, st.floats(0.0, 30.0), unit, unit, st.sampled_from(["any", "alpha_pi", "edge", "spanwise"]),
        st.floats(-1.0, 1.0))
 def test_wing_force_is_lipschitz_everywhere(name, radius, d, dd, where, x):
@@ -272,7 +273,7 @@ def test_the_bound_sees_the_papers_jumps():
         assert np.linalg.norm(wing(v, CALTECH) - wing(w, CALTECH)) <= L * np.linalg.norm(v - w)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(vehicle_name, st.floats(0.5, 30.0), st.floats(1e-9, 1e-2), st.floats(-math.pi, math.pi),
        st.booleans(), st.floats(0.01, 1.0))
 def test_rotor_side_force_vanishes_with_the_in_plane_flow(name, V, h_frac, bb, up, uz):
@@ -286,7 +287,7 @@ def test_rotor_side_force_vanishes_with_the_in_plane_flow(name, V, h_frac, bb, u
     assert math.hypot(f[0], f[1]) <= bound * (1 + 1e-9)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(vehicle_name, st.floats(0.0, 1e-2), unit, st.floats(0.0, 1.0), st.floats(0.0, 1.0))
 def test_force_tends_to_thrust_as_airspeed_vanishes(name, radius, d, ux, uz):
     veh = VEHICLES[name]
@@ -301,7 +302,7 @@ def test_force_tends_to_thrust_as_airspeed_vanishes(name, radius, d, ux, uz):
 
 
 # --- physically sane past stall --------------------------------------------------------------------
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=examples(150), deadline=None)
 @given(vehicle_name, st.floats(0.1, 30.0), st.floats(-1.0, 1.0), st.floats(-89.0, 89.0))
 def test_past_stall_the_wing_only_resists_the_flow(name, V, x, beta_deg):
     """With sigma = 1 the force is C_D0 drag along -v_i plus a plate normal force that does no
@@ -366,7 +367,7 @@ def _fd(fun, v, h):
     return J
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=examples(150), deadline=None)
 @given(vehicle_name, st.floats(1.0, 30.0), st.floats(0.0, 1.0), st.booleans(), st.floats(-85.0, 85.0),
        st.floats(0.0, 1.0), theta_factors)
 def test_jacobian_matches_finite_differences_past_stall(name, V, x, neg, beta_deg, uz, factors):

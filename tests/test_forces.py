@@ -25,6 +25,7 @@ import pytest
 from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
+from conftest import examples
 from vtoladapt import forces, load_vehicle, models
 from vtoladapt.frames import GRAVITY_MPS2, quat_from_euler, quat_to_rotmat
 
@@ -136,7 +137,7 @@ def test_side_force_basis_shape():
 
 # --- Phi theta == f_b and the reference formulas --------------------------------------------
 
-@settings(max_examples=500)
+@settings(max_examples=examples(500))
 @given(vehicle_name, vel, vel, vel, throttle_pct, throttle_pct, theta_factors)
 @example("caltech_vtol", 0.0, 0.0, 0.0, 0.0, 0.0, [1.0] * 8)
 @example("px4_standard_vtol", 0.0, 12.0, 0.0, 50.0, 50.0, [1.0] * 8)
@@ -150,7 +151,7 @@ def test_regressor_times_theta_is_body_force(name, vx, vy, vz, ux, uz, factors):
     assert np.all(np.abs(Phi @ theta - f) <= 1e-12 * scale + 1e-300)
 
 
-@settings(max_examples=300)
+@settings(max_examples=examples(300))
 @given(vehicle_name, st.floats(0.5, 30.0), st.floats(-1.0, 1.0), st.floats(-30.0, 30.0), throttle_pct,
        throttle_pct, st.lists(st.floats(0.2, 2.0), min_size=8, max_size=8))
 def test_body_force_matches_reference_formulas(name, V, alpha_frac, beta_deg, ux, uz, factors):
@@ -224,7 +225,7 @@ def _smooth_point(vx, vy, vz):
             and math.hypot(vx, vz) >= 0.5 and (vx > 0.0 or abs(vz) >= 0.5))
 
 
-@settings(max_examples=300)
+@settings(max_examples=examples(300))
 @given(vehicle_name, vel, vel, vel, st.floats(0.0, 100.0), st.floats(5.0, 100.0))
 @example("caltech_vtol", 9.0, 0.0, 0.787, 20.0, 58.0)
 def test_jacobian_matches_central_differences(name, vx, vy, vz, ux, uz):
@@ -332,7 +333,7 @@ def test_at_rest_only_thrust_remains(any_vehicle):
     np.testing.assert_allclose(f, [fm.CTx * 1600.0, 0.0, -fm.CTz * 4900.0], rtol=1e-12)
 
 
-@settings(max_examples=500)
+@settings(max_examples=examples(500))
 @given(vehicle_name, tiny_or_any, tiny_or_any, tiny_or_any, throttle_pct, throttle_pct)
 def test_finite_outputs_for_finite_inputs(name, vx, vy, vz, ux, uz):
     veh = VEHICLES[name]

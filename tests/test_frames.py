@@ -18,6 +18,7 @@ from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from conftest import examples
 from vtoladapt import frames, layout
 
 ATOL = 1e-12
@@ -80,7 +81,7 @@ def test_quat_to_rotmat_matches_scipy(q):
     np.testing.assert_allclose(frames.quat_to_rotmat(q), to_scipy(q).as_matrix(), rtol=0, atol=ATOL)
 
 
-@settings(max_examples=300)
+@settings(max_examples=examples(300))
 @given(axis_components, angles)
 @example((1.0, 0.0, 0.0), PI).via("half turn about x")
 @example((0.0, 1.0, 0.0), PI).via("half turn about y")
@@ -95,7 +96,7 @@ def test_rotmat_to_quat_matches_scipy(axis, angle):
     np.testing.assert_allclose(frames.quat_to_rotmat(q), R, rtol=0, atol=ATOL)
 
 
-@settings(max_examples=300)
+@settings(max_examples=examples(300))
 @given(axis_components, near_pi)
 @example((0.3, -0.2, 0.9), PI - 1e-9)
 @example((0.0, 0.0, 1.0), PI - 1e-9)
@@ -204,7 +205,7 @@ def test_euler_at_gimbal_lock_is_finite(pitch):
 
 # --- constrained quaternion error (eq:wr) ---------------------------------------------------
 
-@settings(max_examples=300)
+@settings(max_examples=examples(300))
 @given(quat_components, axis_components, st.floats(0.0, 2.0 * PI))
 @example((1, 0, 0, 0), (0, 0, 1), PI - 1e-9)
 @example((1, 0, 0, 0), (0, 0, 1), PI + 1e-6)

@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 import vtoladapt.gym as vgym
+from conftest import examples
 from vtoladapt.config import ConfigError
 from vtoladapt.gym import HoldEnv, HoldVectorEnv
 from vtoladapt.gym.config import RANDOMIZED_COEFFICIENTS, episode_scenario, make_config
@@ -248,7 +249,7 @@ def test_shipped_scenario_is_the_default_and_runs_as_written():
 _RESIDUAL_ENV = {}
 
 
-@settings(max_examples=25)
+@settings(max_examples=examples(25))
 @given(actions=hnp.arrays(np.float64, (12, 5), elements=st.floats(-1.0, 1.0)), seed=st.integers(0, 2**31))
 def test_residual_command_and_reward_bounds_hold_for_any_action(actions, seed):
     """Residual mode: the applied command is the controller's plus the scaled residual, clipped;

@@ -1,5 +1,5 @@
 """The plant against closed forms, conservation laws and scipy's integrator."""
-from conftest import REPO_DATA_DIR
+from conftest import REPO_DATA_DIR, examples
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -129,7 +129,7 @@ def test_stall_blend_and_flat_plate(veh):
     assert CL_off == pytest.approx(0.3705 + 3.2502 * np.radians(40), rel=1e-12)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(alpha=st.floats(-4.0, 4.0), M=st.floats(0.5, 1000.0), alpha_stall_deg=st.floats(1.0, 59.0))
 def test_stall_blend_is_beard_mclain_sigmoid(alpha, M, alpha_stall_deg):
     """The one-exp form equals Beard & McLain's two-exp sigmoid, and stays in [0, 1] for any sharpness."""

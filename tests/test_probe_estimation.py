@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import examples
 from vtoladapt.probe import (
     ProbeTip,
     SDP33Sensor,
@@ -38,7 +39,7 @@ def sim_models():
 # eq:aoa
 # ---------------------------------------------------------------------------------------------
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(q_inf=st.floats(1e-3, 2000.0), qa=st.floats(-2000.0, 2000.0),
        qb=st.floats(-2000.0, 2000.0), rho=st.floats(0.3, 1.5), k=st.floats(0.01, 5.0))
 def test_eq_aoa_magnitude_and_direction(q_inf, qa, qb, rho, k):
@@ -219,7 +220,7 @@ _pressure = st.one_of(_any_float, st.floats(-3000.0, 3000.0), st.sampled_from([0
                                                                                5e-324, 1e300]))
 
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=examples(400), deadline=None)
 @given(q=st.tuples(_pressure, _pressure, _pressure), rho=st.one_of(_any_float,
                                                                    st.floats(0.5, 1.5)))
 def test_any_pressures_give_finite_output(sim_models, q, rho):

@@ -71,11 +71,13 @@ class BlockLayout:
         self.title = title
         self.fields: tuple[Field, ...] = tuple(fields)
         self._offset: dict[str, int] = {}
+        self._field: dict[str, Field] = {}
         n = 0
         for f in self.fields:
             if f.name in self._offset:
                 raise ValueError(f"{title}: field {f.name!r} declared twice")
             self._offset[f.name] = n
+            self._field[f.name] = f
             n += f.size
         self.size: int = n
 
@@ -84,9 +86,10 @@ class BlockLayout:
 
     def field(self, name: str) -> Field:
         """The declaration of field ``name``."""
-        for f in self.fields:
-            if f.name == name:
-                return f
+        try:
+            return self._field[name]
+        except KeyError:
+            pass
         raise KeyError(f"{self.title}: no field {name!r}; fields: {', '.join(self._offset)}")
 
     def offset(self, name: str) -> int:
