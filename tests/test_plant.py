@@ -129,6 +129,26 @@ def test_stall_blend_and_flat_plate(veh):
     assert CL_off == pytest.approx(0.3705 + 3.2502 * np.radians(40), rel=1e-12)
 
 
+def test_px4_attached_drag_is_gazebos_magnitude():
+    """PX4's Gazebo LiftDrag plugin: cd = |cda (a0 + alpha)|; its polar C_D0 + C_D1 alpha crosses 0 at -3.4 deg."""
+    px4 = vtoladapt.load_vehicle("px4_standard_vtol")
+    p = kernel(px4, stall=False)
+    cda, a0 = 0.64171, 0.05984  # the Gazebo parameters the vehicle file quotes
+    for a_deg in (-12.0, -5.0, -3.0, 0.0, 8.0):
+        a = np.radians(a_deg)
+        _, CD = plant.true_aero_coefficients(a, np.sin(a), np.cos(a), p)
+        assert CD == pytest.approx(abs(cda * (a0 + a)), rel=1e-4)
+
+
+@settings(max_examples=examples(300), deadline=None)
+@given(alpha=st.floats(-np.pi, np.pi), name=st.sampled_from(("caltech_vtol", "px4_standard_vtol")))
+def test_true_drag_never_negative(alpha, name):
+    """Drag never pushes the aircraft forward, attached, blended or past stall."""
+    p = kernel(vtoladapt.load_vehicle(name))
+    _, CD = plant.true_aero_coefficients(alpha, np.sin(alpha), np.cos(alpha), p)
+    assert CD >= 0.0
+
+
 @settings(max_examples=examples(300), deadline=None)
 @given(alpha=st.floats(-4.0, 4.0), M=st.floats(0.5, 1000.0), alpha_stall_deg=st.floats(1.0, 59.0))
 def test_stall_blend_is_beard_mclain_sigmoid(alpha, M, alpha_stall_deg):

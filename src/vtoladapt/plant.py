@@ -279,10 +279,16 @@ def true_aero_coefficients(alpha_rad: float, sin_alpha: float, cos_alpha: float,
     """True lift and drag coefficients: linear polars blended into a flat plate past stall.
 
     ``sin_alpha``, ``cos_alpha`` are passed in because the caller has them from v_i already.
+    The attached-flow drag is ``|C_D(alpha)|`` of the polar (eq:model_cd): drag never pushes the
+    aircraft forward. This is Gazebo's LiftDrag rule (``cd = fabs(cd)``), where
+    ``px4_standard_vtol`` comes from: its polar ``C_D0 + C_D1 alpha`` (Gazebo's ``cda (a0 + alpha)``)
+    crosses zero at -3.4 deg. The controller's model keeps the paper's polynomial, so below that
+    angle it is wrong, as a model fitted to attached flow is. Where the polar stays positive (the
+    Table I aircraft, all its draws) this changes nothing.
     """
     CL = forces.lift_coefficient(alpha_rad, p[P_THETA + forces.I_CL0], p[P_THETA + forces.I_CL1])
-    CD = forces.drag_coefficient(alpha_rad, p[P_THETA + forces.I_CD0], p[P_THETA + forces.I_CD1],
-                                 p[P_THETA + forces.I_CD2])
+    CD = abs(forces.drag_coefficient(alpha_rad, p[P_THETA + forces.I_CD0], p[P_THETA + forces.I_CD1],
+                                     p[P_THETA + forces.I_CD2]))
     if p[P_STALL_ON] > 0.0:
         s = stall_blend(alpha_rad, p[P_STALL_M], p[P_STALL_EXP])
         if s > 1e-12:
