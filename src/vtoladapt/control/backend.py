@@ -6,7 +6,8 @@ One call of :func:`back_end` per tick, after the law's update has given the forc
 1. ``|f_r + g|`` limited (``accel_max_mps2``).
 2. **Commanded heading and flow-angle protection** (:mod:`.attitude` module notes): the heading
    weathervanes into the flow above ``weathervane_airspeed_mps`` and follows the reference yaw
-   below, rate limited; the probe's measured alpha beyond ``alpha_max`` (``alpha_min``) lowers
+   below, rate limited (while the probe cannot see the flow: against the unexplained force, or into
+   the front end's airflow estimate when ``unseen_flow_estimate`` has one); the probe's measured alpha beyond ``alpha_max`` (``alpha_min``) lowers
    (raises) the alpha_d limit through an integral trim.
 3. **Desired attitude** (:mod:`.attitude`) and, if ``omega_d_feedforward`` is on (default off, see
    :mod:`.config`), ``omega_d``, ``omega_d'``: the desired frame's rate ``log(R_d,prev^T R_d)/dt``
