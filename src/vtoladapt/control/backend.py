@@ -6,7 +6,8 @@ One call of :func:`back_end` per tick, after the law's update has given the forc
 1. ``|f_r + g|`` limited (``accel_max_mps2``).
 2. **Commanded heading and flow-angle protection** (:mod:`.attitude` module notes): the heading
    weathervanes into the flow above ``weathervane_airspeed_mps`` and follows the reference yaw
-   below, rate limited; the probe's measured alpha beyond ``alpha_max`` (``alpha_min``) lowers
+   below, rate limited (while the probe cannot see the flow: against the unexplained force, or into
+   the front end's airflow estimate when ``unseen_flow_estimate`` has one); the probe's measured alpha beyond ``alpha_max`` (``alpha_min``) lowers
    (raises) the alpha_d limit through an integral trim.
 3. **Desired attitude** (:mod:`.attitude`) and, if ``omega_d_feedforward`` is on (default off, see
    :mod:`.config`), ``omega_d``, ``omega_d'``: the desired frame's rate ``log(R_d,prev^T R_d)/dt``
@@ -54,7 +55,7 @@ from .layouts import (
     S_WIND_EST, S_Y_I_PREV, DIAG_HEADING, DIAG_WV_ON, DIAG_ALPHA_MEAS, DIAG_ALPHA_LIMITS, P_ALIGN_COS, P_AP_GAIN,
     P_AP_TAU, P_AP_TRIM_MAX, P_HEADING_RATE, P_HEADING_TAU, P_WV_AIRSPEED, S_ALPHA_F, S_ALPHA_TRIM, S_HAVE_HEADING,
     S_HEADING, S_TURN_SIGN, S_WV_ON, S_YAW_REF_PREV, DIAG_ALPHA_SPREAD, DIAG_UNSEEN_FLOW, P_AP_SIGMAS, P_AP_SPREAD_TAU,
-    S_ALPHA_VAR, S_UNSEEN_FLOW, P_LIFT_RESERVE,
+    S_ALPHA_VAR, S_UNSEEN_FLOW, P_LIFT_RESERVE, S_FLOW_EST_ON, DIAG_FLOW_EST_ON,
 )
 from .tracking import (
     limit_norm,
@@ -102,7 +103,10 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
         state[S_WV_ON] = 0.0
     alpha_raw = measured_angle_of_attack(v_i)
     if state[S_HAVE_HEADING] > 0.0:
-        if not probe_ok and state[S_UNSEEN_FLOW] > 0.0:
+        if not probe_ok and state[S_FLOW_EST_ON] > 0.0:
+            # the airflow estimated from the unexplained force (frontend) is in v_i: nose into it
+            target, ff = np.arctan2(v_i_W[1], v_i_W[0]), 0.0
+        elif not probe_ok and state[S_UNSEEN_FLOW] > 0.0:
             # blind weathervane: the probe cannot see the flow, the unexplained body-horizontal force
             # (-e, downwind) can: turn the nose against it, until the flow enters the probe's cone
             e_W = rows_times(R, (e[0], e[1], 0.0))
@@ -248,3 +252,4 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
     diag[DIAG_ALPHA_LIMITS + 1] = alpha_max_flown
     diag[DIAG_ALPHA_SPREAD] = spread
     diag[DIAG_UNSEEN_FLOW] = state[S_UNSEEN_FLOW]
+    diag[DIAG_FLOW_EST_ON] = state[S_FLOW_EST_ON]

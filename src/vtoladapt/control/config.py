@@ -158,6 +158,16 @@ class SharedControllerConfig:
         "one the probe cannot see (from the side, from behind); (0.1, 0.2): a tail wind's drag at 3.9 m/s "
         "(~0.37 m/s^2) stayed below 0.4, and the hover p95 is ~0.1", default=(0.1, 0.2), gt=0.0, le=100.0,
         length=2)
+    unseen_flow_estimate: bool = setting(
+        "-", "while the probe cannot see the flow (unseen_flow_accel_mps2), estimate the horizontal airflow from "
+        "the body-horizontal force the model cannot explain (the model's drag and rotor side force inverted, "
+        "vtoladapt.control.airflow_estimate) and feed it to the wind estimate; false (default): the stale wind "
+        "estimate fades as before, bit for bit. Off by default: measured, it did not help (README, envelope "
+        "section): the model's horizontal force at 2-5 m/s (0.1-0.3 m/s^2) is the size of the accelerometer's "
+        "bias, so the inverted airspeed is off by ~50 %", default=False)
+    unseen_flow_estimate_time_constant_s: float = setting(
+        "s", "time constant with which that estimate enters the wind estimate (the accelerometer it inverts is "
+        "already low-passed at lowpass_cutoff_hz)", default=0.2, gt=0.0, le=100.0)
     lift_rotor_reserve_mps2: float = setting(
         "m/s^2", "lift (per unit mass) the wing solution leaves to the lift rotors, so that their collective "
         "keeps moment authority at speed (the aircraft's only moment effectors; not in the paper's eq:alphad, "

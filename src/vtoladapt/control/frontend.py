@@ -19,6 +19,17 @@ for the whole tick):
    toward still air (``wind_estimate_fade_s``) while it is not: a short dropout keeps the wind, a
    long outage (a probe that reads "invalid" at low airspeed after the wind stopped) does not fly
    the wing solution in still air. ``diag['probe_valid_used']`` says which.
+   **Airflow estimate** (``unseen_flow_estimate``, off by default): while the unseen-flow detector
+   is on and the probe is not used, :func:`.airflow_estimate.estimate_horizontal_wind` solves for
+   the horizontal wind whose incident flow makes the model's body-horizontal force (theta-hat, the
+   lagged throttles) match the filtered accelerometer, warm-started from its last solution. An
+   accepted solution (converged to the detector's "off" threshold, ``|v_i|`` below
+   ``probe_airspeed_max_mps``, sideslip within 30 deg) replaces the fade: ``w_hat`` follows it with
+   ``unseen_flow_estimate_time_constant_s`` and the heading turns into it (``diag['unseen_flow_estimate']``).
+   While it is on, the prediction error is small by construction, so the detector is not cleared by
+   it: the estimate ends when the probe is valid again (``w_hat`` then low-passes back to the probe's
+   wind), when a solve is rejected (the fade resumes), or when the solved airspeed is below the
+   hover-blend start (the wind is gone: the probe's "invalid, near zero" is still air again).
 4. **Tracking errors** ``p~``, ``v_r``, ``v~`` (eq:wr; ``|Lambda_p p~|`` and ``|v~|`` limited).
 5. **Regressor and filters** (eq:prediction_error). The regressor uses the current ``v_i`` and the
    throttles commanded for the interval that just ended, passed through the vehicle's nominal
@@ -36,6 +47,7 @@ from .. import layout as L
 from ..forces import model_at, regressor
 from ..frames import euler_from_quat, quat_to_rotmat_rows
 from . import adaptation as ad
+from .airflow_estimate import SIN_SIDESLIP_MAX, estimate_horizontal_wind
 from .layouts import (
     FAULT_ACCEL, FAULT_ATTITUDE, FAULT_DT, FAULT_GYRO, FAULT_POSITION, FAULT_PROBE, FAULT_REFERENCE,
     FAULT_VELOCITY, GAIN_FADE, GAIN_LOWPASS, GAIN_MOTOR_X, GAIN_MOTOR_Z, GAIN_OMEGA_D, GAIN_WIND, N_THETA,
@@ -43,6 +55,7 @@ from .layouts import (
     P_VCORR_MAX, P_VERR_MAX, P_VPROBE_MAX, P_WD_HZ, P_WIND_FADE, P_WIND_TAU, S_AM_F, S_FILT_INIT, S_GAINS,
     S_GAINS_DT, S_HAVE_REF, S_HAVE_WIND, S_OMEGA_LAST, S_P_LAST, S_Q_LAST, S_REF_LAST, S_STEPS, S_THETA,
     S_U_EST, S_U_PREV, S_V_LAST, S_VALID_TIME, S_W_F, S_WIND_EST, P_UNSEEN_ACCEL, S_UNSEEN_FLOW,
+    GAIN_FLOW_EST, P_FLOW_EST_ON, P_FLOW_EST_TAU, S_FLOW_EST_ON, S_FLOW_EST_W,
 )
 from .tracking import limit_norm, reference_velocity
 
@@ -105,6 +118,7 @@ def update_shared_gains(params, state, dt) -> None:
     state[g + GAIN_MOTOR_X] = np.exp(-dt / params[P_MOTOR_TAU])
     state[g + GAIN_MOTOR_Z] = np.exp(-dt / params[P_MOTOR_TAU + 1])
     state[g + GAIN_OMEGA_D] = ad.lowpass_gain(params[P_WD_HZ], dt)
+    state[g + GAIN_FLOW_EST] = 1.0 - np.exp(-dt / params[P_FLOW_EST_TAU])
     state[S_GAINS_DT] = dt
 
 
@@ -215,7 +229,9 @@ def front_end(params, state, meas, ref, dt) -> tuple:
         e_h = np.sqrt(e_prev[0] * e_prev[0] + e_prev[1] * e_prev[1])
         if e_h > params[P_UNSEEN_ACCEL + 1]:
             state[S_UNSEEN_FLOW] = 1.0
-        elif e_h < params[P_UNSEEN_ACCEL]:
+        elif e_h < params[P_UNSEEN_ACCEL] and not state[S_FLOW_EST_ON] > 0.0:
+            # (while the airflow estimate is on, e is small because v_i holds the estimated flow: the
+            # estimate itself says when the flow is gone, below)
             state[S_UNSEEN_FLOW] = 0.0
     if (not probe_ok and meas[L.MEAS_V_I_VALID] == 0.0 and all_finite and V_probe < params[P_V_LO]
             and not state[S_UNSEEN_FLOW] > 0.0):
@@ -232,12 +248,41 @@ def front_end(params, state, meas, ref, dt) -> tuple:
             else:
                 state[S_WIND_EST + i] = w_i
         state[S_HAVE_WIND] = 1.0
+        state[S_FLOW_EST_ON] = 0.0
     else:
         faults |= FAULT_PROBE
-        # a stale estimate must not outlive the wind: fade toward still air while the probe is out
-        fade = state[S_GAINS + GAIN_FADE]
-        for i in range(3):
-            state[S_WIND_EST + i] = ad.flush_tiny(state[S_WIND_EST + i] * fade)
+        # an airflow the probe cannot see: estimate it from the force the model cannot explain
+        est_ok = False
+        if (params[P_FLOW_EST_ON] > 0.0 and state[S_UNSEEN_FLOW] > 0.0 and state[S_FILT_INIT] > 0.0
+                and accel_ok):
+            est_on = state[S_FLOW_EST_ON] > 0.0
+            theta = (state[S_THETA], state[S_THETA + 1], state[S_THETA + 2], state[S_THETA + 3],
+                     state[S_THETA + 4], state[S_THETA + 5], state[S_THETA + 6], state[S_THETA + 7])
+            w0_N = state[S_FLOW_EST_W] if est_on else state[S_WIND_EST]
+            w0_E = state[S_FLOW_EST_W + 1] if est_on else state[S_WIND_EST + 1]
+            est_ok, w_N, w_E, _ = estimate_horizontal_wind(
+                v_W, R, state[S_WIND_EST + 2], w0_N, w0_E, not est_on, state[S_U_EST], state[S_U_EST + 1],
+                theta, model_at(params, P_MODEL), state[S_AM_F], state[S_AM_F + 1], params[P_UNSEEN_ACCEL],
+                params[P_VPROBE_MAX], SIN_SIDESLIP_MAX)
+            if est_ok:
+                state[S_FLOW_EST_W], state[S_FLOW_EST_W + 1] = w_N, w_E
+                c = state[S_GAINS + GAIN_FLOW_EST]
+                state[S_WIND_EST] = ad.lowpass(state[S_WIND_EST], w_N, c)
+                state[S_WIND_EST + 1] = ad.lowpass(state[S_WIND_EST + 1], w_E, c)
+                state[S_WIND_EST + 2] = ad.flush_tiny(state[S_WIND_EST + 2] * state[S_GAINS + GAIN_FADE])
+                state[S_HAVE_WIND] = 1.0
+                # the flow the model places is slower than the probe's still-air story allows: the wind
+                # is gone, the probe's "invalid, near zero" is still air again
+                d_N, d_E = v_W[0] - w_N, v_W[1] - w_E
+                if d_N * d_N + d_E * d_E < params[P_V_LO] * params[P_V_LO]:
+                    est_ok = False
+                    state[S_UNSEEN_FLOW] = 0.0
+        state[S_FLOW_EST_ON] = 1.0 if est_ok else 0.0
+        if not est_ok:
+            # a stale estimate must not outlive the wind: fade toward still air while the probe is out
+            fade = state[S_GAINS + GAIN_FADE]
+            for i in range(3):
+                state[S_WIND_EST + i] = ad.flush_tiny(state[S_WIND_EST + i] * fade)
         d = (v_W[0] - state[S_WIND_EST], v_W[1] - state[S_WIND_EST + 1], v_W[2] - state[S_WIND_EST + 2])
         v_i = rows_transpose_times(R, d)
 

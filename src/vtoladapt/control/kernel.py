@@ -223,7 +223,8 @@ def controller_params(config, vehicle, theta_0=None, P0_diag=None, theta_lower=N
         AP_GAIN=config.alpha_protect_gain_per_s, AP_TAU=1.0 / (2.0 * np.pi * config.alpha_protect_filter_hz),
         AP_TRIM_MAX=trim_max, AP_SIGMAS=config.alpha_protect_sigmas,
         AP_SPREAD_TAU=config.alpha_protect_spread_time_constant_s, UNSEEN_ACCEL=config.unseen_flow_accel_mps2,
-        LIFT_RESERVE=config.lift_rotor_reserve_mps2)
+        LIFT_RESERVE=config.lift_rotor_reserve_mps2, FLOW_EST_ON=1.0 if config.unseen_flow_estimate else 0.0,
+        FLOW_EST_TAU=config.unseen_flow_estimate_time_constant_s)
     law = config.info.law
     ctx = LawContext(config=config, vehicle=vehicle, theta_0=th0, P0=P0, dt_nominal_s=1.0 / config.loop_rate_hz)
     own = np.asarray(law.fill_params(config.law_settings, ctx), dtype=float)

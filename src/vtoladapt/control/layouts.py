@@ -81,13 +81,15 @@ SHARED_PARAMS = BlockLayout("controller parameters (shared)", [
     Field("AP_SPREAD_TAU", 1, "s", "flow-angle protection: time constant of the alpha spread estimate"),
     Field("UNSEEN_ACCEL", 2, "m/s^2", "body-horizontal prediction error: unseen flow off below, on above"),
     Field("LIFT_RESERVE", 1, "m/s^2", "lift the wing leaves to the lift rotors (their collective keeps moment authority)"),
+    Field("FLOW_EST_ON", 1, "-", "1: estimate the airflow the probe cannot see from the unexplained force (0: off)"),
+    Field("FLOW_EST_TAU", 1, "s", "time constant of that estimate's entry into the wind estimate"),
 ])
 (P_LAW_INDEX, P_K_V, P_LAMBDA_P, P_LAMBDA_Q, P_K_OMEGA, P_J, P_MODEL, P_PRIOR, P_LOWPASS_HZ, P_GAMMA_LYAP,
  P_HOLDOFF_S, P_ALPHA_MIN, P_ALPHA_MAX, P_V_LO, P_V_HI, P_TILT_MAX, P_MIN_LIFT, P_ACC_MAX, P_VCORR_MAX,
  P_VERR_MAX, P_WD_ON, P_WD_HZ, P_WD_MAX, P_WD_DOT_MAX, P_TAU_MAX, P_U_MAX, P_VPROBE_MAX, P_WIND_TAU,
  P_WIND_FADE, P_DT_NOMINAL, P_MOTOR_LAG_ON, P_MOTOR_TAU, P_WV_AIRSPEED, P_HEADING_TAU, P_HEADING_RATE, P_ALIGN_COS,
  P_AP_GAIN, P_AP_TAU, P_AP_TRIM_MAX, P_AP_SIGMAS, P_AP_SPREAD_TAU, P_UNSEEN_ACCEL,
- P_LIFT_RESERVE) = SHARED_PARAMS.offsets(*(f.name for f in SHARED_PARAMS.fields))
+ P_LIFT_RESERVE, P_FLOW_EST_ON, P_FLOW_EST_TAU) = SHARED_PARAMS.offsets(*(f.name for f in SHARED_PARAMS.fields))
 (P_THETA0, P_THETA_INIT, P_LOWER, P_UPPER, P_GAMMA0, P_P0) = SHARED_PARAMS.nested(
     "PRIOR", ad.PRIOR, "THETA0", "THETA_INIT", "LOWER", "UPPER", "GAMMA0", "P0")
 P_LAW = SHARED_PARAMS.size
@@ -103,8 +105,9 @@ GAINS = BlockLayout("shared filter gains", [
     Field("MOTOR_X", 1, "-", "decay factor of the pusher's nominal lag"),
     Field("MOTOR_Z", 1, "-", "decay factor of the lift rotors' nominal lag"),
     Field("OMEGA_D", 1, "-", "gain of the omega_d low-passes"),
+    Field("FLOW_EST", 1, "-", "gain of the unseen-flow airflow estimate's entry into the wind estimate"),
 ])
-GAIN_LOWPASS, GAIN_WIND, GAIN_FADE, GAIN_MOTOR_X, GAIN_MOTOR_Z, GAIN_OMEGA_D = GAINS.offsets(
+GAIN_LOWPASS, GAIN_WIND, GAIN_FADE, GAIN_MOTOR_X, GAIN_MOTOR_Z, GAIN_OMEGA_D, GAIN_FLOW_EST = GAINS.offsets(
     *(f.name for f in GAINS.fields))
 
 SHARED_STATE = BlockLayout("controller state (shared)", [
@@ -148,12 +151,14 @@ SHARED_STATE = BlockLayout("controller state (shared)", [
     Field("ALPHA_TRIM", 2, "rad", "flow-angle protection trims: upper (>= 0), lower (<= 0)"),
     Field("ALPHA_VAR", 1, "rad^2", "variance of the measured alpha about its filtered value"),
     Field("UNSEEN_FLOW", 1, "-", "1 while the prediction error shows airflow the probe does not report"),
+    Field("FLOW_EST_ON", 1, "-", "1 while the wind estimate follows the airflow estimated from the force (airflow_estimate)"),
+    Field("FLOW_EST_W", 2, "m/s", "last accepted airflow estimate's horizontal wind, N and E (its warm start)"),
 ])
 (S_ESTIMATE, S_FILT_INIT, S_V_PREV, S_U_PREV, S_TAU_PREV, S_Q_D_PREV, S_WD_X1, S_WD_X2, S_HAVE_QD, S_Y_I_PREV,
  S_HAVE_Y_I, S_WIND_EST, S_HAVE_WIND, S_VALID_TIME, S_P_LAST, S_V_LAST, S_Q_LAST, S_OMEGA_LAST, S_HAVE_MEAS,
  S_REF_LAST, S_HAVE_REF, S_SAT_PREV, S_RES_PREV_W, S_TIME, S_STEPS, S_U_EST, S_GAINS_DT,
  S_GAINS, S_V_I_LAW, S_INFO_SUM, S_HEADING, S_TURN_SIGN, S_WV_ON, S_YAW_REF_PREV, S_HAVE_HEADING, S_ALPHA_F,
- S_ALPHA_TRIM, S_ALPHA_VAR, S_UNSEEN_FLOW) = SHARED_STATE.offsets(*(f.name for f in SHARED_STATE.fields))
+ S_ALPHA_TRIM, S_ALPHA_VAR, S_UNSEEN_FLOW, S_FLOW_EST_ON, S_FLOW_EST_W) = SHARED_STATE.offsets(*(f.name for f in SHARED_STATE.fields))
 S_THETA, S_GAMMA, S_W_F, S_AM_F = SHARED_STATE.nested("ESTIMATE", ad.MEMORY, "THETA", "GAMMA", "W", "A_M")
 S_LAW = SHARED_STATE.size
 """First slot of the law's own state block."""
@@ -209,12 +214,14 @@ DIAGNOSTICS = BlockLayout("controller diagnostics", [
           ("alpha_meas_spread_rad",)),
     Field("UNSEEN_FLOW", 1, "-", "1 while the prediction error shows airflow the probe does not report",
           ("unseen_flow",)),
+    Field("FLOW_EST_ON", 1, "-", "1 while the wind estimate follows the airflow estimated from the unexplained force",
+          ("unseen_flow_estimate",)),
 ])
 (DIAG_P_TILDE, DIAG_V_TILDE, DIAG_V_R, DIAG_Q_TILDE, DIAG_F_R, DIAG_Q_D, DIAG_OMEGA_D, DIAG_OMEGA_R, DIAG_ALPHA_D,
  DIAG_AIRSPEED, DIAG_BLEND, DIAG_V_I_USED, DIAG_WIND_EST, DIAG_THETA_HAT, DIAG_P_DIAG, DIAG_PRED_ERR, DIAG_A_M,
  DIAG_W_THETA, DIAG_ALLOC_RES, DIAG_SAT_X, DIAG_SAT_Z, DIAG_PROBE_VALID, DIAG_ADAPT_ACTIVE, DIAG_PROJ_ACTIVE,
  DIAG_LYAP_V, DIAG_LYAP_Q, DIAG_INTEGRATOR, DIAG_FAULTS, DIAG_HEADING, DIAG_WV_ON, DIAG_ALPHA_MEAS,
- DIAG_ALPHA_LIMITS, DIAG_ALPHA_SPREAD, DIAG_UNSEEN_FLOW) = DIAGNOSTICS.offsets(*(f.name for f in DIAGNOSTICS.fields))
+ DIAG_ALPHA_LIMITS, DIAG_ALPHA_SPREAD, DIAG_UNSEEN_FLOW, DIAG_FLOW_EST_ON) = DIAGNOSTICS.offsets(*(f.name for f in DIAGNOSTICS.fields))
 DIAG_SIZE = DIAGNOSTICS.size
 CONTROLLER_DIAG_COLUMNS: tuple[str, ...] = DIAGNOSTICS.columns
 """Names of the ``diag`` entries, in order, with units in the names. ``sat_u_*``: -1 (throttle at
