@@ -11,6 +11,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from conftest import examples
 from vtoladapt import forces
 from vtoladapt.config import ConfigError
 from vtoladapt.control import ControllerConfig
@@ -33,7 +34,7 @@ def _incident(v_W, R, w):
     return tuple(float(R[0][j] * d[0] + R[1][j] * d[1] + R[2][j] * d[2]) for j in range(3))
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(60), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(vehicle=st.sampled_from(VEHICLES), airspeed=st.floats(2.0, 13.0),
        from_deg=st.sampled_from([90.0, 135.0, 180.0, 225.0, 270.0]), jitter_deg=st.floats(-20.0, 20.0),
        yaw=st.floats(-np.pi, np.pi), u_z=st.floats(0.3, 0.9), u_x=st.floats(0.0, 0.3),
@@ -111,7 +112,7 @@ def test_guards_reject_too_fast_too_far_sideways_and_unexplainable_forces():
 BAD = st.sampled_from([np.nan, np.inf, -np.inf, 1e308, -1e308, 0.0, 1e-300])
 
 
-@settings(max_examples=80, deadline=None)
+@settings(max_examples=examples(80), deadline=None)
 @given(a_x=BAD | st.floats(-30, 30), a_y=BAD | st.floats(-30, 30), v=BAD | st.floats(-20, 20),
        w0=BAD | st.floats(-20, 20), u_z=BAD | st.floats(0, 1), cold=st.booleans(), th=BAD | st.floats(0.5, 1.5))
 def test_never_nan(a_x, a_y, v, w0, u_z, cold, th):
