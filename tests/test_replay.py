@@ -311,3 +311,18 @@ def test_fixed_wing_specific_force_is_velocity_derivative_minus_gravity_in_body_
     np.testing.assert_allclose(log.f_meas_B_mps2[k], R.T @ (a_W - np.array([0, 0, GRAVITY_MPS2])), atol=1e-9)
     with pytest.raises(ReplayError, match="rate_hz"):
         ReadSettings(rate_hz=-1.0)
+
+
+def test_truncated_ulog_is_refused_as_corrupt_in_one_line(tmp_path, capsys):
+    """The first 20 kB of a ULog: pyulog printed its own line to stdout and the replay blamed a
+    missing topic; it now says the file is damaged, in one line on stderr."""
+    src = REPO_DATA_DIR / "pyulog-testdata" / "sample_log_small.ulg"
+    cut = tmp_path / "cut.ulg"
+    cut.write_bytes(src.read_bytes()[:20000])
+    with pytest.raises(ReplayError, match=r"cut\.ulg: corrupt or truncated ULog"):
+        read_ulog(cut)
+    code = main(["replay", str(cut), "--vehicle", "px4_standard_vtol", "--out", str(tmp_path / "o")])
+    captured = capsys.readouterr()
+    assert code == 2 and captured.out == ""
+    assert len(captured.err.strip().splitlines()) == 1 and "corrupt or truncated" in captured.err
+    assert not (tmp_path / "o").exists()
