@@ -128,3 +128,8 @@ def test_cli_run_that_diverges_exits_1_with_one_line_and_keeps_its_outputs(tmp_p
     assert entry["run"] == "height_band" and 0.0 < entry["diverged_at_s"] < 3.0
     back = SimulationResult.from_parquet(out / "log.parquet")
     assert back.diverged_at_s == entry["diverged_at_s"] and np.all(np.isfinite(back["p_D_m"]))
+    # the reports said nothing of it: their metrics cover the time before, not the 3 s in the title
+    for name in ("report.md", "report.html"):
+        text = (out / name).read_text()
+        assert "Diverged:" in text and f"t = {entry['diverged_at_s']:g} s of 3 s" in text, name
+
