@@ -326,3 +326,32 @@ def test_truncated_ulog_is_refused_as_corrupt_in_one_line(tmp_path, capsys):
     assert code == 2 and captured.out == ""
     assert len(captured.err.strip().splitlines()) == 1 and "corrupt or truncated" in captured.err
     assert not (tmp_path / "o").exists()
+
+
+def test_csv_folder_with_a_nan_sample_or_a_header_only_topic_gives_no_stray_warnings(tmp_path):
+    """A NaN and an infinity in attitude samples printed numpy's RuntimeWarning (two lines) before the summary;
+    a header-only topic printed numpy's UserWarning before the one-line error."""
+    import shutil
+    import warnings
+
+    src = REPO_DATA_DIR / "mit-solar-airplane-px4"
+    nan_dir = tmp_path / "nan"
+    shutil.copytree(src, nan_dir)
+    att = nan_dir / "flight3_vehicle_attitude_0.csv"
+    lines = att.read_text().splitlines()
+    for row, value in ((50, "nan"), (60, "inf")):
+        fields = lines[row].split(",")
+        fields[1] = value
+        lines[row] = ",".join(fields)
+    att.write_text("\n".join(lines) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        log = read_csv_folder(nan_dir)
+    assert np.isnan(log.q_WB).any() and np.isfinite(log.q_WB).any()
+    empty_dir = tmp_path / "empty"
+    shutil.copytree(src, empty_dir)
+    (empty_dir / "flight3_vehicle_attitude_0.csv").write_text(lines[0] + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ReplayError, match="vehicle_attitude"):
+            read_csv_folder(empty_dir)
