@@ -137,3 +137,13 @@ def test_a_file_cannot_move_its_own_location_with_source_path(tmp_path):
     with pytest.raises(ConfigError, match="unknown key") as err:
         load_scenario(typo)
     assert "source_path" not in str(err.value).split("Allowed keys:")[1]  # not offered as allowed
+
+
+def test_a_missing_probe_calibration_file_is_refused_at_load_naming_scenario_and_key(tmp_path):
+    """It was found missing only when the run was set up, in a message naming the JSON file alone."""
+    sc = tmp_path / "cal.toml"
+    sc.write_text('name = "x"\nvehicle = "caltech_vtol"\nduration_s = 1.0\n'
+                  '[sensors.probe]\nmodel = "pressure"\ncalibration_file = "nothere.json"\n')
+    with pytest.raises(ConfigError, match=r"cal\.toml: \[sensors.probe\] calibration_file = 'nothere.json': "
+                                          r"file not found"):
+        load_scenario(sc)

@@ -188,6 +188,16 @@ def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | 
     if posterior is not None and not posterior.exists():
         raise ConfigError(f"{source}: [controller_prior] posterior = {scenario.controller_prior.posterior!r}: "
                           f"file not found ({posterior})")
+    calibration = scenario.sensors.probe.calibration_file
+    if calibration is not None:
+        # checked here, as the posterior is, rather than when the run is set up (where the message
+        # named only the missing file, not the scenario or the key)
+        path = Path(calibration)
+        if not path.is_absolute() and scenario.source_path:
+            path = Path(scenario.source_path).parent / path
+        if not path.is_file():
+            raise ConfigError(f"{source}: [sensors.probe] calibration_file = {calibration!r}: file not found "
+                              f"({path}); allowed: a 'vtoladapt probe calibrate' calibration.json")
     return scenario
 
 
