@@ -69,3 +69,28 @@ def test_local_dask_cluster_gives_the_same_rows_as_in_process(scenario_file, tmp
     dask = run_campaign(specs, tmp_path / "b", scheduler="local", n_workers=2, show_progress=False)
     for r1, r2 in zip(local, dask):
         assert r1["vel_err_rms_mps"] == r2["vel_err_rms_mps"]  # bit for bit: same seeds, same code
+
+
+def test_campaign_file_resolves_the_base_scenarios_relative_paths_against_the_base(tmp_path):
+    """A campaign file in one folder whose base scenario, in another, names its vehicle by a relative
+    path: the draws were validated with the description "c.toml (campaign draw 0: ...)" as the
+    scenario's location, so the vehicle was looked up as "A/c.toml ([campaign] base ../B/myveh.toml"."""
+    from vtoladapt.campaign import plan_campaign_file
+    from vtoladapt.vehicle import VEHICLE_DIR
+
+    (tmp_path / "A").mkdir()
+    (tmp_path / "B" / "planes").mkdir(parents=True)
+    text = (VEHICLE_DIR / "caltech_vtol.toml").read_text().replace('name = "caltech_vtol"', 'name = "myveh"')
+    (tmp_path / "B" / "planes" / "myveh.toml").write_text(text)
+    (tmp_path / "B" / "base.toml").write_text('name = "b"\nvehicle = "planes/myveh.toml"\nduration_s = 1.0\n')
+    camp = tmp_path / "A" / "c.toml"
+    camp.write_text('[campaign]\nbase = "../B/base.toml"\nruns = 2\nseed = 1\ncontrollers = ["composite"]\n'
+                    '[[campaign.vary]]\nkeys = ["plant.coefficients.CL1"]\nlow = 0.9\nhigh = 1.1\n'
+                    'relative_to_vehicle = true\n')
+    _, specs = plan_campaign_file(camp)
+    assert len(specs) == 2
+    cl1 = 3.2502  # myveh is a copy of caltech_vtol
+    assert all(0.9 * cl1 <= s.drawn["plant.coefficients.CL1"] <= 1.1 * cl1 for s in specs)
+    # a scenario in a sub-folder flown with --vary: its relative vehicle path resolves the same way
+    plan = plan_campaign(tmp_path / "B" / "base.toml", 2, [Variation.parse("plant.stall_angle_deg=12:18")])
+    assert len(plan) == 2

@@ -341,3 +341,15 @@ def test_the_simulator_stops_between_chunks_on_a_dropped_ctrl_c():
         with pytest.raises(KeyboardInterrupt):
             simulate(scenario)
     simulate(scenario)  # the request ends with the block
+
+
+def test_a_plant_too_weak_to_hover_is_refused_naming_the_file(tmp_path, capsys):
+    """The check runs while the run is set up; its message named neither the file nor the key's file."""
+    path = tmp_path / "weak.toml"
+    path.write_text('name = "weak"\nvehicle = "caltech_vtol"\nduration_s = 1.0\n'
+                    '[plant.coefficients]\nCTz = 0.0005\n')
+    out = tmp_path / "o"
+    assert main(["run", str(path), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "weak.toml: " in err[0] and "cannot hover" in err[0]
+    assert not out.exists()

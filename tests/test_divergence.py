@@ -128,3 +128,27 @@ def test_cli_run_that_diverges_exits_1_with_one_line_and_keeps_its_outputs(tmp_p
     assert entry["run"] == "height_band" and 0.0 < entry["diverged_at_s"] < 3.0
     back = SimulationResult.from_parquet(out / "log.parquet")
     assert back.diverged_at_s == entry["diverged_at_s"] and np.all(np.isfinite(back["p_D_m"]))
+    # the reports said nothing of it: their metrics cover the time before, not the 3 s in the title
+    for name in ("report.md", "report.html"):
+        text = (out / name).read_text()
+        assert "Diverged:" in text and f"t = {entry['diverged_at_s']:g} s of 3 s" in text, name
+
+
+def test_the_readme_divergence_example_runs_as_written():
+    """README "The envelope": the example used CTz = 1e10, which the input ranges refuse."""
+    import re
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    (code,) = [b for b in re.findall(r"```python\n(.*?)```", readme, re.S) if "raise_if_diverged()" in b]
+    lines = code.splitlines()
+    setup = "\n".join(line for line in lines if not line.startswith("res."))
+    namespace: dict = {}
+    exec(compile(setup, "README.md", "exec"), namespace)
+    res = namespace["res"]
+    shown = {m.group(1): m.group(2) for m in (re.match(r"res\.(\w+)\(?\)?\s+# (.*)", line) for line in lines) if m}
+    assert res.diverged
+    assert shown["diverged_at_s"].startswith(f"{res.diverged_at_s:g}:")
+    assert shown["divergence_reason"] == repr(res.divergence_reason)
+    with pytest.raises(DivergenceError):
+        res.raise_if_diverged()

@@ -99,3 +99,21 @@ def test_cli_bad_input_returns_error_code_with_message(tmp_path, capsys):
     assert run_cli(["probe", "evaluate", str(out / "calibration.json"), str(csv_path),
                     "--out", str(tmp_path / "o4")]) == 2
     assert "calibration.json: version = 99: unsupported" in capsys.readouterr().err
+
+
+def test_cli_calibrate_refuses_points_on_one_line_naming_the_file(tmp_path, capsys):
+    """An alpha sweep at beta = 0 cannot fix the spline's affine part: the error named no file and
+    advised a smoothing > 0, which gives the same error."""
+    from vtoladapt.cli import main
+
+    rows = ["alpha_deg,beta_deg,q_inf_Pa,q_alpha_Pa,q_beta_Pa,rho_kgpm3,V_mps"]
+    rows += [f"{a},0,137,{2.0 * a},0,1.225,15" for a in range(-6, 7)]
+    data = tmp_path / "sweep.csv"
+    data.write_text("\n".join(rows) + "\n")
+    for extra in ([], ["--smoothing", "0.1"]):
+        code = main(["probe", "calibrate", str(data), "--out", str(tmp_path / "cal"), *extra])
+        err = capsys.readouterr().err
+        assert code == 2
+        assert "sweep.csv" in err and "lie on one line" in err and "both alpha and beta" in err
+        assert "smoothing > 0" not in err
+        assert not (tmp_path / "cal").exists()

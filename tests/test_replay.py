@@ -311,3 +311,47 @@ def test_fixed_wing_specific_force_is_velocity_derivative_minus_gravity_in_body_
     np.testing.assert_allclose(log.f_meas_B_mps2[k], R.T @ (a_W - np.array([0, 0, GRAVITY_MPS2])), atol=1e-9)
     with pytest.raises(ReplayError, match="rate_hz"):
         ReadSettings(rate_hz=-1.0)
+
+
+def test_truncated_ulog_is_refused_as_corrupt_in_one_line(tmp_path, capsys):
+    """The first 20 kB of a ULog: pyulog printed its own line to stdout and the replay blamed a
+    missing topic; it now says the file is damaged, in one line on stderr."""
+    src = REPO_DATA_DIR / "pyulog-testdata" / "sample_log_small.ulg"
+    cut = tmp_path / "cut.ulg"
+    cut.write_bytes(src.read_bytes()[:20000])
+    with pytest.raises(ReplayError, match=r"cut\.ulg: corrupt or truncated ULog"):
+        read_ulog(cut)
+    code = main(["replay", str(cut), "--vehicle", "px4_standard_vtol", "--out", str(tmp_path / "o")])
+    captured = capsys.readouterr()
+    assert code == 2 and captured.out == ""
+    assert len(captured.err.strip().splitlines()) == 1 and "corrupt or truncated" in captured.err
+    assert not (tmp_path / "o").exists()
+
+
+def test_csv_folder_with_a_nan_sample_or_a_header_only_topic_gives_no_stray_warnings(tmp_path):
+    """A NaN and an infinity in attitude samples printed numpy's RuntimeWarning (two lines) before the summary;
+    a header-only topic printed numpy's UserWarning before the one-line error."""
+    import shutil
+    import warnings
+
+    src = REPO_DATA_DIR / "mit-solar-airplane-px4"
+    nan_dir = tmp_path / "nan"
+    shutil.copytree(src, nan_dir)
+    att = nan_dir / "flight3_vehicle_attitude_0.csv"
+    lines = att.read_text().splitlines()
+    for row, value in ((50, "nan"), (60, "inf")):
+        fields = lines[row].split(",")
+        fields[1] = value
+        lines[row] = ",".join(fields)
+    att.write_text("\n".join(lines) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        log = read_csv_folder(nan_dir)
+    assert np.isnan(log.q_WB).any() and np.isfinite(log.q_WB).any()
+    empty_dir = tmp_path / "empty"
+    shutil.copytree(src, empty_dir)
+    (empty_dir / "flight3_vehicle_attitude_0.csv").write_text(lines[0] + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ReplayError, match="vehicle_attitude"):
+            read_csv_folder(empty_dir)

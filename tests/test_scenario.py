@@ -117,3 +117,33 @@ def test_cold_start_compiles_in_two_processes_and_fills_the_cache(tmp_path):
     assert second.returncode == 0, second.stderr
     after = {p: p.stat().st_mtime_ns for p in cache.rglob("*.nb*")}
     assert after == before  # everything loaded from the cache: nothing compiled or rewritten
+
+
+def test_a_file_cannot_move_its_own_location_with_source_path(tmp_path):
+    """source_path is filled in by the loader (relative vehicle and posterior paths are resolved
+    against it); a file that sets it was accepted and silently re-pointed those paths."""
+    from vtoladapt.vehicle import VEHICLE_DIR, load_vehicle
+
+    sc = tmp_path / "sp.toml"
+    sc.write_text('name = "x"\nvehicle = "caltech_vtol"\nduration_s = 1.0\nsource_path = "/etc/passwd"\n')
+    with pytest.raises(ConfigError, match=r"sp\.toml: source_path = '/etc/passwd': unknown key"):
+        load_scenario(sc)
+    veh = tmp_path / "v.toml"
+    veh.write_text('source_path = "elsewhere.toml"\n' + (VEHICLE_DIR / "caltech_vtol.toml").read_text())
+    with pytest.raises(ConfigError, match=r"v\.toml: source_path = 'elsewhere.toml': unknown key"):
+        load_vehicle(veh)
+    typo = tmp_path / "typo.toml"
+    typo.write_text('name = "x"\nvehicle = "caltech_vtol"\nduration_s = 1.0\nsourcepath = 1\n')
+    with pytest.raises(ConfigError, match="unknown key") as err:
+        load_scenario(typo)
+    assert "source_path" not in str(err.value).split("Allowed keys:")[1]  # not offered as allowed
+
+
+def test_a_missing_probe_calibration_file_is_refused_at_load_naming_scenario_and_key(tmp_path):
+    """It was found missing only when the run was set up, in a message naming the JSON file alone."""
+    sc = tmp_path / "cal.toml"
+    sc.write_text('name = "x"\nvehicle = "caltech_vtol"\nduration_s = 1.0\n'
+                  '[sensors.probe]\nmodel = "pressure"\ncalibration_file = "nothere.json"\n')
+    with pytest.raises(ConfigError, match=r"cal\.toml: \[sensors.probe\] calibration_file = 'nothere.json': "
+                                          r"file not found"):
+        load_scenario(sc)

@@ -38,7 +38,7 @@ from typing import Optional
 
 import numpy as np
 
-from .config import PATH_PATTERN, ConfigError, build, check_flag, read_toml, setting
+from .config import PATH_PATTERN, ConfigError, build, check_flag, read_toml, refuse_internal_keys, setting
 from .control.registry import CONTROLLER_IDS
 from .outputs import OutputDir, add_force_argument, output_path, write_json, write_parquet
 
@@ -116,6 +116,7 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
         seed = check_value(Scenario, "seed", seed, "--seed")
     path = Path(scenario_path)
     base = read_toml(path)
+    refuse_internal_keys(base, str(path))
     base_scenario = scenario_from_mapping(base, str(path))
     if controller is not None:
         controller = check_value(ControllerConfig, "kind", controller, "--controller")
@@ -139,7 +140,7 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
             drawn[v.key] = float(rng.uniform(v.low, v.high))
             _set_dotted(mapping, v.key, drawn[v.key])
         mapping["experiment"] = {"kind": "single"}
-        scenario_from_mapping(mapping, f"{path} (campaign run {i}, {drawn})")
+        scenario_from_mapping(mapping, f"{path} (campaign run {i}, {drawn})", source_path=path)
         specs.append(RunSpec(i, mapping, str(path), drawn))
     return specs
 
@@ -358,6 +359,7 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
     runs = cfg.runs if runs is None else check_flag("--runs", runs, ge=1, le=MAX_CAMPAIGN_DRAWS, integer=True)
     seed = cfg.seed if seed is None else check_value(CampaignConfig, "seed", seed, "--seed")
     base = read_toml(cf.base_path)
+    refuse_internal_keys(base, str(cf.base_path))
     if "campaign" in base:
         raise ConfigError(f"{cf.path}: [campaign] base = {cfg.base!r}: is itself a campaign file; "
                           "allowed: a scenario file")
@@ -365,7 +367,8 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
         _set_dotted(base, key, copy.deepcopy(value))
     source = str(cf.base_path)
     where = f"{cf.path} ([campaign] base {cfg.base} with [campaign.set])"
-    base_scenario = scenario_from_mapping({**base, "experiment": {"kind": "single"}}, where)
+    base_scenario = scenario_from_mapping({**base, "experiment": {"kind": "single"}}, where,
+                                          source_path=cf.base_path)
     check_campaign_runs(runs * len(cfg.controllers), base)
     check_run_size(base_scenario, f"{where} (each campaign run)", n_runs=os.cpu_count() or 1)
 
@@ -390,7 +393,8 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
             groups[dim] = pick
         vehicle = None
         if any(v.relative_to_vehicle for v, _ in dims):
-            vehicle = scenario_from_mapping(mapping, f"{cf.path} (campaign draw {i})").load_vehicle()
+            vehicle = scenario_from_mapping(mapping, f"{cf.path} (campaign draw {i})",
+                                            source_path=cf.base_path).load_vehicle()
         for j, (v, key) in enumerate(dims):
             x = v.low + float(u[i, j]) * (v.high - v.low)
             value = x
@@ -408,7 +412,7 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
                 groups[v.name] = v.band(x, _setting_unit(key))
         mapping["controller"] = {**mapping.get("controller", {}), "kind": cfg.controllers[0]}
         shown = {k: (round(val, 4) if isinstance(val, float) else val) for k, val in drawn.items()}
-        scenario_from_mapping(mapping, f"{cf.path} (campaign draw {i}: {shown})")
+        scenario_from_mapping(mapping, f"{cf.path} (campaign draw {i}: {shown})", source_path=cf.base_path)
         specs += [RunSpec(i, mapping, source, drawn, cid, groups) for cid in cfg.controllers]
     return cf, specs
 
@@ -421,7 +425,7 @@ def _run_controller(spec: RunSpec) -> dict:
 
     mapping = dict(spec.mapping)
     mapping["controller"] = {**spec.mapping.get("controller", {}), "kind": spec.controller}
-    scenario = scenario_from_mapping(mapping, spec.source)
+    scenario = scenario_from_mapping(mapping, spec.source, source_path=spec.source)
     result = simulate(scenario)
     return {"run": spec.index, "controller": spec.controller, **spec.drawn,
             **{f"group.{k}": v for k, v in spec.groups.items()}, **envelope_run_metrics(result, scenario)}
@@ -436,7 +440,7 @@ def run_one(spec: RunSpec) -> dict:
 
     if spec.controller is not None:
         return _run_controller(spec)
-    scenario = scenario_from_mapping(spec.mapping, spec.source)
+    scenario = scenario_from_mapping(spec.mapping, spec.source, source_path=spec.source)
     result = simulate(scenario)
     row = {"run": spec.index, **spec.drawn}
     if len(result) > 1:  # a run that diverged at once has no metrics, only its divergence

@@ -100,10 +100,20 @@ def load_run_scenario(path, duration_s=None, seed=None, controller=None):
 def _cmd_run(args) -> int:
     from .experiments import run_experiment
 
+    from .config import ConfigError
+    from .outputs import OutputError
+
     scenario = load_run_scenario(args.scenario, args.duration, args.seed, args.controller)
     target = OutputDir(args.out, "run", force=args.force)
     with target:
-        run_experiment(scenario, target.path, show_progress=not args.quiet)
+        try:
+            run_experiment(scenario, target.path, show_progress=not args.quiet)
+        except ConfigError as exc:
+            # a check made while setting the run up (e.g. a plant too weak to hover) is about the
+            # scenario file: name it, as every other input error does
+            if isinstance(exc, OutputError) or not scenario.source_path or scenario.source_path in str(exc):
+                raise
+            raise ConfigError(f"{scenario.source_path}: {exc}") from exc
     if not args.quiet:
         print(f"wrote {args.out}/metrics.json, report.md, report.html and figures", file=sys.stderr)
     return ExitCode.OK

@@ -69,6 +69,10 @@ def check_flag(where: str, value: Any, *, unit: str = "-", ge: float | None = No
 
 _MISSING = dataclasses.MISSING
 
+INTERNAL_KEYS = ("source_path",)
+"""Fields the loaders fill in (the file a configuration was read from): never written in a file,
+so a file that sets one is refused and the unknown-key message does not offer them."""
+
 
 def setting(
     unit: str,
@@ -258,7 +262,7 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
             raise ConfigError(f"{_where(source, section, key)} = {shown}: {moved_to}")
         raise ConfigError(
             f"{_where(source, section, key)} = {shown}: unknown key{hint} "
-            f"Allowed keys: {', '.join(fields)}")
+            f"Allowed keys: {', '.join(k for k in fields if k not in INTERNAL_KEYS)}")
     kwargs = {}
     for name, f in fields.items():
         where = _where(source, section, name)
@@ -301,6 +305,15 @@ def check_input_file(path: str | Path, what: str = "file") -> Path:
         raise ConfigError(f"{shown}: {st.st_size / 2**20:.0f} MiB; a {what} may have at most "
                           f"{MAX_INPUT_FILE_BYTES / 2**20:.0f} MiB")
     return path
+
+
+def refuse_internal_keys(data: Mapping[str, Any], source: str) -> None:
+    """A :class:`ConfigError` if a parsed file sets a key the loader fills in (:data:`INTERNAL_KEYS`):
+    ``source_path = "elsewhere.toml"`` would move where the file's relative paths point."""
+    for key in INTERNAL_KEYS:
+        if isinstance(data, Mapping) and key in data:
+            raise ConfigError(f"{source}: {key} = {_shown(data[key])}: unknown key; it is set from the "
+                              "file's own location and cannot be written in the file")
 
 
 def read_toml(path: str | Path) -> dict[str, Any]:

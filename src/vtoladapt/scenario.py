@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from .config import NAME_PATTERN, PATH_PATTERN, ConfigError, build, read_toml, setting
+from .config import NAME_PATTERN, PATH_PATTERN, ConfigError, build, read_toml, refuse_internal_keys, setting
 from .control.config import ControllerConfig
 from .control.registry import CONTROLLER_IDS
 from .faults import FaultConfig
@@ -169,16 +169,35 @@ class Scenario:
         return dataclasses.replace(self, **changes)
 
 
-def scenario_from_mapping(data: dict, source: str) -> Scenario:
-    """Validate a parsed scenario mapping; errors name ``source``."""
+def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | None = None) -> Scenario:
+    """Validate a parsed scenario mapping; errors name ``source``.
+
+    ``source_path`` is the file the scenario's relative paths (``vehicle``, ``[controller_prior]
+    posterior``) are resolved against; without it, the mapping's own ``source_path`` or else
+    ``source``. Pass it whenever ``source`` is a description rather than a path (e.g. "c.toml
+    (campaign draw 3)"), or the paths would be resolved against that text.
+    """
     data = dict(data)
-    data.setdefault("source_path", source)
+    if source_path is not None:
+        data["source_path"] = str(source_path)
+    else:
+        data.setdefault("source_path", source)
     scenario = build(Scenario, data, source=source)
     scenario.load_vehicle()  # fail now, naming the file, if the vehicle is unknown
     posterior = scenario.posterior_path()
     if posterior is not None and not posterior.exists():
         raise ConfigError(f"{source}: [controller_prior] posterior = {scenario.controller_prior.posterior!r}: "
                           f"file not found ({posterior})")
+    calibration = scenario.sensors.probe.calibration_file
+    if calibration is not None:
+        # checked here, as the posterior is, rather than when the run is set up (where the message
+        # named only the missing file, not the scenario or the key)
+        path = Path(calibration)
+        if not path.is_absolute() and scenario.source_path:
+            path = Path(scenario.source_path).parent / path
+        if not path.is_file():
+            raise ConfigError(f"{source}: [sensors.probe] calibration_file = {calibration!r}: file not found "
+                              f"({path}); allowed: a 'vtoladapt probe calibrate' calibration.json")
     return scenario
 
 
@@ -192,4 +211,6 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         else:
             names = ", ".join(sorted(p.stem for p in SCENARIO_DIR.glob("*.toml")))
             raise ConfigError(f"scenario {str(name_or_path)!r}: file not found; shipped scenarios: {names}")
-    return scenario_from_mapping(read_toml(path), str(path))
+    data = read_toml(path)
+    refuse_internal_keys(data, str(path))
+    return scenario_from_mapping(data, str(path), source_path=path)

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import ConfigError, build, read_toml, setting
+from .config import ConfigError, build, read_toml, refuse_internal_keys, setting
 from .scaling import model_kernel_params, theta_to_scaled
 
 VEHICLE_DIR = Path(__file__).with_name("vehicles")
@@ -276,4 +276,6 @@ def _load_vehicle_file(path: str, mtime_ns: int, size: int) -> Vehicle:
     Vehicles are frozen with read-only arrays, so one object can serve every run of a campaign;
     parsing the TOML took as long as a second of simulated flight.
     """
-    return vehicle_from_mapping(read_toml(Path(path)), path)
+    data = read_toml(Path(path))
+    refuse_internal_keys(data, path)
+    return vehicle_from_mapping(data, path)

@@ -202,6 +202,11 @@ def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, wa
     # every run that left its envelope, with when and why; its log is kept up to that point
     metrics["divergence"] = [{"run": name or scenario.name, "diverged_at_s": r.diverged_at_s,
                               "reason": r.divergence_reason} for name, r in diverged.items()]
+    # said at the top of the report, not only in metrics.json: a diverged run's metrics and figures
+    # cover the time before it stopped, not the scenario's duration
+    notes[1:1] = [f"Diverged: {'`' + name + '`' if name else 'the run'} left its envelope at "
+                  f"t = {r.diverged_at_s:g} s of {scenario.duration_s:g} s ({r.divergence_reason}); "
+                  "its log, metrics and figures cover only the time before." for name, r in diverged.items()]
     _write_json(out / "metrics.json", metrics)
     write_report(out, build_report(_experiment_title(scenario), metrics, _figure_refs(figures), notes))
     if diverged:

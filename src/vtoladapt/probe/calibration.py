@@ -368,8 +368,8 @@ def _tps_fit(x: np.ndarray, y: np.ndarray, smoothing: float) -> tuple[np.ndarray
     try:
         sol = np.linalg.solve(A, rhs)
     except np.linalg.LinAlgError:
-        raise ProbeError("calibration points are degenerate (repeated or collinear pressure "
-                         "coefficients); use a smoothing > 0 or more points") from None
+        raise ProbeError("calibration points are degenerate (repeated pressure coefficients); "
+                         "use a smoothing > 0 (--smoothing) or more distinct points") from None
     return sol[:n], sol[n:]
 
 
@@ -399,8 +399,8 @@ def tps_loo_residuals(x: np.ndarray, y: np.ndarray, smoothing: float) -> np.ndar
     try:
         Ainv = np.linalg.inv(_tps_system(x, smoothing))
     except np.linalg.LinAlgError:
-        raise ProbeError("calibration points are degenerate (repeated or collinear pressure "
-                         "coefficients); use a smoothing > 0 or more points") from None
+        raise ProbeError("calibration points are degenerate (repeated pressure coefficients); "
+                         "use a smoothing > 0 (--smoothing) or more distinct points") from None
     c = Ainv[:, :n] @ y
     return c[:n] / np.diag(Ainv)[:n, None]
 
@@ -444,6 +444,12 @@ def fit_spline_calibration(data: ProbeCalibrationData, *, smoothing: float | Non
     r = np.hypot(C[:, 0], C[:, 1])
     c_scale = float(np.max(r)) if np.max(r) > 0 else 1.0
     x = C / c_scale
+    # the spline's affine part (1, C_alpha, C_beta) needs points spanning the plane; no smoothing
+    # helps when they lie on one line (e.g. an alpha sweep at beta = 0) or at one point
+    if np.linalg.matrix_rank(np.column_stack([np.ones(len(x)), x]), tol=1e-9) < 3:
+        raise ProbeError(f"{data.source}: the {len(x)} calibration points' pressure coefficients "
+                         "(q_alpha/q_inf, q_beta/q_inf) lie on one line or at one point; allowed: "
+                         "points that vary in both alpha and beta (a cone or alpha-beta sweep)")
     alpha_t = np.radians(cal.alpha_deg)
     beta_t = np.radians(cal.beta_deg)
     cq = q[:, 0] / cal.q_dyn_Pa

@@ -7,6 +7,7 @@ replay does not read are ignored; the log-name prefix may be anything (or nothin
 from __future__ import annotations
 
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -42,8 +43,10 @@ def read_topic_csv(path: Path) -> dict:
         if "timestamp" not in names:
             raise ReplayError(f"{path}: header has no 'timestamp' column (found: {', '.join(names[:8])})")
         try:
-            data = np.genfromtxt(fh, delimiter=",", dtype=np.float64, ndmin=2, invalid_raise=True,
-                                 missing_values=("", "nan"), filling_values=np.nan)
+            with warnings.catch_warnings():  # a header-only file is no data, said below, not a warning
+                warnings.filterwarnings("ignore", message=".*[Ee]mpty input file", category=UserWarning)
+                data = np.genfromtxt(fh, delimiter=",", dtype=np.float64, ndmin=2, invalid_raise=True,
+                                     missing_values=("", "nan"), filling_values=np.nan)
         except ValueError as exc:
             raise ReplayError(f"{path}: not a numeric PX4 topic CSV ({str(exc).splitlines()[0]})") from None
     if data.size == 0:

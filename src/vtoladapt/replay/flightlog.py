@@ -271,7 +271,8 @@ def resample_quaternion(ts_us, q, grid_us, max_gap_s) -> np.ndarray:
     dots = np.einsum("ij,ij->i", q[1:], q[:-1])
     sign = np.concatenate(([1.0], np.cumprod(np.where(dots < 0.0, -1.0, 1.0))))
     out = resample_linear(ts_us, q * sign[:, None], grid_us, max_gap_s)
-    return out / np.linalg.norm(out, axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):  # a NaN (gap or bad sample) stays NaN, quietly
+        return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
 def rotation_matrices(q_WB: np.ndarray) -> np.ndarray:
