@@ -42,10 +42,9 @@ Where the wing solution is undefined
 Heading: weathervane into the wind, the reference yaw in hover
 --------------------------------------------------------------
 Why the side wind was bad (issue #11, from the logs of ``array_bearing_deg = 90``): the airflow
-probe cannot measure a flow from the side; its calibration reports "invalid" and a zero
-vector, exactly what it reports in still air. (From behind, the simulated pressure probe reports
-a *valid* reading of the mirrored flow, v_i ~ -v_i,true: no controller can tell that from a
-headwind, so that case is left to the probe model.) The front end took that for
+probe cannot measure a flow from the side or from behind; its calibration reports "invalid" and
+a zero vector, exactly what it reports in still air (from behind, the centre port reads below
+static pressure, q_inf < 0, which the calibration refuses). The front end took that for
 still air (:mod:`.frontend`), so the controller flew the whole run as a multirotor facing north
 with 85 deg of sideslip it did not know about: no wing, no turn into the wind, and every
 adaptive law adapted on a regressor without the wind (the side force is in no column of Phi at
