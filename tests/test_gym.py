@@ -240,6 +240,23 @@ def test_bad_actions_and_vector_arguments():
     venv.close()
 
 
+def test_actions_outside_the_space_are_clipped_to_it():
+    """An action beyond [-1, 1] steps exactly as its clipped value (command and reward), single and vector."""
+    big = np.array([5.0, -3.0, 1.5, -1.0001, 0.25])
+    for residual in (False, True):
+        envs = [HoldEnv(scenario=short_hold(0.1), residual=residual, action_cost=0.3) for _ in range(2)]
+        out = [env.reset(seed=3) and env.step(a) for env, a in zip(envs, (big, np.clip(big, -1.0, 1.0)))]
+        np.testing.assert_array_equal(out[0][0], out[1][0])
+        assert out[0][1] == out[1][1]
+        venvs = [HoldVectorEnv(num_envs=2, workers=1, residual=residual, scenario=short_hold(0.1),
+                               action_cost=0.3) for _ in range(2)]
+        vout = [v.reset(seed=3) and v.step(np.stack([a, -a])) for v, a in zip(venvs, (big, np.clip(big, -1.0, 1.0)))]
+        np.testing.assert_array_equal(vout[0][0], vout[1][0])
+        np.testing.assert_array_equal(vout[0][1], vout[1][1])
+        for v in venvs:
+            v.close()
+
+
 def test_shipped_scenario_is_the_default_and_runs_as_written():
     sc = load_scenario("gym_hold")
     assert HoldEnv().config.scenario == sc

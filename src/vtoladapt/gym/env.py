@@ -85,9 +85,10 @@ class HoldEnv(gym.Env):
             raise RuntimeError(f"{ENV_ID}: step() after the episode ended (or before reset()): call reset()")
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (ACTION_SIZE,) or not np.isfinite(a).all():
-            raise ValueError(f"{ENV_ID}: action {action!r}: must be {ACTION_SIZE} finite numbers in [-1, 1]")
+            raise ValueError(f"{ENV_ID}: action {action!r}: must be {ACTION_SIZE} finite numbers "
+                             "(values outside [-1, 1] are clipped to it)")
         c = self._chunk  # a batch of one: write its row and call the kernel directly
-        c.actions[0] = a
+        np.clip(a, -1.0, 1.0, out=c.actions[0])
         c.op[0] = OP_STEP
         try:
             c.run()

@@ -15,7 +15,9 @@ throttle fractions and the body moment ``tau_B``, FRD, N m), held for one contro
 direct mode ``u = (a + 1) / 2 * u_max`` and ``tau = a * tau_max``; in residual mode
 ``u = u_ctrl + a * residual_scale * u_max`` and ``tau = tau_ctrl + a * residual_scale * tau_max``,
 clipped to ``[0, u_max]`` and ``[-tau_max, tau_max]``. ``u_max`` (vehicle's throttle limit) and
-``tau_max`` (per axis) are the controller's own limits for the vehicle.
+``tau_max`` (per axis) are the controller's own limits for the vehicle. An action outside
+``[-1, 1]`` is clipped to it (as the action space's bound, in both modes, before the reward's
+action cost); a non-finite one is refused.
 """
 from __future__ import annotations
 

@@ -30,9 +30,13 @@ from .spaces import ACTION_SIZE, action_space, observation_space
 
 
 def _copy_finite(src: np.ndarray, dst: np.ndarray) -> bool:
-    """Copy ``src`` into the float64 ``dst`` (same shape); whether every value is finite."""
+    """Copy ``src`` into the float64 ``dst`` (same shape), clipped to the action space [-1, 1];
+    whether every value is finite."""
     np.copyto(dst, src, casting="unsafe")
-    return bool(np.isfinite(dst).all())
+    if not np.isfinite(dst).all():
+        return False
+    np.clip(dst, -1.0, 1.0, out=dst)
+    return True
 
 
 class HoldVectorEnv(VectorEnv):
@@ -110,7 +114,7 @@ class HoldVectorEnv(VectorEnv):
         # one cast-and-copy into the batch's float64 actions (the kernels read them there)
         if a is None or a.shape != b.actions.shape or not _copy_finite(a, b.actions):
             raise ValueError(f"{ENV_ID}: actions of shape {np.shape(actions)}: must be "
-                             f"({self.num_envs}, {ACTION_SIZE}) finite numbers in [-1, 1]")
+                             f"({self.num_envs}, {ACTION_SIZE}) finite numbers (values outside [-1, 1] are clipped to it)")
         resetting = self._autoreset
         if resetting.any():
             for i in np.flatnonzero(resetting):
