@@ -147,3 +147,14 @@ def test_a_missing_probe_calibration_file_is_refused_at_load_naming_scenario_and
     with pytest.raises(ConfigError, match=r"cal\.toml: \[sensors.probe\] calibration_file = 'nothere.json': "
                                           r"file not found"):
         load_scenario(sc)
+
+
+def test_unknown_scenario_lists_every_shipped_one_by_the_name_that_loads_it():
+    with pytest.raises(ConfigError, match="file not found") as err:
+        load_scenario("no_such_scenario")
+    listed = str(err.value).split("shipped scenarios: ", 1)[1].split(", ")
+    assert "paper_comparison" in listed and "faults/lift_motor_loss" in listed
+    for name in listed:
+        load_scenario(name)
+    with pytest.raises(ConfigError, match="a campaign file .* vtoladapt campaign"):
+        load_scenario("envelope")

@@ -201,6 +201,13 @@ def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | 
     return scenario
 
 
+def shipped_scenario_names() -> list[str]:
+    """The names :func:`load_scenario` accepts for the shipped scenarios (``faults/...`` included;
+    the shipped campaign files, which hold a ``[campaign]`` table, are not scenarios)."""
+    return sorted(p.relative_to(SCENARIO_DIR).with_suffix("").as_posix() for p in SCENARIO_DIR.rglob("*.toml")
+                  if "campaign" not in read_toml(p))
+
+
 def load_scenario(name_or_path: str | Path) -> Scenario:
     """Load a scenario by path, or by the name of one shipped in ``vtoladapt/scenarios``."""
     path = Path(name_or_path)
@@ -209,8 +216,11 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         if shipped.exists():
             path = shipped
         else:
-            names = ", ".join(sorted(p.stem for p in SCENARIO_DIR.glob("*.toml")))
-            raise ConfigError(f"scenario {str(name_or_path)!r}: file not found; shipped scenarios: {names}")
+            raise ConfigError(f"scenario {str(name_or_path)!r}: file not found; shipped scenarios: "
+                              f"{', '.join(shipped_scenario_names())}")
     data = read_toml(path)
+    if "campaign" in data:
+        raise ConfigError(f"{path}: a campaign file ([campaign] table), not a scenario; "
+                          f"run it with: vtoladapt campaign {path} --out DIR")
     refuse_internal_keys(data, str(path))
     return scenario_from_mapping(data, str(path), source_path=path)

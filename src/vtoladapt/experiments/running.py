@@ -89,7 +89,8 @@ def _warm_up(scenario: Scenario, show: bool) -> None:
     from ..simulate import load_kernels
 
     t0 = time.perf_counter()
-    _note("Loading compiled kernels (the first run on a machine compiles them: under a minute)...", show)
+    _note("Loading compiled kernels (the first run on a machine compiles them: about 90 s on 2 idle "
+          "cores, longer on a busy machine)...", show)
     load_kernels(replace(scenario, experiment=replace(scenario.experiment, kind="single")))
     _note(f"  kernels ready in {time.perf_counter() - t0:.1f} s", show)
 
