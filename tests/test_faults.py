@@ -179,3 +179,27 @@ def test_schedule_errors_are_one_line(entry, words):
                               "bad.toml")
     msg = str(exc.value)
     assert "\n" not in msg and "bad.toml" in msg and words in msg
+
+
+@pytest.mark.parametrize("entry, key", [
+    ({"kind": "probe_nan", "motor": 2}, "motor"),
+    ({"kind": "lift_motor_loss", "port": "beta"}, "port"),
+    ({"kind": "imu_nan", "extra_latency_s": 0.05}, "extra_latency_s"),
+])
+def test_a_key_that_does_not_apply_to_the_kind_is_refused(entry, key):
+    data = {"name": "f", "vehicle": "caltech_vtol", "duration_s": 1.0,
+            "faults": [{"start_s": 0.1, "end_s": 0.5, **entry}]}
+    with pytest.raises(ConfigError) as exc:
+        scenario_from_mapping(data, "f.toml")
+    message = str(exc.value)
+    assert "\n" not in message and "f.toml" in message and f"{key} = " in message
+    assert f"kind = {entry['kind']!r}" in message and "does not apply" in message
+
+
+def test_every_kind_accepts_the_keys_it_uses():
+    for kind in FAULT_KINDS:
+        keys = FaultConfig.keys_for({"kind": kind})
+        assert keys[:3] == ("kind", "start_s", "end_s")
+        entry = {"kind": kind, "start_s": 0.1, "end_s": 0.5}
+        entry.update({k: FaultConfig.__dataclass_fields__[k].default for k in keys[3:]})
+        scenario_from_mapping({"name": "f", "vehicle": "caltech_vtol", "duration_s": 1.0, "faults": [entry]}, "f")

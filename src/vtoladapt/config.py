@@ -25,6 +25,16 @@ class ConfigError(ValueError):
     """A configuration file or mapping is invalid; the message says where and why."""
 
 
+class ApplicableKeys(tuple):
+    """The keys of a table that apply to it, and why (e.g. ``kind = 'probe_nan'``): what a
+    dataclass's ``keys_for(data)`` returns for :func:`build` to refuse the others."""
+
+    def __new__(cls, keys, reason: str):
+        obj = super().__new__(cls, keys)
+        obj.reason = reason
+        return obj
+
+
 MEMORY_BUDGET_BYTES = int(float(os.environ.get("VTOLADAPT_MEMORY_BUDGET_GB", "6")) * 2**30)
 """The most memory one command may plan to hold in its large arrays (simulation logs, chains,
 tables): 6 GiB by default (a quarter of a 24 GiB machine, leaving room for copies made while
@@ -249,6 +259,15 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
         raise ConfigError(f"{source}: [{section}] must be a table, got {data!r}")
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
     hints = _type_hints(cls)
+    # a class whose keys depend on the table (a fault's on its kind) says which apply to this one
+    keys_for = getattr(cls, "keys_for", None)
+    applicable = keys_for(data) if keys_for is not None else None
+    if applicable is not None:
+        inapplicable = [k for k in data if k in fields and k not in applicable]
+        if inapplicable:
+            key = inapplicable[0]
+            raise ConfigError(f"{_where(source, section, key)} = {_shown(data[key])}: does not apply here "
+                              f"({applicable.reason}); keys here: {', '.join(applicable)}")
     unknown = [k for k in data if k not in fields]
     if unknown:
         key = unknown[0]

@@ -37,11 +37,12 @@ the key).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 from numba import njit
 
-from .config import ConfigError, setting
+from .config import ApplicableKeys, ConfigError, setting
 from .layout import (MEAS_ACCEL_B, MEAS_OMEGA_B, MEAS_P_W, MEAS_V_I_B, MEAS_V_I_VALID, MEAS_V_W, MOTOR_PUSHER,
                      BlockLayout, Field)
 
@@ -51,6 +52,11 @@ FAULT_KINDS: tuple[str, ...] = (
 (K_PROBE_DROPOUT, K_PROBE_STUCK, K_PROBE_NAN, K_PROBE_BLOCKED, K_IMU_SPIKE, K_IMU_NAN, K_MOCAP_DROPOUT,
  K_MOCAP_LATENCY, K_LIFT_LOSS, K_PUSHER_SAT, K_STUCK_THROTTLE) = range(len(FAULT_KINDS))
 ACTUATOR_KINDS = ("lift_motor_loss", "pusher_saturated", "stuck_throttle")
+_KIND_KEYS: dict[str, tuple[str, ...]] = {
+    "probe_blocked_port": ("port",), "imu_spike": ("spike_gyro_radps", "spike_accel_mps2"),
+    "mocap_latency": ("extra_latency_s",), "lift_motor_loss": ("motor", "thrust_loss_fraction"),
+    "stuck_throttle": ("motor",)}
+"""The keys beyond ``kind``, ``start_s``, ``end_s`` that each kind uses (the others use none)."""
 MAX_FAULTS = 30
 """Entries in one schedule at most (the log's ``faults_active`` column is a bit mask of them)."""
 LATENCY_RING_TICKS = 128
@@ -97,6 +103,16 @@ class FaultConfig:
     extra_latency_s: float = setting("s", "added motion-capture delay (mocap_latency), whole ticks",
                                      default=0.1, ge=0.0, le=0.5)
     port: str = setting("-", "blocked port pair (probe_blocked_port)", default="alpha", choices=("alpha", "beta"))
+
+    @staticmethod
+    def keys_for(data) -> "Optional[ApplicableKeys]":
+        """The keys an entry of this ``kind`` uses (:func:`vtoladapt.config.build` refuses the
+        others: a ``motor`` on a probe fault would be silently ignored); ``None`` for an unknown kind,
+        which the kind's own check reports."""
+        kind = data.get("kind")
+        if not isinstance(kind, str) or kind not in FAULT_KINDS:
+            return None
+        return ApplicableKeys(("kind", "start_s", "end_s") + _KIND_KEYS.get(kind, ()), f"kind = {kind!r}")
 
     def _check(self, source: str) -> None:
         if not self.end_s > self.start_s:
