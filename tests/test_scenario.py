@@ -158,3 +158,13 @@ def test_unknown_scenario_lists_every_shipped_one_by_the_name_that_loads_it():
         load_scenario(name)
     with pytest.raises(ConfigError, match="a campaign file .* vtoladapt campaign"):
         load_scenario("envelope")
+
+
+@pytest.mark.parametrize("kind", ["pid", "pd", "nominal", "indi", "l1"])
+def test_convergence_experiment_needs_a_law_that_adapts_theta(kind, tmp_path):
+    """A convergence experiment judges how theta-hat converges: laws holding theta-hat = theta_0 are refused."""
+    with pytest.raises(ConfigError, match=f"kind = '{kind}'.*convergence"):
+        scenario_from_mapping({"name": "c", "vehicle": "caltech_vtol", "duration_s": 1.0,
+                               "controller": {"kind": kind}, "experiment": {"kind": "convergence"}}, "c.toml")
+    rc = main(["run", "paper_convergence", "--controller", kind, "--out", str(tmp_path / "o")])
+    assert rc == 2 and not (tmp_path / "o").exists()

@@ -92,6 +92,7 @@ def load_run_scenario(path, duration_s=None, seed=None, controller=None):
         scenario = replace(scenario, controller=replace(scenario.controller, kind=kind))
         if scenario.experiment.kind == "comparison":  # compare just this one
             scenario = replace(scenario, experiment=replace(scenario.experiment, controllers=(kind,)))
+        scenario._check(f"{scenario.source_path} with --controller")
     where = f"{scenario.source_path}" + (" with --duration" if duration_s is not None else "")
     check_run_size(scenario, where)
     return scenario

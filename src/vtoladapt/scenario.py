@@ -17,7 +17,7 @@ from typing import Optional
 
 from .config import NAME_PATTERN, PATH_PATTERN, ConfigError, build, read_toml, refuse_internal_keys, setting
 from .control.config import ControllerConfig
-from .control.registry import CONTROLLER_IDS
+from .control.registry import CONTROLLER_IDS, THETA_ADAPTIVE_IDS
 from .faults import FaultConfig
 from .monitor import EnvelopeConfig
 from .plant import PlantConfig
@@ -136,6 +136,12 @@ class Scenario:
     faults: tuple[FaultConfig, ...] = setting("-", "injected faults ([[faults]] entries, each with start_s "
                                               "and end_s)", default=())
     source_path: str = setting("-", "file the scenario was read from", default="")
+
+    def _check(self, source: str) -> None:
+        if self.experiment.kind == "convergence" and self.controller.kind not in THETA_ADAPTIVE_IDS:
+            raise ConfigError(f"{source}: [controller] kind = {self.controller.kind!r}: a convergence experiment "
+                              f"judges how theta-hat converges; allowed: {', '.join(THETA_ADAPTIVE_IDS)} "
+                              f"(the others hold theta-hat = theta_0)")
 
     @property
     def n_ticks(self) -> int:

@@ -74,6 +74,9 @@ PAPER_ADAPTIVE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if
 """The paper's adaptive controllers (I to III), which its comparison claims are about."""
 PAPER_BASELINE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if not c.adaptive and c.paper)
 """The paper's baselines (IV PID and V PD)."""
+THETA_ADAPTIVE_IDS: tuple[str, ...] = ("composite", "composite_pconst", "tracking_only")
+"""The laws whose theta-hat moves (L1 adapts a force estimate and holds theta-hat = theta_0): the
+only ones a parameter-convergence experiment can judge."""
 
 
 def controller_info(controller_id: str) -> ControllerInfo:
