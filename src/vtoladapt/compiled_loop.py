@@ -16,6 +16,15 @@ Per controller tick ``k`` (time ``t = k dt``), in this order:
 Steps 1-3 are :func:`tick_sense`, steps 4-6 :func:`tick_actuate`; :func:`run_closed_loop` calls
 the two in turn, and the Gymnasium environment (:mod:`vtoladapt.gym`) acts between them. The loop
 sees only kernel arrays; :mod:`vtoladapt.simulate` builds them from a scenario.
+
+The kernels a tick runs -- the tick functions here, the controller step and the adaptive laws'
+updates, the plant, sensor, wind, mixer, fault and envelope kernels -- are compiled without Numba's
+reference counting (``_nrt=False``). They allocate nothing and keep no array beyond the call, yet
+Numba increments the count of every array argument on entry and decrements it on every exit, and
+its pruning leaves these pairs in any function with several exits or an inlined callee: about 110
+atomic increments and as many decrements per tick (counted in the LLVM IR), about 20 of them in
+the controller step. A kernel compiled this way cannot allocate (``np.empty`` in it fails to
+compile), so these kernels take their scratch from the caller and pass tuples between them.
 """
 from __future__ import annotations
 
@@ -81,7 +90,7 @@ N_LOG = _C_FAULTS + 1
 assert N_LOG == len(LOG_COLUMNS)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def tick_sense(x, plant_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state, ref, t, dt, rng,
                run_controller, v_wind, f_B, v_i, meas, cmd, diag, work) -> None:
     """First half of controller tick at time ``t``: steps 1-3 of the module docstring.
@@ -99,7 +108,7 @@ def tick_sense(x, plant_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_
         controller_step(ctrl_p, ctrl_state, meas, ref, dt, cmd, diag)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def tick_actuate(x, plant_p, mixer_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag,
                  motor_cmd, work, theta_true, gamma, row) -> None:
     """Second half of the tick at time ``t``: steps 4-6 (mix ``cmd``, log, advance the plant by ``dt``).
@@ -112,7 +121,7 @@ def tick_actuate(x, plant_p, mixer_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B
                      saturated, 0.0, work, theta_true, gamma, row)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def tick_log_advance(x, plant_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag, motor_cmd,
                      saturated, faults_active, work, theta_true, gamma, row) -> None:
     """Steps 5-6 of the tick: log the tick into ``row`` (unless empty), advance the plant with ``motor_cmd``."""

@@ -148,7 +148,7 @@ def _active(faults, i, t) -> bool:
     return faults[i, _F_START] <= t < faults[i, _F_END]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def active_mask(faults, t) -> float:
     """Bit ``i`` set when schedule entry ``i`` is active at ``t`` (the log's ``faults_active``)."""
     m = 0
@@ -158,7 +158,7 @@ def active_mask(faults, t) -> float:
     return float(m)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def apply_measurement_faults(faults, fstate, t, dt, meas) -> None:
     """Apply the active sensor faults of the schedule to ``meas`` in place (sensors -> controller)."""
     n = faults.shape[0]
@@ -224,7 +224,7 @@ def apply_measurement_faults(faults, fstate, t, dt, meas) -> None:
                 meas[MEAS_V_W + j] = fstate[o + 3 + j]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def apply_actuator_faults(faults, fstate, t, u_max, motor_cmd) -> None:
     """Apply the active actuator faults to the five motor commands in place (mixer -> plant)."""
     for i in range(faults.shape[0]):

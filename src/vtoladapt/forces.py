@@ -246,6 +246,51 @@ def thruster_force(v_i_B, u_x, u_z, theta, model, out=None) -> tuple:
     return f
 
 
+FLOW_SIZE = 9
+"""Length of the :func:`incident_flow` tuple."""
+F_V, F_ALPHA, F_SIN_ALPHA, F_COS_ALPHA, F_Q, F_SIGMA, F_ALPHA_DISK, F_COS_BETA_BAR, F_SIN_BETA_BAR = range(FLOW_SIZE)
+
+
+@njit(cache=True)
+def incident_flow(v_i_B, model) -> tuple:
+    """Everything the force model evaluates from the incident velocity alone, as a tuple (indices ``F_*``).
+
+    ``(V, alpha, sin alpha, cos alpha, q, sigma, alpha_disk, cos beta_bar, sin beta_bar)``: airspeed
+    (m/s), angle of attack (rad) with its sine and cosine, the wing's dynamic pressure per unit mass
+    (:func:`wing_pressure`), the stall weight (:func:`stall_weight`) and the rotor flow
+    (:func:`rotor_flow_angles`). The controller evaluates it once per tick and hands it to the
+    regressor and the allocation (:func:`regressor_at`, :func:`aero_force_at`), which would otherwise
+    each take the square roots and arctangents again.
+    """
+    vx, vy, vz = v_i_B[0], v_i_B[1], v_i_B[2]
+    V2 = vx * vx + vy * vy + vz * vz   # summed in this order: bit for bit the paper's model
+    r2 = vx * vx + vz * vz
+    r = np.sqrt(r2)
+    alpha = np.arctan2(vz, vx)
+    # sin/cos of alpha from the components avoids a trig call and is exact at r > 0.
+    sa, ca = (vz / r, vx / r) if r > 0.0 else (0.0, 1.0)
+    alpha_disk, cb, sb = rotor_flow_angles(v_i_B)
+    q = wing_pressure(V2, r2, model[M_AERO_SCALE], model[M_INV_COS2_SIDESLIP])
+    sigma, _ = stall_weight(alpha, model[M_ALPHA_LO], model[M_ALPHA_HI], model[M_INV_BLEND])
+    return (np.sqrt(V2), alpha, sa, ca, q, sigma, alpha_disk, cb, sb)
+
+
+@njit(cache=True)
+def aero_force_at(flow, theta) -> tuple:
+    """:func:`aero_force` at an evaluated :func:`incident_flow`: ``(f_x, f_y, f_z)`` per unit mass."""
+    alpha, sa, ca, q, sigma = flow[F_ALPHA], flow[F_SIN_ALPHA], flow[F_COS_ALPHA], flow[F_Q], flow[F_SIGMA]
+    CL = lift_coefficient(alpha, theta[I_CL0], theta[I_CL1])
+    CD = drag_coefficient(alpha, theta[I_CD0], theta[I_CD1], theta[I_CD2])
+    # the polar weighted by w = 1 - sigma (C_D0 kept whole) and the plate's normal force along -z,
+    # grouped as the regressor's columns are; with sigma = 0 every step is exact (1 * x, x + 0 * y,
+    # x - 0), so inside the range this is the paper's model bit for bit
+    w = 1.0 - sigma
+    CL = w * CL
+    CD = w * CD + sigma * theta[I_CD0]
+    N = sigma * theta[I_CL1] * INV_PI * sa
+    return (q * (CL * sa - CD * ca), 0.0, q * (-CL * ca - CD * sa) - q * N)
+
+
 @njit(cache=True)
 def aero_force(v_i_B, theta, model, out=None) -> tuple:
     """Estimated wing force f_A-hat per unit mass (eq:fAhat, divided by mass): ``(f_x, f_y, f_z)``.
@@ -254,25 +299,7 @@ def aero_force(v_i_B, theta, model, out=None) -> tuple:
     (the controller keeps beta = 0). Outside the attached-flow range and past 30 deg of sideslip
     the coefficients and the dynamic pressure continue as in the module notes.
     """
-    vx, vz = v_i_B[0], v_i_B[2]
-    V2 = vx * vx + v_i_B[1] ** 2 + vz * vz   # summed in this order: bit for bit the paper's model
-    r2 = vx * vx + vz * vz
-    r = np.sqrt(r2)
-    alpha = np.arctan2(vz, vx)
-    # sin/cos of alpha from the components avoids a trig call and is exact at r > 0.
-    sa, ca = (vz / r, vx / r) if r > 0.0 else (0.0, 1.0)
-    q = wing_pressure(V2, r2, model[M_AERO_SCALE], model[M_INV_COS2_SIDESLIP])
-    CL = lift_coefficient(alpha, theta[I_CL0], theta[I_CL1])
-    CD = drag_coefficient(alpha, theta[I_CD0], theta[I_CD1], theta[I_CD2])
-    sigma, _ = stall_weight(alpha, model[M_ALPHA_LO], model[M_ALPHA_HI], model[M_INV_BLEND])
-    # the polar weighted by w = 1 - sigma (C_D0 kept whole) and the plate's normal force along -z,
-    # grouped as the regressor's columns are; with sigma = 0 every step is exact (1 * x, x + 0 * y,
-    # x - 0), so inside the range this is the paper's model bit for bit
-    w = 1.0 - sigma
-    CL = w * CL
-    CD = w * CD + sigma * theta[I_CD0]
-    N = sigma * theta[I_CL1] * INV_PI * sa
-    f = (q * (CL * sa - CD * ca), 0.0, q * (-CL * ca - CD * sa) - q * N)
+    f = aero_force_at(incident_flow(v_i_B, model), theta)
     if out is not None:
         out[0], out[1], out[2] = f
     return f
@@ -293,26 +320,11 @@ def body_force(v_i_B, u_x, u_z, theta, model, out=None) -> tuple:
 
 
 @njit(cache=True)
-def regressor(v_i_B, u_x, u_z, model, Phi=None) -> tuple:
-    """The regressor ``Phi(v_i, u_x, u_z)`` (3x8) with ``f_b-hat = Phi theta``.
-
-    Returns the three rows (x, y, z) as tuples of 8, and writes them into the (3, 8) array ``Phi``
-    if given. Columns follow ``theta = [CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1]`` (the paper's
-    order). This one function serves control, adaptation and fitting. Past stall the polar's
-    columns fade with ``1 - sigma`` and the C_L1 column gains the flat plate's normal force along
-    body -z (module notes).
-    """
-    vx, vy, vz = v_i_B[0], v_i_B[1], v_i_B[2]
-    V2 = vx * vx + vy * vy + vz * vz   # summed in this order: bit for bit the paper's model
-    V = np.sqrt(V2)
-    r2 = vx * vx + vz * vz
-    r = np.sqrt(r2)
-    alpha = np.arctan2(vz, vx)
-    sa, ca = (vz / r, vx / r) if r > 0.0 else (0.0, 1.0)
-    alpha_disk, cb, sb = rotor_flow_angles(v_i_B)
-    G = side_force_basis(alpha_disk, V, u_z, model[M_K1], model[M_K2])
-    q = wing_pressure(V2, r2, model[M_AERO_SCALE], model[M_INV_COS2_SIDESLIP])
-    sigma, _ = stall_weight(alpha, model[M_ALPHA_LO], model[M_ALPHA_HI], model[M_INV_BLEND])
+def regressor_at(flow, u_x, u_z, k1, k2) -> tuple:
+    """:func:`regressor` at an evaluated :func:`incident_flow` (side-force constants ``k1``, ``k2``): three rows of 8."""
+    alpha, sa, ca, q, sigma = flow[F_ALPHA], flow[F_SIN_ALPHA], flow[F_COS_ALPHA], flow[F_Q], flow[F_SIGMA]
+    cb, sb = flow[F_COS_BETA_BAR], flow[F_SIN_BETA_BAR]
+    G = side_force_basis(flow[F_ALPHA_DISK], flow[F_V], u_z, k1, k2)
     # drag acts along -x_i = -(cos a, 0, sin a) with C_D0, C_D1 alpha, C_D2 alpha^2;
     # lift along (sin a, 0, -cos a) with C_L0, C_L1 alpha; past stall the polar terms are weighted
     # by w = 1 - sigma (w = 1 exactly inside the range, so these are the paper's columns bit for bit)
@@ -322,9 +334,22 @@ def regressor(v_i_B, u_x, u_z, model, Phi=None) -> tuple:
     b2 = w * (alpha * alpha)
     # the plate's normal force (C_L1 / pi) sin(a) along body -z: lift cos a and drag sin a of it
     n_z = -q * sigma * INV_PI * sa
-    rows = ((u_x * u_x, 0.0, -G * cb, -q * ca, -q * b1 * ca, -q * b2 * ca, qw * sa, q * b1 * sa),
+    return ((u_x * u_x, 0.0, -G * cb, -q * ca, -q * b1 * ca, -q * b2 * ca, qw * sa, q * b1 * sa),
             (0.0, 0.0, -G * sb, 0.0, 0.0, 0.0, 0.0, 0.0),
             (0.0, -u_z * u_z, 0.0, -q * sa, -q * b1 * sa, -q * b2 * sa, -qw * ca, -q * b1 * ca + n_z))
+
+
+@njit(cache=True)
+def regressor(v_i_B, u_x, u_z, model, Phi=None) -> tuple:
+    """The regressor ``Phi(v_i, u_x, u_z)`` (3x8) with ``f_b-hat = Phi theta``.
+
+    Returns the three rows (x, y, z) as tuples of 8, and writes them into the (3, 8) array ``Phi``
+    if given. Columns follow ``theta = [CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1]`` (the paper's
+    order). This one function serves control, adaptation and fitting. Past stall the polar's
+    columns fade with ``1 - sigma`` and the C_L1 column gains the flat plate's normal force along
+    body -z (module notes).
+    """
+    rows = regressor_at(incident_flow(v_i_B, model), u_x, u_z, model[M_K1], model[M_K2])
     if Phi is not None:
         for i in range(3):
             for j in range(N_THETA):

@@ -186,14 +186,21 @@ def quat_from_euler(yaw_rad: float, pitch_rad: float, roll_rad: float) -> np.nda
 
 
 @njit(cache=True)
+def yaw_pitch_roll(q) -> tuple:
+    """:func:`euler_from_quat` as a 3-tuple: no array allocated (the controller's kernels allocate nothing)."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    s = 2.0 * (w * y - z * x)
+    return (np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)),
+            np.arcsin(min(1.0, max(-1.0, s))),
+            np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y)))
+
+
+@njit(cache=True)
 def euler_from_quat(q: np.ndarray) -> np.ndarray:
     """Yaw, pitch, roll (3-2-1 intrinsic, radians) of ``q_WB``; pitch clipped to +-pi/2."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
+    ypr = yaw_pitch_roll(q)
     out = np.empty(3)
-    out[0] = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    s = 2.0 * (w * y - z * x)
-    out[1] = np.arcsin(min(1.0, max(-1.0, s)))
-    out[2] = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    out[0], out[1], out[2] = ypr
     return out
 
 

@@ -47,19 +47,23 @@ def mixer_params(vehicle: Vehicle) -> np.ndarray:
                              U_MAX=vehicle.actuators.throttle_max_pct / 100.0)
 
 
-@njit(cache=True)
-def _solve(p, T_total, tx, ty, tz, T) -> None:
-    Ai = p[MX_INV:MX_INV + 16]
-    for i in range(N_LIFT):
-        T[i] = Ai[4 * i] * T_total + Ai[4 * i + 1] * tx + Ai[4 * i + 2] * ty + Ai[4 * i + 3] * tz
+@njit(cache=True, _nrt=False)
+def _solve(p, T_total, tx, ty, tz) -> tuple:
+    """The four lift-rotor thrusts (N) of a collective and body moments: the inverse allocation, as a tuple."""
+    o = MX_INV
+    return (p[o] * T_total + p[o + 1] * tx + p[o + 2] * ty + p[o + 3] * tz,
+            p[o + 4] * T_total + p[o + 5] * tx + p[o + 6] * ty + p[o + 7] * tz,
+            p[o + 8] * T_total + p[o + 9] * tx + p[o + 10] * ty + p[o + 11] * tz,
+            p[o + 12] * T_total + p[o + 13] * tx + p[o + 14] * ty + p[o + 15] * tz)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def mix(cmd, p, motor_cmd) -> bool:
     """Motor commands (fractions, lift rotors 1-4 then pusher) from a controller command.
 
     Returns True if any limit was hit (yaw reduced, collective shifted or a motor clipped).
-    Non-finite inputs are treated as zero so that the motors never receive NaN.
+    Non-finite inputs are treated as zero so that the motors never receive NaN. The thrusts are
+    tuples, not arrays: the mixer runs every tick and an array would be allocated each time.
     """
     u_max = p[MX_U_MAX]
     T_max = p[MX_T_UNIT] * u_max * u_max
@@ -69,16 +73,14 @@ def mix(cmd, p, motor_cmd) -> bool:
     tx = cmd[CMD_TAU_B] if np.isfinite(cmd[CMD_TAU_B]) else 0.0
     ty = cmd[CMD_TAU_B + 1] if np.isfinite(cmd[CMD_TAU_B + 1]) else 0.0
     tz = cmd[CMD_TAU_B + 2] if np.isfinite(cmd[CMD_TAU_B + 2]) else 0.0
-    T = np.empty(N_LIFT)
-    _solve(p, T_total, tx, ty, tz, T)
+    T = _solve(p, T_total, tx, ty, tz)
     saturated = False
-    lo = T.min()
-    hi = T.max()
+    lo = min(T[0], T[1], T[2], T[3])
+    hi = max(T[0], T[1], T[2], T[3])
     if lo < 0.0 or hi > T_max:
         saturated = True
         # largest yaw fraction s in [0, 1] that keeps every rotor inside the limits
-        T0 = np.empty(N_LIFT)
-        _solve(p, T_total, tx, ty, 0.0, T0)
+        T0 = _solve(p, T_total, tx, ty, 0.0)
         s = 1.0
         for i in range(N_LIFT):
             d = T[i] - T0[i]
@@ -86,18 +88,17 @@ def mix(cmd, p, motor_cmd) -> bool:
                 s = min(s, max(T_max - T0[i], 0.0) / d)
             elif d < 0.0 and T[i] < 0.0:
                 s = min(s, max(T0[i], 0.0) / -d)  # T0 + s d >= 0
-        for i in range(N_LIFT):
-            T[i] = T0[i] + s * (T[i] - T0[i])
-        lo = T.min()
-        hi = T.max()
+        T = (T0[0] + s * (T[0] - T0[0]), T0[1] + s * (T[1] - T0[1]), T0[2] + s * (T[2] - T0[2]),
+             T0[3] + s * (T[3] - T0[3]))
+        lo = min(T[0], T[1], T[2], T[3])
+        hi = max(T[0], T[1], T[2], T[3])
         # shift the collective to bring roll/pitch inside, if the spread fits at all
         if hi - lo <= T_max:
             if lo < 0.0:
-                for i in range(N_LIFT):
-                    T[i] -= lo
+                T = (T[0] - lo, T[1] - lo, T[2] - lo, T[3] - lo)
             elif hi > T_max:
-                for i in range(N_LIFT):
-                    T[i] -= hi - T_max
+                shift = hi - T_max
+                T = (T[0] - shift, T[1] - shift, T[2] - shift, T[3] - shift)
     for i in range(N_LIFT):
         Ti = min(max(T[i], 0.0), T_max)
         motor_cmd[i] = np.sqrt(Ti / p[MX_T_UNIT])

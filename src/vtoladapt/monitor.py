@@ -104,7 +104,7 @@ class DivergenceError(RunFailed):
         super().__init__(f"{where}run diverged: {result.divergence_reason}")
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def check_envelope(x, env) -> int:
     """Reason code (:data:`DIVERGENCE_REASONS`) of the first envelope limit ``x`` violates, else 0.
 

@@ -388,7 +388,7 @@ def true_forces_moments(vx, vy, vz, wx, wy, wz, rotors, p) -> tuple:
     return fx, fy, fz, tx, ty, tz
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def rigid_body_derivative(x, xo, rotors, v_wind_W, p, xdot, do) -> tuple:
     """d/dt of the rigid-body state ``x[xo:xo+N_BODY]`` (p, v, q, omega) into ``xdot[do:do+N_BODY]``.
 
@@ -484,20 +484,20 @@ _W_K1, _W_K2, _W_K3, _W_K4, _W_XT, _W_M_MID, _W_M_END, _W_ROTORS = RK4_WORK.offs
 RK4_WORK_SIZE = RK4_WORK.size
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _store_rotor_terms(rotors, work) -> None:
     for i in range(ROTOR_TERMS_SIZE):
         work[_W_ROTORS + i] = rotors[i]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _load_rotor_terms(work) -> tuple:
     w = work
     o = _W_ROTORS
     return (w[o], w[o + 1], w[o + 2], w[o + 3], w[o + 4], w[o + 5], w[o + 6])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def plant_first_stage(x, v_wind_W, p, f_B, v_i_B, work) -> None:
     """Evaluate the first RK4 stage of the next step at ``x`` into ``work``.
 
@@ -517,7 +517,7 @@ def plant_first_stage(x, v_wind_W, p, f_B, v_i_B, work) -> None:
         v_i_B[i] = f[3 + i]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def plant_advance(x, motor_cmd, v_wind_W, p, h, n_steps, first_stage_done, work) -> None:
     """Advance ``x`` in place by ``n_steps`` fixed steps of ``h`` seconds, inputs held.
 

@@ -647,7 +647,7 @@ def _first_step(state, x_true, v_i_B_true):
     state[_ST_INIT] = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def sensors_step(params: np.ndarray, state: np.ndarray, t: float, dt: float, x_true: np.ndarray,
                  specific_force_B: np.ndarray, v_i_B_true: np.ndarray, rng,
                  meas_out: np.ndarray) -> None:

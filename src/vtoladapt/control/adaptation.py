@@ -484,7 +484,7 @@ def _side(at_upper, at_lower, i) -> float:
     return 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def project_direction(K, k, G, g, x, tau, d0, d, s, at_upper, at_lower, active_start) -> tuple:
     """Project the update direction ``d0 = K tau`` onto the box's tangent cone in the K-metric.
 
@@ -623,7 +623,7 @@ def adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, fo
                                     trace_max, active_set, 1.0, 1.0, False, 1.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, forget_b, sigma,
                              trace_max, active_set, w_track, w_pred, directional, gain_scale) -> tuple:
     """One tick of eq:th_adapt and eq:P_adapt (see the module notes), in place.
@@ -762,7 +762,7 @@ def lyapunov_function(v_tilde, q0_tilde, theta_hat, P_inv, theta_true, gamma) ->
                        np.ascontiguousarray(P_inv).ravel(), 0, theta_true, gamma)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def lyapunov_at(v0, v1, v2, q0_tilde, theta_buf, i_theta, P_inv_buf, i_P_inv, theta_true, gamma) -> float:
     """:func:`lyapunov_function` with ``theta-hat`` at ``theta_buf[i_theta:]`` and ``P^-1`` (n x n,
     row-major) at ``P_inv_buf[i_P_inv:]``: the simulator's log reads them from the controller state

@@ -76,7 +76,15 @@ def allocate_thrusters(f_rb_B, v_i_B, theta, model, u_max) -> tuple:
         -1 if it is at 0 because the row asks for the opposite sign (by more than
         ``SAT_TOL_MPS2``), +1 if clipped at ``u_max``, 0 otherwise.
     """
-    fa = forces.aero_force(v_i_B, theta, model)
+    return allocate_thrusters_at(f_rb_B, forces.incident_flow(v_i_B, model), theta, model, u_max)
+
+
+@njit(cache=True)
+def allocate_thrusters_at(f_rb_B, flow, theta, model, u_max) -> tuple:
+    """:func:`allocate_thrusters` with the incident flow already evaluated (``flow`` =
+    :func:`vtoladapt.forces.incident_flow` of ``v_i_B``): the controller's tick evaluates it once for
+    the regressor and the allocation."""
+    fa = forces.aero_force_at(flow, theta)
     ctx = max(theta[forces.I_CTX], 1e-9)
     ctz = max(theta[forces.I_CTZ], 1e-9)
     u2_max = u_max * u_max
@@ -93,8 +101,8 @@ def allocate_thrusters(f_rb_B, v_i_B, theta, model, u_max) -> tuple:
         sat_z = SAT_HIGH
     u_z = np.sqrt(u2)
     # x row: CTx u_x^2 - CS G cos(beta_bar) = target_x
-    V = np.sqrt(v_i_B[0] ** 2 + v_i_B[1] ** 2 + v_i_B[2] ** 2)
-    alpha_disk, cb, sb = forces.rotor_flow_angles(v_i_B)
+    V = flow[forces.F_V]
+    alpha_disk, cb, sb = flow[forces.F_ALPHA_DISK], flow[forces.F_COS_BETA_BAR], flow[forces.F_SIN_BETA_BAR]
     G = forces.side_force_basis(alpha_disk, V, u_z, model[forces.M_K1], model[forces.M_K2])
     side_x = -theta[forces.I_CS] * G * cb
     tx = f_rb_B[0] - fa[0] - side_x
@@ -119,4 +127,4 @@ def allocate_thrusters(f_rb_B, v_i_B, theta, model, u_max) -> tuple:
     return u_x, u_z, residual_B, sat_x, sat_z
 
 
-__all__ = ["SAT_HIGH", "SAT_LOW", "SAT_NONE", "allocate_thrusters"]
+__all__ = ["SAT_HIGH", "SAT_LOW", "SAT_NONE", "allocate_thrusters", "allocate_thrusters_at"]

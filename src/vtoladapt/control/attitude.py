@@ -331,9 +331,22 @@ def desired_attitude(f_r_W, v_i_W, yaw_rad, CL0, CL1, aero_scale_per_m, alpha_mi
         (``V > 1e-6 m/s``).
     """
     V = np.sqrt(v_i_W[0] ** 2 + v_i_W[1] ** 2 + v_i_W[2] ** 2)
+    return desired_attitude_aligned(f_r_W, v_i_W, V, yaw_rad, CL0, CL1, aero_scale_per_m, alpha_min_rad,
+                                    alpha_max_rad, V_lo, V_hi, tilt_max_rad, min_lift_mps2, y_prev_W, have_y_prev,
+                                    heading_alignment_weight(v_i_W, yaw_rad, cos_align_full, cos_align_zero),
+                                    lift_reserve_mps2)
+
+
+@njit(cache=True)
+def desired_attitude_aligned(f_r_W, v_i_W, V, yaw_rad, CL0, CL1, aero_scale_per_m, alpha_min_rad, alpha_max_rad,
+                             V_lo, V_hi, tilt_max_rad, min_lift_mps2, y_prev_W, have_y_prev, alignment,
+                             lift_reserve_mps2) -> tuple:
+    """:func:`desired_attitude` with ``V = |v_i_W|`` and the :func:`heading_alignment_weight` at
+    ``yaw_rad`` (``alignment``, read only where the airspeed blend is nonzero) already evaluated: the
+    controller's back end needs them for the flow-angle protection too."""
     w = hover_blend_weight(V, V_lo, V_hi)
     if w > 0.0:
-        w *= heading_alignment_weight(v_i_W, yaw_rad, cos_align_full, cos_align_zero)
+        w *= alignment
     alpha_d = 0.0
     formed = V > V_WING_MIN_MPS
     q_w = (1.0, 0.0, 0.0, 0.0)
@@ -470,6 +483,6 @@ def desired_frame_rate(q_prev, q_now, dt) -> tuple:
     return (k * e1, k * e2, k * e3)
 
 
-__all__ = ["alpha_protection_step", "desired_angle_of_attack", "desired_attitude", "desired_frame_rate",
-           "heading_alignment_weight", "heading_step", "hover_blend_weight", "incident_frame_W",
+__all__ = ["alpha_protection_step", "desired_angle_of_attack", "desired_attitude", "desired_attitude_aligned",
+           "desired_frame_rate", "heading_alignment_weight", "heading_step", "hover_blend_weight", "incident_frame_W",
            "measured_angle_of_attack", "multirotor_attitude", "quat_slerp", "smoothstep", "wing_attitude"]

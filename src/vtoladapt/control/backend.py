@@ -28,14 +28,14 @@ import numpy as np
 from numba import njit
 
 from .. import layout as L
-from ..forces import I_CL0, I_CL1, model_at
+from ..forces import F_ALPHA, F_V, I_CL0, I_CL1, model_at
 from ..frames import GRAVITY_MPS2, quat_to_rotmat_rows
 from . import adaptation as ad
-from .allocation import allocate_thrusters
+from .allocation import allocate_thrusters_at
 from .attitude import (
     ALPHA_EXCESS_MAX_RAD,
     alpha_protection_step,
-    desired_attitude,
+    desired_attitude_aligned,
     desired_frame_rate,
     heading_alignment_weight,
     heading_step,
@@ -77,9 +77,13 @@ def default_law_diagnostics(params, diag) -> None:
 
 
 @njit(cache=True, inline="always")
-def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_ok, R, v_W, v_i, p_tilde, v_r,
-             v_tilde_raw, yaw_d) -> None:
-    """Steps 1-7 of the module notes: writes ``cmd`` and ``diag``, updates the shared state."""
+def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_ok, R, v_W, v_i, flow, p_tilde,
+             v_r, v_tilde_raw, yaw_d) -> None:
+    """Steps 1-7 of the module notes: writes ``cmd`` and ``diag``, updates the shared state.
+
+    ``flow`` is :func:`vtoladapt.forces.incident_flow` of ``v_i`` (the front end's): the airspeed, the
+    angle of attack and the allocation's flow quantities are read from it, not evaluated again.
+    """
     for i in range(3):
         state[S_V_PREV + i] = v_W[i]
     u_max = params[P_U_MAX]
@@ -89,7 +93,7 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
     q_WB = (state[S_Q_LAST], state[S_Q_LAST + 1], state[S_Q_LAST + 2], state[S_Q_LAST + 3])
     omega = vec3(state, S_OMEGA_LAST)
     v_i_W = rows_times(R, v_i)
-    airspeed = np.sqrt(v_i[0] ** 2 + v_i[1] ** 2 + v_i[2] ** 2)
+    airspeed = flow[F_V]
 
     # 1. |f_r + g| limited
     f_r, _ = limit_norm((f_r[0], f_r[1], f_r[2] + GRAVITY_MPS2), params[P_ACC_MAX])
@@ -101,7 +105,8 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
         state[S_WV_ON] = 1.0
     elif V_h < params[P_WV_AIRSPEED]:
         state[S_WV_ON] = 0.0
-    alpha_raw = measured_angle_of_attack(v_i)
+    # the probe's alpha; in forward flow (v_ix > 0) it is the flow's atan2(v_iz, v_ix), already evaluated
+    alpha_raw = flow[F_ALPHA] if v_i[0] > 0.0 else measured_angle_of_attack(v_i)
     if state[S_HAVE_HEADING] > 0.0:
         if not probe_ok and state[S_FLOW_EST_ON] > 0.0:
             # the airflow estimated from the unexplained force (frontend) is in v_i: nose into it
@@ -126,6 +131,12 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
     state[S_YAW_REF_PREV] = yaw_d
     state[S_HAVE_HEADING] = 1.0
     state[S_ALPHA_F] = alpha_m
+    # the heading alignment weight serves the flow-angle protection and the desired attitude (step 3):
+    # evaluated once, and only if a hover-blend weight it multiplies can be nonzero (airspeed above V_lo)
+    V_W = np.sqrt(v_i_W[0] ** 2 + v_i_W[1] ** 2 + v_i_W[2] ** 2)
+    align = 0.0
+    if V_W > params[P_V_LO] or (probe_ok and airspeed > params[P_V_LO]):
+        align = heading_alignment_weight(v_i_W, heading, params[P_ALIGN_COS], params[P_ALIGN_COS + 1])
     # flow-angle protection: the measured alpha's upper (lower) envelope beyond the limits moves the
     # alpha_d limits; the envelope is the filtered alpha +- n standard deviations of its fluctuation,
     # estimated only while the wing flies (elsewhere alpha is not the wing's and the estimate fades)
@@ -133,7 +144,7 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
     if probe_ok:
         w_wing = hover_blend_weight(airspeed, params[P_V_LO], params[P_V_HI])
         if w_wing > 0.0:
-            w_wing *= heading_alignment_weight(v_i_W, heading, params[P_ALIGN_COS], params[P_ALIGN_COS + 1])
+            w_wing *= align
     d_a = min(max(alpha_raw - alpha_m, -ALPHA_EXCESS_MAX_RAD), ALPHA_EXCESS_MAX_RAD)
     alpha_var = state[S_ALPHA_VAR]
     alpha_var = ad.flush_tiny(alpha_var + (w_wing * d_a * d_a - alpha_var) * dt / (params[P_AP_SPREAD_TAU] + dt))
@@ -147,10 +158,10 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
     alpha_min_flown = params[P_ALPHA_MIN] - state[S_ALPHA_TRIM + 1]
 
     # 3. desired attitude and the desired frame's rate
-    q_d, y_i, alpha_d, w_blend, formed = desired_attitude(
-        f_r, v_i_W, heading, theta[I_CL0], theta[I_CL1], model[0], alpha_min_flown, alpha_max_flown,
+    q_d, y_i, alpha_d, w_blend, formed = desired_attitude_aligned(
+        f_r, v_i_W, V_W, heading, theta[I_CL0], theta[I_CL1], model[0], alpha_min_flown, alpha_max_flown,
         params[P_V_LO], params[P_V_HI], params[P_TILT_MAX], params[P_MIN_LIFT], vec3(state, S_Y_I_PREV),
-        state[S_HAVE_Y_I] > 0.0, params[P_ALIGN_COS], params[P_ALIGN_COS + 1], params[P_LIFT_RESERVE])
+        state[S_HAVE_Y_I] > 0.0, align, params[P_LIFT_RESERVE])
     if formed:
         state[S_Y_I_PREV], state[S_Y_I_PREV + 1], state[S_Y_I_PREV + 2] = y_i
         state[S_HAVE_Y_I] = 1.0
@@ -192,7 +203,7 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
 
     # 5. thruster allocation at the current attitude (eq:f_proj)
     f_rb = rows_transpose_times(R, f_r)
-    u_x, u_z, res, sat_x, sat_z = allocate_thrusters(f_rb, v_i, theta, model, u_max)
+    u_x, u_z, res, sat_x, sat_z = allocate_thrusters_at(f_rb, flow, theta, model, u_max)
 
     # 6. output, with a last guard against non-finite values
     if not (np.isfinite(u_x) and np.isfinite(u_z) and plausible(tau, np.inf)):

@@ -44,8 +44,8 @@ import numpy as np
 from numba import njit
 
 from .. import layout as L
-from ..forces import model_at, regressor
-from ..frames import euler_from_quat, quat_to_rotmat_rows
+from ..forces import M_K1, M_K2, incident_flow, model_at, regressor_at
+from ..frames import quat_to_rotmat_rows, yaw_pitch_roll
 from . import adaptation as ad
 from .airflow_estimate import SIN_SIDESLIP_MAX, estimate_horizontal_wind
 from .layouts import (
@@ -135,12 +135,13 @@ def front_end(params, state, meas, ref, dt) -> tuple:
     Returns
     -------
     (dt, new_dt, faults, may_adapt, probe_ok, R, v_W, v_i, p_tilde, v_r, v_r_dot, v_tilde_raw, v_tilde,
-     a_d, yaw_d, Phi)
+     a_d, yaw_d, Phi, flow)
         The tick used (s) and whether it differs from the last one; the ``FAULT_*`` bits so far;
         whether an adaptive law may update theta-hat; whether the probe was used; ``R_WB`` (rows);
         velocity (m/s NED); incident velocity used (m/s body); ``p~`` (m), ``v_r``, ``v_r'``,
         ``v~`` before and after its limit (NED); desired acceleration (m/s^2 NED) and heading
-        (rad); the unfiltered regressor ``Phi`` (three rows of 8).
+        (rad); the unfiltered regressor ``Phi`` (three rows of 8); and the flow quantities of
+        ``v_i`` (:func:`vtoladapt.forces.incident_flow`) it was formed from.
     """
     faults = 0
     if not (dt > 0.0 and dt <= 0.1):
@@ -202,7 +203,7 @@ def front_end(params, state, meas, ref, dt) -> tuple:
         ok_ref = False
         if not have_ref:
             # no good reference yet: face where we face
-            state[S_REF_LAST + L.REF_YAW] = euler_from_quat(q_WB)[0]
+            state[S_REF_LAST + L.REF_YAW] = yaw_pitch_roll(q_WB)[0]
     if not ok_ref:
         faults |= FAULT_REFERENCE
     state[S_HAVE_REF] = 1.0
@@ -303,7 +304,9 @@ def front_end(params, state, meas, ref, dt) -> tuple:
     else:
         state[S_U_EST] = state[S_U_PREV]
         state[S_U_EST + 1] = state[S_U_PREV + 1]
-    Phi = regressor(v_i, state[S_U_EST], state[S_U_EST + 1], model_at(params, P_MODEL))
+    # the flow quantities (airspeed, angles, dynamic pressure) once: the allocation reuses them
+    flow = incident_flow(v_i, model_at(params, P_MODEL))
+    Phi = regressor_at(flow, state[S_U_EST], state[S_U_EST + 1], params[P_MODEL + M_K1], params[P_MODEL + M_K2])
     c_f = state[S_GAINS + GAIN_LOWPASS]
     if state[S_FILT_INIT] > 0.0:
         for r in range(3):
@@ -326,4 +329,4 @@ def front_end(params, state, meas, ref, dt) -> tuple:
     may_adapt = (state[S_FILT_INIT] > 0.0 and probe_ok and accel_ok
                  and state[S_VALID_TIME] >= params[P_HOLDOFF_S] - 1e-12)
     return (dt, new_dt, faults, may_adapt, probe_ok, R, v_W, v_i, p_tilde, v_r, v_r_dot, v_tilde_raw, v_tilde,
-            a_d, yaw_d, Phi)
+            a_d, yaw_d, Phi, flow)

@@ -17,6 +17,10 @@ the tuple of their compiled ``update`` functions), so the compiled step calls th
 directly and holds no list of laws of its own. The array layouts are in :mod:`.layouts` (shared
 blocks) and in each law's module (its own blocks); outside them use the accessors
 (:func:`state_theta_hat`, :func:`state_P_inv`, :func:`state_P`, :func:`set_state_theta_hat`, ...).
+
+The step is compiled without Numba's reference counting, as every kernel of the simulator's tick
+(:mod:`vtoladapt.compiled_loop`): a law's ``update`` must not allocate arrays (its scratch lives in
+its state block, and values pass between functions as tuples).
 """
 from __future__ import annotations
 
@@ -57,7 +61,7 @@ _LAWS = tuple((i, info.law.update) for i, info in enumerate(CONTROLLERS.values()
 warnings.filterwarnings("ignore", message="First-class function type feature is experimental")
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
     """One controller tick: front end, the law's update, back end (see :mod:`vtoladapt.control`).
 
@@ -66,7 +70,7 @@ def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
     or not finite is replaced (nominal rate, or 0.1 s) and flagged.
     """
     (dt, new_dt, faults, may_adapt, probe_ok, R, v_W, v_i, p_tilde, v_r, v_r_dot, v_tilde_raw, v_tilde, a_d, yaw_d,
-     Phi) = front_end(params, state, meas, ref, dt)
+     Phi, flow) = front_end(params, state, meas, ref, dt)
     default_law_diagnostics(params, diag)
     # the flow the laws' model-validity measures read (the controller's own v_i, never the plant's)
     state[S_V_I_LAW] = v_i[0]
@@ -82,7 +86,7 @@ def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
             f_r, e, adapt_active, law_faults = law[1](params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W,
                                                       v_r_dot, v_tilde, a_d)
     back_end(params, state, cmd, diag, dt, faults | law_faults, f_r, e, adapt_active, probe_ok, R, v_W, v_i,
-             p_tilde, v_r, v_tilde_raw, yaw_d)
+             flow, p_tilde, v_r, v_tilde_raw, yaw_d)
 
 
 # --- parameters and state from the configuration (Python, once per run) ---------------------------

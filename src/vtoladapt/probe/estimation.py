@@ -96,7 +96,7 @@ def aoa_incident_velocity(q_inf, q_alpha, q_beta, rho, k, out_v_i_B):
     out_v_i_B[2] = s * a
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _keys_weights(t):
     """Keys' cubic-convolution weights (a = -1/2) of nodes i-1, i, i+1, i+2 at t in [0, 1)."""
     return (((-0.5 * t + 1.0) * t - 0.5) * t,
@@ -125,7 +125,7 @@ def _single_k(q_inf, q_alpha, q_beta, rho, cal, out):
     return out[0] >= V * np.cos(cal[SK_ANGLE_LIMIT])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _table(q_inf, q_alpha, q_beta, rho, cal, out):
     if cal.shape[0] < TB_HEADER:
         return False

@@ -184,7 +184,7 @@ def wind_initial_state(params: np.ndarray) -> np.ndarray:
     return state
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def wind_step(params: np.ndarray, state: np.ndarray, t: float, dt: float, p_W: np.ndarray,
               rng, out_v_wind_W: np.ndarray) -> None:
     """Write the total wind at time ``t`` and advance the turbulence to ``t + dt``.

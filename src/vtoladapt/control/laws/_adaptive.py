@@ -82,7 +82,7 @@ def add_information(state, g, weight, dt) -> None:
             state[S_INFO_SUM + n * j + i] = v
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def adaptive_estimate(mode, params, state, diag, s_active, s_work, may_adapt, Phi, R, v_tilde, dt, forget_a,
                       forget_b, sigma, trace_max, w_track=1.0, w_pred=1.0, directional=False,
                       gain_scale=1.0) -> tuple:

@@ -52,7 +52,7 @@ def init_state(params: np.ndarray, state: np.ndarray) -> None:
     """Nothing beyond the shared start (theta-hat = theta_init, P = P0)."""
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_tilde, a_d) -> tuple:
     """Adapt theta-hat with P = P0, then the force command (eq:f_ctrl); see the law interface."""
     e, adapt_active, faults = adaptive_estimate(

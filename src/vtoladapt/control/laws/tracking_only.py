@@ -94,7 +94,7 @@ def init_state(params: np.ndarray, state: np.ndarray) -> None:
     """Nothing beyond the shared start (theta-hat = theta_init, P = P0)."""
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def gain_scale(params, Phi) -> float:
     """The Routh rule's ``k = min(1, k_I_max / trace(Phi P0 Phi^T))`` (see the module notes)."""
     k_I_max = params[P_K_I_MAX]
@@ -111,7 +111,7 @@ def gain_scale(params, Phi) -> float:
     return 1.0 if t <= k_I_max else k_I_max / t
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_tilde, a_d) -> tuple:
     """Adapt theta-hat on the tracking error, then the force command (eq:f_ctrl); see the law interface."""
     e, adapt_active, faults = adaptive_estimate(
