@@ -322,6 +322,14 @@ def state_last_command(state) -> np.ndarray:
     return state[S_U_PREV:S_U_PREV + 2]
 
 
+@njit(cache=True, inline="always")
+def set_last_command(state, u_x, u_z) -> None:
+    """Overwrite the throttles of the last command: what the adaptation's regressor takes as applied
+    (a caller that changed the command after the controller computed it, as the gym's residual does)."""
+    state[S_U_PREV] = u_x
+    state[S_U_PREV + 1] = u_z
+
+
 def state_law_field(state: np.ndarray, params: np.ndarray, name: str) -> np.ndarray:
     """Field ``name`` of the law's own state block (its ``STATE`` layout), as a view into ``state``."""
     layout = law_of_params(params).law.STATE
@@ -339,5 +347,5 @@ def state_integrator(state: np.ndarray) -> np.ndarray:
 __all__ = ["CONTROLLER_DIAG_COLUMNS", "DIAG_SIZE", "controller_initial_state", "controller_params",
            "controller_step", "default_theta_bounds", "information_sum", "law_of_params", "set_state_theta_hat", "state_P",
            "state_P_inv", "state_filtered_accel", "state_filtered_regressor", "state_integrator",
-           "state_last_command", "state_law_field", "state_theta_hat", "state_wind_estimate",
+           "state_last_command", "set_last_command", "state_law_field", "state_theta_hat", "state_wind_estimate",
            "theta_bound_half_widths"]

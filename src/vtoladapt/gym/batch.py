@@ -99,7 +99,7 @@ class _Chunk:
         # every array is updated in place, so the arguments are bound once
         self.args = (self.rngs, self.op, self.actions, self.settings, batch.tau_max.copy(), batch.ref_table.copy(),
                      self.S, self.off, self.P, self.pidx, self.K, self.obs, self.reward, self.terminated,
-                     self.truncated)
+                     self.truncated, np.empty(0))
 
     def block(self, j: int, name: str) -> np.ndarray:
         """Row ``j``'s block ``name`` (a view; a shared block's is the table row it uses)."""

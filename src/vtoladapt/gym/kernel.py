@@ -33,7 +33,7 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 from ..compiled_loop import tick_actuate, tick_sense
-from ..control.kernel import state_last_command
+from ..control.kernel import set_last_command
 from ..layout import CMD_SIZE, CMD_TAU_B, CMD_U_X, CMD_U_Z, MEAS_OMEGA_B, MEAS_P_W, MEAS_Q_WB, MEAS_V_I_B, \
     MEAS_V_I_VALID, MEAS_V_W, REF_P_W, X_P_W, X_Q_WB, X_SIZE
 from .spaces import OBS_CMD, OBS_HIGH, OBS_LOW, OBS_OMEGA, OBS_P_ERR, OBS_Q, OBS_V, OBS_V_I, OBS_V_I_VALID
@@ -109,7 +109,7 @@ def _clip(v, lo, hi):
     return min(max(v, lo), hi)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _command_from_action(mode, a, base, u_max, tau_max, residual_scale, cmd) -> None:
     """The command of this tick from the action (see :mod:`vtoladapt.gym.spaces`)."""
     if mode == MODE_RESIDUAL:
@@ -130,7 +130,7 @@ def _put(obs, j, v) -> None:
     obs[j] = 0.0 if np.isnan(v) else _clip(v, _OBS_LOW[j], _OBS_HIGH[j])
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _observe(meas, ref, base, u_max, tau_max, obs) -> None:
     """Write the observation (float32, clipped to its bounds, NaN -> 0) of one environment."""
     for j in range(3):
@@ -147,24 +147,13 @@ def _observe(meas, ref, base, u_max, tau_max, obs) -> None:
         _put(obs, OBS_CMD + 2 + j, base[CMD_TAU_B + j] / tau_max[j])
 
 
-@njit(cache=True, nogil=True)
-def step_batch(rngs, op, actions, settings, tau_max, ref_table, S, off, P, pidx, K, obs, reward, terminated,
-               truncated) -> None:
-    """Advance every environment ``i`` of a chunk by ``op[i]`` (:data:`OP_STEP`, :data:`OP_BEGIN`, :data:`OP_SKIP`).
-
-    ``S`` holds one row per environment, block ``b`` of :data:`BLOCKS` in columns
-    ``off[b] .. off[b + 1] - 1``, advanced in place; row ``pidx[i]`` of ``P`` holds environment
-    ``i``'s :data:`SHARED_BLOCKS`, block ``b`` in columns ``off[O_SHARED + b] ..
-    off[O_SHARED + b + 1] - 1`` (read only); ``rngs[i]`` is environment ``i``'s generator,
-    ``K[i]`` the tick it senses next, ``actions[i]`` its action. ``settings`` holds the ``SET_*``
-    entries (mode, scales, limits, ``dt``, substeps, ticks per episode, the prefetched length of
-    a row); ``ref_table`` (``n_ticks + 1`` rows) is shared. Outputs per environment: ``obs``
-    (float32 rows), ``reward``, ``terminated`` (true position outside ``max_err_m`` of the
-    reference on any NED axis, tilt beyond ``acos(cos_tilt_max)``, or a non-finite state),
-    ``truncated`` (the scenario's last tick reached, not terminated).
-    """
-    no_row = np.empty(0)
-    no_theta = np.empty(0)
+@njit(cache=True, nogil=True, _nrt=False)
+def _step_env(rng, i, o, actions, settings, tau_max, ref_table, S, off, P, pidx, K, obs, reward, terminated,
+              truncated, empty) -> None:
+    """Environment ``i`` of :func:`step_batch`, operation ``o`` (not :data:`OP_SKIP`), its generator
+    ``rng``. Allocates nothing (compiled without reference counting)."""
+    no_row = empty  # no log row, no theta_true: the environment logs nothing
+    no_theta = empty
     mode = int(settings[SET_MODE])
     residual = mode == MODE_RESIDUAL
     residual_scale = settings[SET_RESIDUAL_SCALE]
@@ -177,86 +166,109 @@ def step_batch(rngs, op, actions, settings, tau_max, ref_table, S, off, P, pidx,
     n_ticks = int(settings[SET_N_TICKS])
     prefetch_end = int(settings[SET_PREFETCH_END])
     n = S.shape[0]
-    for i in range(n):
-        o = op[i]
-        if o == OP_SKIP:
-            continue
-        if i + 1 < n:
-            for j in range(0, prefetch_end, _CACHE_LINE_DOUBLES):
-                _prefetch(S, i + 1, j)
-            if pidx[i + 1] != pidx[i]:
-                for j in range(0, off[O_SHARED + len(SHARED_BLOCKS)], _CACHE_LINE_DOUBLES):
-                    _prefetch(P, pidx[i + 1], j)
-        row = S[i]
-        shared = P[pidx[i]]
-        mixer_p = shared[off[O_SHARED + S_MIXER]:off[O_SHARED + S_MIXER + 1]]
-        ctrl_p = shared[off[O_SHARED + S_CTRL_P]:off[O_SHARED + S_CTRL_P + 1]]
-        x = row[off[B_X]:off[B_X + 1]]
-        v_wind = row[off[B_V_WIND]:off[B_V_WIND + 1]]
-        f_B = row[off[B_F_B]:off[B_F_B + 1]]
-        v_i = row[off[B_V_I]:off[B_V_I + 1]]
-        meas = row[off[B_MEAS]:off[B_MEAS + 1]]
-        cmd = row[off[B_CMD]:off[B_CMD + 1]]
-        base = row[off[B_BASE]:off[B_BASE + 1]]
-        diag = row[off[B_DIAG]:off[B_DIAG + 1]]
-        work = row[off[B_WORK]:off[B_WORK + 1]]
-        plant_p = row[off[B_PLANT]:off[B_PLANT + 1]]
-        ctrl_s = row[off[B_CTRL_S]:off[B_CTRL_S + 1]]
-        rng = rngs[i]
-        k = K[i]
-        r = 0.0
-        done = False
-        if o == OP_STEP:
-            a = actions[i]
-            _command_from_action(mode, a, base, u_max, tau_max, residual_scale, cmd)
-            if residual:
-                # the adaptation's regressor must see the throttles actually applied
-                u_prev = state_last_command(ctrl_s)
-                u_prev[0] = cmd[CMD_U_X]
-                u_prev[1] = cmd[CMD_U_Z]
-            tick_actuate(x, plant_p, mixer_p, ctrl_s, ref_table[k], k * dt, dt, n_sub,
-                         v_wind, f_B, v_i, meas, cmd, diag, row[off[B_MOTOR]:off[B_MOTOR + 1]], work, no_theta,
-                         0.0, no_row)
-            k += 1
-            K[i] = k
-            finite = True
-            for j in range(X_SIZE):
-                if not np.isfinite(x[j]):
-                    finite = False
-            a2 = 0.0
-            for j in range(CMD_SIZE):
-                a2 += a[j] * a[j]
-            penalty = action_cost * a2 / CMD_SIZE
-            if not finite:
-                done = True
-                r = -penalty
-            else:
-                e2 = 0.0
-                for j in range(3):
-                    e = x[X_P_W + j] - ref_table[k, REF_P_W + j]
-                    e2 += e * e
-                    if abs(e) > max_err_m:
-                        done = True
-                qw, qx, qy, qz = x[X_Q_WB], x[X_Q_WB + 1], x[X_Q_WB + 2], x[X_Q_WB + 3]
-                cos_tilt = (qw * qw - qx * qx - qy * qy + qz * qz) / (qw * qw + qx * qx + qy * qy + qz * qz)
-                if cos_tilt < cos_tilt_max:
+    if i + 1 < n:
+        for j in range(0, prefetch_end, _CACHE_LINE_DOUBLES):
+            _prefetch(S, i + 1, j)
+        if pidx[i + 1] != pidx[i]:
+            for j in range(0, off[O_SHARED + len(SHARED_BLOCKS)], _CACHE_LINE_DOUBLES):
+                _prefetch(P, pidx[i + 1], j)
+    row = S[i]
+    shared = P[pidx[i]]
+    mixer_p = shared[off[O_SHARED + S_MIXER]:off[O_SHARED + S_MIXER + 1]]
+    ctrl_p = shared[off[O_SHARED + S_CTRL_P]:off[O_SHARED + S_CTRL_P + 1]]
+    x = row[off[B_X]:off[B_X + 1]]
+    v_wind = row[off[B_V_WIND]:off[B_V_WIND + 1]]
+    f_B = row[off[B_F_B]:off[B_F_B + 1]]
+    v_i = row[off[B_V_I]:off[B_V_I + 1]]
+    meas = row[off[B_MEAS]:off[B_MEAS + 1]]
+    cmd = row[off[B_CMD]:off[B_CMD + 1]]
+    base = row[off[B_BASE]:off[B_BASE + 1]]
+    diag = row[off[B_DIAG]:off[B_DIAG + 1]]
+    work = row[off[B_WORK]:off[B_WORK + 1]]
+    plant_p = row[off[B_PLANT]:off[B_PLANT + 1]]
+    ctrl_s = row[off[B_CTRL_S]:off[B_CTRL_S + 1]]
+    k = K[i]
+    r = 0.0
+    done = False
+    if o == OP_STEP:
+        a = actions[i]
+        _command_from_action(mode, a, base, u_max, tau_max, residual_scale, cmd)
+        if residual:
+            # the adaptation's regressor must see the throttles actually applied
+            set_last_command(ctrl_s, cmd[CMD_U_X], cmd[CMD_U_Z])
+        tick_actuate(x, plant_p, mixer_p, ctrl_s, ref_table[k], k * dt, dt, n_sub,
+                     v_wind, f_B, v_i, meas, cmd, diag, row[off[B_MOTOR]:off[B_MOTOR + 1]], work, no_theta,
+                     0.0, no_row)
+        k += 1
+        K[i] = k
+        finite = True
+        for j in range(X_SIZE):
+            if not np.isfinite(x[j]):
+                finite = False
+        a2 = 0.0
+        for j in range(CMD_SIZE):
+            a2 += a[j] * a[j]
+        penalty = action_cost * a2 / CMD_SIZE
+        if not finite:
+            done = True
+            r = -penalty
+        else:
+            e2 = 0.0
+            for j in range(3):
+                e = x[X_P_W + j] - ref_table[k, REF_P_W + j]
+                e2 += e * e
+                if abs(e) > max_err_m:
                     done = True
-                r = 1.0 - min(np.sqrt(e2) / max_err_m, 1.0) - penalty
-            if not residual:
-                for j in range(CMD_SIZE):
-                    base[j] = cmd[j]
-            if not finite:
-                _observe(meas, ref_table[k], base, u_max, tau_max, obs[i])
-                reward[i] = r
-                terminated[i] = True
-                truncated[i] = False
-                continue
-        t = k * dt
-        tick_sense(x, plant_p, ctrl_p, ctrl_s, row[off[B_WIND_P]:off[B_WIND_P + 1]],
-                   row[off[B_WIND_S]:off[B_WIND_S + 1]], row[off[B_SENS_P]:off[B_SENS_P + 1]],
-                   row[off[B_SENS_S]:off[B_SENS_S + 1]], ref_table[k], t, dt, rng, residual, v_wind, f_B, v_i,
-                   meas, base if residual else cmd, diag, work)
-        _observe(meas, ref_table[k], base, u_max, tau_max, obs[i])
-        reward[i] = r
-        terminated[i] = done
-        truncated[i] = (not done) and k >= n_ticks
+            qw, qx, qy, qz = x[X_Q_WB], x[X_Q_WB + 1], x[X_Q_WB + 2], x[X_Q_WB + 3]
+            cos_tilt = (qw * qw - qx * qx - qy * qy + qz * qz) / (qw * qw + qx * qx + qy * qy + qz * qz)
+            if cos_tilt < cos_tilt_max:
+                done = True
+            r = 1.0 - min(np.sqrt(e2) / max_err_m, 1.0) - penalty
+        if not residual:
+            for j in range(CMD_SIZE):
+                base[j] = cmd[j]
+        if not finite:
+            _observe(meas, ref_table[k], base, u_max, tau_max, obs[i])
+            reward[i] = r
+            terminated[i] = True
+            truncated[i] = False
+            return
+    t = k * dt
+    tick_sense(x, plant_p, ctrl_p, ctrl_s, row[off[B_WIND_P]:off[B_WIND_P + 1]],
+               row[off[B_WIND_S]:off[B_WIND_S + 1]], row[off[B_SENS_P]:off[B_SENS_P + 1]],
+               row[off[B_SENS_S]:off[B_SENS_S + 1]], ref_table[k], t, dt, rng, residual, v_wind, f_B, v_i,
+               meas, base if residual else cmd, diag, work)
+    _observe(meas, ref_table[k], base, u_max, tau_max, obs[i])
+    reward[i] = r
+    terminated[i] = done
+    truncated[i] = (not done) and k >= n_ticks
+
+
+@njit(cache=True, nogil=True)
+def step_batch(rngs, op, actions, settings, tau_max, ref_table, S, off, P, pidx, K, obs, reward, terminated,
+               truncated, empty) -> None:
+    """Advance every environment ``i`` of a chunk by ``op[i]`` (:data:`OP_STEP`, :data:`OP_BEGIN`, :data:`OP_SKIP`).
+
+    ``S`` holds one row per environment, block ``b`` of :data:`BLOCKS` in columns
+    ``off[b] .. off[b + 1] - 1``, advanced in place; row ``pidx[i]`` of ``P`` holds environment
+    ``i``'s :data:`SHARED_BLOCKS`, block ``b`` in columns ``off[O_SHARED + b] ..
+    off[O_SHARED + b + 1] - 1`` (read only); ``rngs[i]`` is environment ``i``'s generator,
+    ``K[i]`` the tick it senses next, ``actions[i]`` its action. ``settings`` holds the ``SET_*``
+    entries (mode, scales, limits, ``dt``, substeps, ticks per episode, the prefetched length of
+    a row); ``ref_table`` (``n_ticks + 1`` rows) is shared. Outputs per environment: ``obs``
+    (float32 rows), ``reward``, ``terminated`` (true position outside ``max_err_m`` of the
+    reference on any NED axis, tilt beyond ``acos(cos_tilt_max)``, or a non-finite state),
+    ``truncated`` (the scenario's last tick reached, not terminated). ``empty`` is an empty
+    float array (the log row and true theta the environment does not keep).
+
+    Each environment steps in :func:`_step_env`, compiled without Numba's reference counting as
+    the tick's kernels are (:mod:`vtoladapt.compiled_loop`): its twenty-odd row slices would
+    otherwise cost an atomic increment and decrement each. This loop keeps it only to take each
+    generator out of the typed list.
+    """
+    n = S.shape[0]
+    for i in range(n):
+        if op[i] == OP_SKIP:
+            continue
+        _step_env(rngs[i], i, op[i], actions, settings, tau_max, ref_table, S, off, P, pidx, K, obs, reward,
+                  terminated, truncated, empty)
