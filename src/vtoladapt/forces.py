@@ -111,6 +111,13 @@ def model_at(a, offset: int) -> tuple:
 
 
 @njit(cache=True)
+def theta_at(a, offset: int) -> tuple:
+    """The :data:`N_THETA` parameters stored in ``a`` from ``offset`` on, as a tuple (as :func:`model_at`)."""
+    o = offset
+    return (a[o], a[o + 1], a[o + 2], a[o + 3], a[o + 4], a[o + 5], a[o + 6], a[o + 7])
+
+
+@njit(cache=True)
 def incident_velocity(v_W: np.ndarray, v_wind_W: np.ndarray, R_WB: np.ndarray) -> np.ndarray:
     """Incident velocity in body axes, ``v_i = R^T (v - v_w)`` (eq:vi)."""
     d0 = v_W[0] - v_wind_W[0]

@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit
 
 from .. import layout as L
-from ..forces import F_ALPHA, F_V, I_CL0, I_CL1, model_at
+from ..forces import F_ALPHA, F_V, I_CL0, I_CL1, model_at, theta_at
 from ..frames import GRAVITY_MPS2, quat_to_rotmat_rows
 from . import adaptation as ad
 from .allocation import allocate_thrusters_at
@@ -87,8 +87,7 @@ def back_end(params, state, cmd, diag, dt, faults, f_r, e, adapt_active, probe_o
     for i in range(3):
         state[S_V_PREV + i] = v_W[i]
     u_max = params[P_U_MAX]
-    theta = (state[S_THETA], state[S_THETA + 1], state[S_THETA + 2], state[S_THETA + 3], state[S_THETA + 4],
-             state[S_THETA + 5], state[S_THETA + 6], state[S_THETA + 7])
+    theta = theta_at(state, S_THETA)
     model = model_at(params, P_MODEL)
     q_WB = (state[S_Q_LAST], state[S_Q_LAST + 1], state[S_Q_LAST + 2], state[S_Q_LAST + 3])
     omega = vec3(state, S_OMEGA_LAST)

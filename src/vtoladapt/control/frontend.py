@@ -44,7 +44,7 @@ import numpy as np
 from numba import njit
 
 from .. import layout as L
-from ..forces import M_K1, M_K2, incident_flow, model_at, regressor_at
+from ..forces import M_K1, M_K2, incident_flow, model_at, regressor_at, theta_at
 from ..frames import quat_to_rotmat_rows, yaw_pitch_roll
 from . import adaptation as ad
 from .airflow_estimate import SIN_SIDESLIP_MAX, estimate_horizontal_wind
@@ -257,8 +257,7 @@ def front_end(params, state, meas, ref, dt) -> tuple:
         if (params[P_FLOW_EST_ON] > 0.0 and state[S_UNSEEN_FLOW] > 0.0 and state[S_FILT_INIT] > 0.0
                 and accel_ok):
             est_on = state[S_FLOW_EST_ON] > 0.0
-            theta = (state[S_THETA], state[S_THETA + 1], state[S_THETA + 2], state[S_THETA + 3],
-                     state[S_THETA + 4], state[S_THETA + 5], state[S_THETA + 6], state[S_THETA + 7])
+            theta = theta_at(state, S_THETA)
             w0_N = state[S_FLOW_EST_W] if est_on else state[S_WIND_EST]
             w0_E = state[S_FLOW_EST_W + 1] if est_on else state[S_WIND_EST + 1]
             est_ok, w_N, w_E, _ = estimate_horizontal_wind(
