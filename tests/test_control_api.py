@@ -93,6 +93,31 @@ def test_reset_restores_the_initial_state(caltech, rng):
     np.testing.assert_array_equal(ctrl.state.integrator, 0.0)
 
 
+def test_report_applied_is_what_the_next_step_adapts_on(caltech, rng):
+    """The applied throttles replace the command in the adaptation's regressor: the thrust column
+    of the filtered regressor follows the reported collective, so theta-hat moves differently."""
+    ref = Reference.hold((0.0, 0.0, -1.5))
+    seq = _meas_sequence(60, rng)
+    a, b = Controller(caltech), Controller(caltech)
+    for k in range(40):
+        a.step(0.004 * k, seq[k], ref)
+        b.step(0.004 * k, seq[k], ref)
+    u = a.state.last_command_throttles
+    b.report_applied(100.0 * u[0], 100.0 * u[1] - 5.0)          # the mixer took 5 % off the collective
+    np.testing.assert_allclose(b.state.last_command_throttles, [u[0], u[1] - 0.05], rtol=1e-12)
+    for k in range(40, 60):
+        a.step(0.004 * k, seq[k], ref)
+        b.step(0.004 * k, seq[k], ref)
+    # the C_Tz column is -u_z^2 (lagged): a lower applied collective makes it smaller in magnitude
+    assert abs(b.state.filtered_regressor[2, 1]) < abs(a.state.filtered_regressor[2, 1])
+    assert not np.array_equal(a.state.theta_hat, b.state.theta_hat)
+    # clipped to the throttle range; NaN refused in one line naming the argument
+    b.report_applied(-10.0, 250.0)
+    np.testing.assert_array_equal(b.state.last_command_throttles, [0.0, caltech.actuators.throttle_max_pct / 100])
+    with pytest.raises(ValueError, match=r"report_applied: throttle_z_pct = nan: must be finite"):
+        b.report_applied(10.0, float("nan"))
+
+
 def test_step_rejects_time_going_backwards(caltech):
     ctrl = Controller(caltech)
     m = Measurement.from_parts((0, 0, -1), (0, 0, 0), (1, 0, 0, 0), (0, 0, 0), (0, 0, -9.8), (0, 0, 0))

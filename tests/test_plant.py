@@ -263,3 +263,40 @@ def test_mixer_round_trip_and_saturation(veh):
     assert np.all(np.isfinite(motor)) and not np.isnan(motor).any()
     mix(np.full(5, np.nan), mp, motor)
     assert np.all(np.isfinite(motor))
+
+
+@settings(max_examples=examples(200), deadline=None)
+@given(u_z=st.floats(0.05, 0.95), tau=st.tuples(*[st.floats(-2.0, 2.0)] * 3), u_x=st.floats(0.0, 1.0))
+def test_applied_collective_is_the_commanded_one_unless_the_mixer_saturated(veh, u_z, tau, u_x):
+    """The mixer keeps sum T_i = T_total while it can (its allocation's first row is all ones), so the
+    collective the rotor commands amount to is the commanded one; once it saturates, it is the total
+    thrust the rotors were actually sent, which is what the controller is told (report_mixed)."""
+    from vtoladapt.compiled_loop import report_mixed
+    from vtoladapt.control.api import Controller
+    from vtoladapt.control.kernel import controller_initial_state, state_last_command
+    from vtoladapt.mixer import applied_collective
+
+    mp = mixer_params(veh)
+    t_unit = veh.mass.mass_kg * veh.theta_scaled[1] / 4
+    cmd = np.array([u_x, u_z, *tau])
+    motor = np.empty(5)
+    saturated = mix(cmd, mp, motor)
+    u_eff = applied_collective(motor)
+    assert 4 * t_unit * u_eff**2 == pytest.approx(t_unit * (motor[:4] ** 2).sum(), rel=1e-12)
+    if not saturated:
+        assert u_eff == pytest.approx(u_z, rel=1e-12)
+    state = controller_initial_state(Controller(veh).params)
+    before = state_last_command(state).copy()
+    report_mixed(state, motor, saturated)
+    expected = [motor[4], u_eff] if saturated else before
+    np.testing.assert_array_equal(state_last_command(state), expected)
+
+
+def test_a_collective_shift_is_reported_to_the_controller(veh):
+    """A roll demand at high collective: the mixer lowers the collective to keep roll (PX4's order)."""
+    from vtoladapt.mixer import applied_collective
+
+    motor = np.empty(5)
+    assert mix(np.array([0.3, 0.97, 1.5, 0.0, 0.0]), mixer_params(veh), motor)
+    assert motor[:4].max() == pytest.approx(1.0)
+    assert applied_collective(motor) < 0.97 - 0.01

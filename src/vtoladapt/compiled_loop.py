@@ -9,7 +9,8 @@ Per controller tick ``k`` (time ``t = k dt``), in this order:
    scenario's active sensor faults alter the measurement (:mod:`vtoladapt.faults`);
 3. the controller computes its command from the measurement and the reference (its output is
    held until the next tick, as on a flight computer);
-4. the mixer turns the command into five motor commands, which the active actuator faults alter;
+4. the mixer turns the command into five motor commands (if it saturated, the controller is told the
+   collective it actually sent), and the active actuator faults alter them;
 5. one log row is written;
 6. the plant advances by ``dt`` with ``n_sub`` fixed RK4 substeps (default 1 kHz).
 
@@ -39,6 +40,7 @@ from .control.kernel import (
     S_GAMMA,
     S_THETA,
     controller_step,
+    set_last_command,
 )
 from .forces import airflow_angles
 from .layout import (
@@ -46,6 +48,7 @@ from .layout import (
     COMMAND_COLUMNS,
     MEAS_SIZE,
     MEASUREMENT_COLUMNS,
+    MOTOR_PUSHER,
     N_MOTORS,
     REF_SIZE,
     REFERENCE_COLUMNS,
@@ -55,7 +58,7 @@ from .layout import (
     X_SIZE,
 )
 from .faults import active_mask, apply_actuator_faults, apply_measurement_faults
-from .mixer import MX_U_MAX, mix
+from .mixer import MX_U_MAX, applied_collective, mix
 from .monitor import REASON_OK, check_envelope
 from .plant import RK4_WORK_SIZE, plant_advance, plant_first_stage
 from .sensors import sensors_step
@@ -109,6 +112,20 @@ def tick_sense(x, plant_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_
 
 
 @njit(cache=True, nogil=True, _nrt=False)
+def report_mixed(ctrl_state, motor_cmd, saturated) -> None:
+    """Tell the controller what the mixer sent when it saturated: the pusher throttle and the collective
+    the four lift-rotor commands amount to (:func:`vtoladapt.mixer.applied_collective`).
+
+    The flight computer owns the mixer, so this is its own output, not the plant's truth (actuator
+    faults act after it). A saturated mixer shifts the collective to keep roll and pitch; the
+    adaptation's regressor (eq:prediction_error) must see that thrust, not the collective the
+    controller asked for. Unsaturated, the two are equal and the controller's own record stands.
+    """
+    if saturated:
+        set_last_command(ctrl_state, motor_cmd[MOTOR_PUSHER], applied_collective(motor_cmd))
+
+
+@njit(cache=True, nogil=True, _nrt=False)
 def tick_actuate(x, plant_p, mixer_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag,
                  motor_cmd, work, theta_true, gamma, row) -> None:
     """Second half of the tick at time ``t``: steps 4-6 (mix ``cmd``, log, advance the plant by ``dt``).
@@ -117,6 +134,7 @@ def tick_actuate(x, plant_p, mixer_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B
     ``work`` must hold the first RK4 stage :func:`tick_sense` evaluated at this ``x``.
     """
     saturated = mix(cmd, mixer_p, motor_cmd)
+    report_mixed(ctrl_state, motor_cmd, saturated)
     tick_log_advance(x, plant_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag, motor_cmd,
                      saturated, 0.0, work, theta_true, gamma, row)
 
@@ -195,6 +213,7 @@ def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state,
         apply_measurement_faults(faults, fault_state, t, dt, meas)
         controller_step(ctrl_p, ctrl_state, meas, ref, dt, cmd, diag)
         saturated = mix(cmd, mixer_p, motor_cmd)
+        report_mixed(ctrl_state, motor_cmd, saturated)
         apply_actuator_faults(faults, fault_state, t, u_max, motor_cmd)
         tick_log_advance(x, plant_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag,
                          motor_cmd, saturated, active_mask(faults, t), work, theta_true, gamma, log[k])

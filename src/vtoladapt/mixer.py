@@ -105,3 +105,13 @@ def mix(cmd, p, motor_cmd) -> bool:
     ux = cmd[CMD_U_X] if np.isfinite(cmd[CMD_U_X]) else 0.0
     motor_cmd[MOTOR_PUSHER] = min(max(ux, 0.0), u_max)
     return saturated
+
+
+@njit(cache=True, _nrt=False)
+def applied_collective(motor_cmd) -> float:
+    """The collective the lift-rotor commands amount to: ``sqrt(mean u_i^2)`` (total thrust = that of
+    four rotors at this throttle). Equals the commanded collective unless the mixer saturated."""
+    s = 0.0
+    for i in range(N_LIFT):
+        s += motor_cmd[i] * motor_cmd[i]
+    return np.sqrt(s / N_LIFT)

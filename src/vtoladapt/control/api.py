@@ -313,6 +313,25 @@ class Controller:
         self._t_last = t
         return cmd
 
+    def report_applied(self, throttle_x_pct: float, throttle_z_pct: float) -> None:
+        """Tell the controller the throttles actually applied after its last :meth:`step`, in percent.
+
+        Call it when your mixer saturated and changed the command (or anything else between the
+        controller and the motors did): the next step's regressor and adaptation take these as the
+        applied throttles (eq:prediction_error) instead of the command. ``throttle_z_pct`` is the
+        collective the lift rotors amount to, ``sqrt(mean u_i^2)`` over the four rotors
+        (:func:`vtoladapt.mixer.applied_collective`, which the shipped simulation reports). Values are
+        clipped to [0, the vehicle's throttle_max_pct]; a non-finite value raises ValueError.
+        """
+        u_max = self.vehicle.actuators.throttle_max_pct
+        vals = []
+        for name, v in (("throttle_x_pct", throttle_x_pct), ("throttle_z_pct", throttle_z_pct)):
+            v = float(v)
+            if not np.isfinite(v):
+                raise ValueError(f"report_applied: {name} = {v!r}: must be finite; allowed: 0-{u_max:g} %")
+            vals.append(min(max(v, 0.0), u_max) / 100.0)
+        _k.set_last_command(self._state, vals[0], vals[1])
+
     @property
     def state(self) -> ControllerState:
         """Named view of the controller's memory (theta_hat, P, integrator, ... and the law's own fields)."""
