@@ -114,8 +114,11 @@ def test_report_applied_is_what_the_next_step_adapts_on(caltech, rng):
     # clipped to the throttle range; NaN refused in one line naming the argument
     b.report_applied(-10.0, 250.0)
     np.testing.assert_array_equal(b.state.last_command_throttles, [0.0, caltech.actuators.throttle_max_pct / 100])
-    with pytest.raises(ValueError, match=r"report_applied: throttle_z_pct = nan: must be finite"):
+    with pytest.raises(ValueError, match=r"report_applied: throttle_z_pct = nan: must be a finite number"):
         b.report_applied(10.0, float("nan"))
+    with pytest.raises(ValueError, match=r"report_applied: throttle_x_pct = 'ten': must be a finite number"):
+        b.report_applied("ten", 10.0)
+    np.testing.assert_array_equal(b.state.last_command_throttles, [0.0, caltech.actuators.throttle_max_pct / 100])
 
 
 def test_step_rejects_time_going_backwards(caltech):

@@ -325,10 +325,14 @@ class Controller:
         """
         u_max = self.vehicle.actuators.throttle_max_pct
         vals = []
-        for name, v in (("throttle_x_pct", throttle_x_pct), ("throttle_z_pct", throttle_z_pct)):
-            v = float(v)
+        for name, value in (("throttle_x_pct", throttle_x_pct), ("throttle_z_pct", throttle_z_pct)):
+            try:
+                v = float(value)
+            except (TypeError, ValueError):
+                v = float("nan")
             if not np.isfinite(v):
-                raise ValueError(f"report_applied: {name} = {v!r}: must be finite; allowed: 0-{u_max:g} %")
+                raise ValueError(f"report_applied: {name} = {value!r}: must be a finite number; "
+                                 f"allowed: 0-{u_max:g} %")
             vals.append(min(max(v, 0.0), u_max) / 100.0)
         _k.set_last_command(self._state, vals[0], vals[1])
 
