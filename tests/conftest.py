@@ -1,7 +1,8 @@
 """Shared test fixtures: shipped vehicles, a seeded generator, the repository's vendored real data.
 
 Hypothesis runs without a per-example deadline because the first call of a Numba kernel in a
-fresh process may compile it (seconds). Choose another profile with ``HYPOTHESIS_PROFILE``.
+fresh process may compile it (seconds), and derandomized (the same examples every run). Choose
+another profile with ``HYPOTHESIS_PROFILE`` (``thorough``: 2000 fresh examples per property).
 
 ``make test`` runs the suite in two processes (pytest-xdist, ``--dist loadgroup``): each test
 module goes to one process whole, so its module-scoped fixtures are computed once, and the
@@ -24,7 +25,9 @@ from vtoladapt import load_vehicle
 
 HYPOTHESIS_PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "vtoladapt")
 THOROUGH_EXAMPLES = 2000
-settings.register_profile("vtoladapt", deadline=None)
+# derandomized: the same commit runs the same examples, so a clean clone's suite does not flake on
+# a draw no earlier run made; "thorough" draws fresh examples every run (that is how to search)
+settings.register_profile("vtoladapt", deadline=None, derandomize=True)
 settings.register_profile("thorough", deadline=None, max_examples=THOROUGH_EXAMPLES)
 settings.load_profile(HYPOTHESIS_PROFILE)
 

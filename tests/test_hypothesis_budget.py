@@ -45,3 +45,11 @@ def test_thorough_raises_every_count(monkeypatch):
     assert conftest.examples(5000) == 5000
     monkeypatch.setattr(conftest, "HYPOTHESIS_PROFILE", "vtoladapt")
     assert conftest.examples(25) == 25
+
+
+def test_the_default_profile_is_derandomized_and_thorough_is_not():
+    """A clean clone runs the examples every earlier run ran (no flake on a new draw); thorough searches."""
+    from hypothesis import settings
+
+    assert settings.get_profile("vtoladapt").derandomize is True
+    assert settings.get_profile("thorough").derandomize is False
