@@ -32,7 +32,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from conftest import examples
@@ -289,6 +289,7 @@ def test_rotor_side_force_vanishes_with_the_in_plane_flow(name, V, h_frac, bb, u
 
 @settings(max_examples=examples(200), deadline=None)
 @given(vehicle_name, st.floats(0.0, 1e-2), unit, st.floats(0.0, 1.0), st.floats(0.0, 1.0))
+@example("px4_standard_vtol", 2.9021757228920926e-14, (1.0, 0.0, 0.0), 1.0, 1.0)
 def test_force_tends_to_thrust_as_airspeed_vanishes(name, radius, d, ux, uz):
     veh = VEHICLES[name]
     fm = veh.force_model
@@ -297,8 +298,11 @@ def test_force_tends_to_thrust_as_airspeed_vanishes(name, radius, d, ux, uz):
     thrust = np.array([veh.theta_scaled[0] * ux * ux, 0.0, -veh.theta_scaled[1] * uz * uz])
     C, _ = coefficient_bounds(veh.theta_scaled, math.radians(veh.envelope.stall_angle_deg))
     side = veh.theta_scaled[forces.I_CS] * uz**fm.k1 * radius ** (2 - fm.k1) * (math.pi / 2) ** 2 * (math.pi / 2 + fm.k2)
-    # componentwise: a 2-norm of numbers near 1e-160 loses its digits to underflow in the squares
-    assert np.abs(np.asarray(f) - thrust).max() <= veh.aero_scale_per_m * radius**2 * C + side + 1e-300
+    # componentwise: a 2-norm of numbers near 1e-160 loses its digits to underflow in the squares;
+    # the force adds the aerodynamic terms to the thrust, so it is exact only to the thrust's last bits
+    # (thorough search: 20.944 + 3e-15 of aero force rounded one ulp, 3.6e-15, away)
+    rounding = 4 * np.finfo(float).eps * np.abs(thrust).max()
+    assert np.abs(np.asarray(f) - thrust).max() <= veh.aero_scale_per_m * radius**2 * C + side + rounding + 1e-300
 
 
 # --- physically sane past stall --------------------------------------------------------------------
