@@ -101,6 +101,22 @@ def quat_to_rotmat_rows(q) -> tuple:
 
 
 @njit(cache=True)
+def rows_times(R, v) -> tuple:
+    """``R v`` for ``R`` as three row 3-tuples (body to world for ``R_WB``)."""
+    return (R[0][0] * v[0] + R[0][1] * v[1] + R[0][2] * v[2],
+            R[1][0] * v[0] + R[1][1] * v[1] + R[1][2] * v[2],
+            R[2][0] * v[0] + R[2][1] * v[1] + R[2][2] * v[2])
+
+
+@njit(cache=True)
+def rows_transpose_times(R, v) -> tuple:
+    """``R^T v`` for ``R`` as three row 3-tuples (world to body for ``R_WB``)."""
+    return (R[0][0] * v[0] + R[1][0] * v[1] + R[2][0] * v[2],
+            R[0][1] * v[0] + R[1][1] * v[1] + R[2][1] * v[2],
+            R[0][2] * v[0] + R[1][2] * v[1] + R[2][2] * v[2])
+
+
+@njit(cache=True)
 def quat_to_rotmat(q: np.ndarray) -> np.ndarray:
     """Rotation matrix of a unit quaternion ``q_WB`` -> ``R_WB``."""
     rows = quat_to_rotmat_rows(q)

@@ -84,6 +84,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..frames import rows_transpose_times
 from ..layout import BlockLayout, Field
 
 N_THETA = 8
@@ -673,9 +674,7 @@ def weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, for
     d0 = w + WK_D0
     p_diag = w + WK_P_DIAG
     # tau = Phi^T R^T v~ - W^T e - sigma (theta - theta0)
-    rv0 = R[0][0] * v_tilde_W[0] + R[1][0] * v_tilde_W[1] + R[2][0] * v_tilde_W[2]
-    rv1 = R[0][1] * v_tilde_W[0] + R[1][1] * v_tilde_W[1] + R[2][1] * v_tilde_W[2]
-    rv2 = R[0][2] * v_tilde_W[0] + R[1][2] * v_tilde_W[1] + R[2][2] * v_tilde_W[2]
+    rv0, rv1, rv2 = rows_transpose_times(R, v_tilde_W)
     for k in range(n):
         t = w_track * (Phi[0][k] * rv0 + Phi[1][k] * rv1 + Phi[2][k] * rv2) \
             - sigma * (x[th + k] - prior[p + PRIOR_THETA0 + k])

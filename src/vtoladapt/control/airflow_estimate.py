@@ -46,6 +46,7 @@ import numpy as np
 from numba import njit
 
 from ..forces import SIDESLIP_LINEAR_DEG, body_force, body_force_jacobian
+from ..frames import rows_transpose_times
 
 COLD_START_AIRSPEEDS_MPS = (1.5, 3.0, 5.0, 7.5, 10.0, 13.0)
 """Trial airspeeds along the unexplained force's direction for a cold start (m/s)."""
@@ -80,10 +81,7 @@ def horizontal_residual(v_W, R, w_N, w_E, w_D, u_x, u_z, theta, model, a_x, a_y)
     :func:`vtoladapt.forces.body_force` at ``(v_i, u_x, u_z, theta)``. Returns ``(r_x, r_y, v_i)``
     in m/s^2 (body) and m/s (body).
     """
-    d0, d1, d2 = v_W[0] - w_N, v_W[1] - w_E, v_W[2] - w_D
-    v_i = (R[0][0] * d0 + R[1][0] * d1 + R[2][0] * d2,
-           R[0][1] * d0 + R[1][1] * d1 + R[2][1] * d2,
-           R[0][2] * d0 + R[1][2] * d1 + R[2][2] * d2)
+    v_i = rows_transpose_times(R, (v_W[0] - w_N, v_W[1] - w_E, v_W[2] - w_D))
     f = body_force(v_i, u_x, u_z, theta, model)
     return f[0] - a_x, f[1] - a_y, v_i
 

@@ -42,7 +42,8 @@ from .attitude import (
     hover_blend_weight,
     measured_angle_of_attack,
 )
-from .frontend import plausible, rows_times, rows_transpose_times, vec3, wrap_angle
+from ..frames import rows_times, rows_transpose_times
+from .frontend import plausible, vec3, wrap_angle
 from .layouts import (
     DIAG_A_M, DIAG_ADAPT_ACTIVE, DIAG_ALLOC_RES, DIAG_ALPHA_D, DIAG_AIRSPEED, DIAG_BLEND, DIAG_F_R, DIAG_FAULTS,
     DIAG_INTEGRATOR, DIAG_LYAP_Q, DIAG_LYAP_V, DIAG_OMEGA_D, DIAG_OMEGA_R, DIAG_P_DIAG, DIAG_P_TILDE,

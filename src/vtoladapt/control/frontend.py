@@ -45,7 +45,7 @@ from numba import njit
 
 from .. import layout as L
 from ..forces import M_K1, M_K2, incident_flow, model_at, regressor_at, theta_at
-from ..frames import quat_to_rotmat_rows, yaw_pitch_roll
+from ..frames import quat_to_rotmat_rows, rows_times, rows_transpose_times, yaw_pitch_roll
 from . import adaptation as ad
 from .airflow_estimate import SIN_SIDESLIP_MAX, estimate_horizontal_wind
 from .layouts import (
@@ -82,22 +82,6 @@ def plausible(x, bound) -> bool:
     for i in range(len(x)):
         ok = ok and np.isfinite(x[i]) and abs(x[i]) <= bound
     return ok
-
-
-@njit(cache=True)
-def rows_times(R, v) -> tuple:
-    """``R v`` for ``R`` as three row 3-tuples (body to world for ``R_WB``)."""
-    return (R[0][0] * v[0] + R[0][1] * v[1] + R[0][2] * v[2],
-            R[1][0] * v[0] + R[1][1] * v[1] + R[1][2] * v[2],
-            R[2][0] * v[0] + R[2][1] * v[1] + R[2][2] * v[2])
-
-
-@njit(cache=True)
-def rows_transpose_times(R, v) -> tuple:
-    """``R^T v`` for ``R`` as three row 3-tuples (world to body for ``R_WB``)."""
-    return (R[0][0] * v[0] + R[1][0] * v[1] + R[2][0] * v[2],
-            R[0][1] * v[0] + R[1][1] * v[1] + R[2][1] * v[2],
-            R[0][2] * v[0] + R[1][2] * v[1] + R[2][2] * v[2])
 
 
 @njit(cache=True)

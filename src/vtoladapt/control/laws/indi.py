@@ -99,7 +99,8 @@ from numba import njit
 from ...config import setting
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
-from ..frontend import prediction_error, rows_times
+from ...frames import rows_times
+from ..frontend import prediction_error
 from ..layouts import DIAG_INTEGRATOR, P_K_V, P_LAW, S_LAW, law_offsets
 from ..tracking import force_command, limit_norm
 from . import LawContext

@@ -96,7 +96,8 @@ from ...config import setting
 from ...frames import GRAVITY_MPS2
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
-from ..frontend import prediction_error, rows_times
+from ...frames import rows_times
+from ..frontend import prediction_error
 from ..layouts import (
     DIAG_INTEGRATOR, FAULT_ADAPTATION, N_THETA, P_ACC_MAX, P_K_V, P_LAW, S_LAW, S_THETA, law_offsets,
 )
