@@ -152,8 +152,8 @@ class Scenario:
         """The vehicle named by the scenario (a shipped name, or a path relative to the scenario file)."""
         path = Path(self.vehicle)
         try:
-            if self.source_path and path.suffix == ".toml" and not path.is_absolute():
-                return load_vehicle(Path(self.source_path).parent / path)
+            if self.base_dir is not None and path.suffix == ".toml" and not path.is_absolute():
+                return load_vehicle(self.base_dir / path)
             return load_vehicle(self.vehicle)
         except ConfigError as exc:
             # an unknown name is the scenario file's mistake: say which file holds the key
@@ -161,14 +161,17 @@ class Scenario:
                 raise ConfigError(f"{self.source_path}: {exc}") from None
             raise
 
+    @property
+    def base_dir(self) -> Optional[Path]:
+        """The folder of the file the scenario was read from (its relative paths start there), or None."""
+        return Path(self.source_path).parent if self.source_path else None
+
     def posterior_path(self) -> Optional[Path]:
         """Path of the ``[controller_prior] posterior`` file (relative to the scenario), or None."""
         if self.controller_prior.posterior is None:
             return None
         path = Path(self.controller_prior.posterior)
-        if not path.is_absolute() and self.source_path:
-            path = Path(self.source_path).parent / path
-        return path
+        return self.base_dir / path if self.base_dir is not None and not path.is_absolute() else path
 
     def replace(self, **changes) -> "Scenario":
         """A copy with the given fields changed (``dataclasses.replace``)."""
@@ -194,13 +197,11 @@ def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | 
     if posterior is not None and not posterior.exists():
         raise ConfigError(f"{source}: [controller_prior] posterior = {scenario.controller_prior.posterior!r}: "
                           f"file not found ({posterior})")
-    calibration = scenario.sensors.probe.calibration_file
-    if calibration is not None:
-        # checked here, as the posterior is, rather than when the run is set up (where the message
-        # named only the missing file, not the scenario or the key)
-        path = Path(calibration)
-        if not path.is_absolute() and scenario.source_path:
-            path = Path(scenario.source_path).parent / path
+    # checked here, as the posterior is, rather than when the run is set up (where the message named
+    # only the missing file, not the scenario or the key)
+    path = scenario.sensors.probe.calibration_path(scenario.base_dir)
+    if path is not None:
+        calibration = scenario.sensors.probe.calibration_file
         if not path.is_file():
             raise ConfigError(f"{source}: [sensors.probe] calibration_file = {calibration!r}: file not found "
                               f"({path}); allowed: a 'vtoladapt probe calibrate' calibration.json")

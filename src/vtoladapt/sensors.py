@@ -328,12 +328,17 @@ class ProbeConfig:
                 f"{1e3 * self.time_constant_s:g} ms, dropout {self.dropout_probability:g} per tick, "
                 f"valid above {self.min_airspeed_mps:g} m/s")
 
+    def calibration_path(self, base_dir: Optional[Path] = None) -> Optional[Path]:
+        """``calibration_file`` resolved against ``base_dir`` (the scenario's folder) if relative, or None."""
+        if self.calibration_file is None:
+            return None
+        path = Path(self.calibration_file)
+        return base_dir / path if base_dir is not None and not path.is_absolute() else path
+
     def calibration_kernel(self, base_dir: Optional[Path] = None) -> np.ndarray:
         """The flight computer's calibration as a kernel array (pressure model)."""
-        if self.calibration_file is not None:
-            path = Path(self.calibration_file)
-            if base_dir is not None and not path.is_absolute():
-                path = base_dir / path
+        path = self.calibration_path(base_dir)
+        if path is not None:
             return load_calibration(path, model=self.calibration).to_kernel()
         return _tip_calibration(self.tip)[self.calibration].to_kernel()
 

@@ -79,8 +79,7 @@ def prepare(scenario: Scenario) -> PreparedRun:
     x0 = layout.pack_state(ic.position_m, ic.velocity_mps, q0, (0.0, 0.0, 0.0), motors)
     wind_params = scenario.wind.to_kernel()
     plant_density = scenario.plant.air_density_kgpm3 or vehicle.envelope.air_density_kgpm3
-    base_dir = Path(scenario.source_path).parent if scenario.source_path else None
-    sensor_params = scenario.sensors.to_kernel(plant_density, vehicle.envelope.air_density_kgpm3, base_dir)
+    sensor_params = scenario.sensors.to_kernel(plant_density, vehicle.envelope.air_density_kgpm3, scenario.base_dir)
     times = np.arange(scenario.n_ticks) * scenario.dt_control_s
     reference = trajectory_from_reference(scenario.reference).reference_table(times)
     sensor_state = sensors_initial_state(sensor_params, rng)

@@ -29,7 +29,7 @@ from numba import njit
 
 from .. import layout as L
 from ..forces import F_ALPHA, F_V, I_CL0, I_CL1, model_at, theta_at
-from ..frames import GRAVITY_MPS2, quat_to_rotmat_rows
+from ..frames import GRAVITY_MPS2, quat_to_rotmat_rows, rows_times, rows_transpose_times
 from . import adaptation as ad
 from .allocation import allocate_thrusters_at
 from .attitude import (
@@ -42,7 +42,6 @@ from .attitude import (
     hover_blend_weight,
     measured_angle_of_attack,
 )
-from ..frames import rows_times, rows_transpose_times
 from .frontend import plausible, vec3, wrap_angle
 from .layouts import (
     DIAG_A_M, DIAG_ADAPT_ACTIVE, DIAG_ALLOC_RES, DIAG_ALPHA_D, DIAG_AIRSPEED, DIAG_BLEND, DIAG_F_R, DIAG_FAULTS,

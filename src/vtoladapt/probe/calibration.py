@@ -360,6 +360,11 @@ def _tps_system(x: np.ndarray, smoothing: float) -> np.ndarray:
     return A
 
 
+_DEGENERATE_POINTS = ("calibration points are degenerate (repeated pressure coefficients); "
+                      "use a smoothing > 0 (--smoothing) or more distinct points")
+"""Why the thin-plate spline's system could not be solved (fit and leave-one-out alike)."""
+
+
 def _tps_fit(x: np.ndarray, y: np.ndarray, smoothing: float) -> tuple[np.ndarray, np.ndarray]:
     n = x.shape[0]
     A = _tps_system(x, smoothing)
@@ -368,8 +373,7 @@ def _tps_fit(x: np.ndarray, y: np.ndarray, smoothing: float) -> tuple[np.ndarray
     try:
         sol = np.linalg.solve(A, rhs)
     except np.linalg.LinAlgError:
-        raise ProbeError("calibration points are degenerate (repeated pressure coefficients); "
-                         "use a smoothing > 0 (--smoothing) or more distinct points") from None
+        raise ProbeError(_DEGENERATE_POINTS) from None
     return sol[:n], sol[n:]
 
 
@@ -399,8 +403,7 @@ def tps_loo_residuals(x: np.ndarray, y: np.ndarray, smoothing: float) -> np.ndar
     try:
         Ainv = np.linalg.inv(_tps_system(x, smoothing))
     except np.linalg.LinAlgError:
-        raise ProbeError("calibration points are degenerate (repeated pressure coefficients); "
-                         "use a smoothing > 0 (--smoothing) or more distinct points") from None
+        raise ProbeError(_DEGENERATE_POINTS) from None
     c = Ainv[:, :n] @ y
     return c[:n] / np.diag(Ainv)[:n, None]
 
