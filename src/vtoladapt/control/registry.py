@@ -17,6 +17,7 @@ class ControllerInfo:
     """What the rest of the package needs to know about one control law.
 
     ``adaptive``: it adapts online (theta-hat, or an estimate of the unmodelled force, as L1 does);
+    ``adapts_theta``: its theta-hat moves (a parameter-convergence experiment can judge it);
     ``composite``: it predicts the measured specific
     force with an adapted theta-hat (so its prediction error is one of the composite metrics);
     ``label`` and ``colour`` (a Matplotlib colour) are used in every figure and table;
@@ -32,6 +33,7 @@ class ControllerInfo:
     description: str
     module: str
     paper: str = ""
+    adapts_theta: bool = False
 
     @property
     def law(self) -> ModuleType:
@@ -47,12 +49,14 @@ class ControllerInfo:
 
 CONTROLLERS: dict[str, ControllerInfo] = {c.id: c for c in (
     ControllerInfo("composite", "C. Adapt", "C0", True, True,
-                   "the paper's composite adaptive law (eq:th_adapt, eq:P_adapt)", "composite", paper="I"),
+                   "the paper's composite adaptive law (eq:th_adapt, eq:P_adapt)", "composite", paper="I",
+                   adapts_theta=True),
     ControllerInfo("composite_pconst", "C. Adapt, P const", "C2", True, True,
-                   "the composite law with P held at P0 (the paper's controller II)", "composite_pconst", paper="II"),
+                   "the composite law with P held at P0 (the paper's controller II)", "composite_pconst", paper="II",
+                   adapts_theta=True),
     ControllerInfo("tracking_only", "Tracking-error adapt", "C4", True, False,
                    "adaptation on the tracking error only, theta-hat' = P0 Phi^T R^T v-tilde (III)",
-                   "tracking_only", paper="III"),
+                   "tracking_only", paper="III", adapts_theta=True),
     ControllerInfo("pid", "PID", "C1", False, False,
                    "PX4-style velocity PID with the same force allocation, theta-hat = theta_0 (IV)", "pid", paper="IV"),
     ControllerInfo("pd", "PD", "C3", False, False,
@@ -74,7 +78,7 @@ PAPER_ADAPTIVE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if
 """The paper's adaptive controllers (I to III), which its comparison claims are about."""
 PAPER_BASELINE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if not c.adaptive and c.paper)
 """The paper's baselines (IV PID and V PD)."""
-THETA_ADAPTIVE_IDS: tuple[str, ...] = ("composite", "composite_pconst", "tracking_only")
+THETA_ADAPTIVE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if c.adapts_theta)
 """The laws whose theta-hat moves (L1 adapts a force estimate and holds theta-hat = theta_0): the
 only ones a parameter-convergence experiment can judge."""
 
