@@ -36,7 +36,9 @@ def test_unedited_copy_loads(tmp_path):
 
 # (edit old -> new, key named in the message, value named in the message, another fragment)
 BAD_EDITS = {
-    "misspelled key": ("mass_kg = 1.70", "mas_kg = 1.70", "mas_kg", "1.7", "did you mean 'mass_kg'"),
+    "misspelled key": ("mass_kg = 1.70", "mas_kg = 1.70", "mas_kg", "1.7", "did you mean 'mass_kg'? Allowed keys: "),
+    "unknown key, nothing close": ("mass_kg = 1.70", "mass_kg = 1.70\nzzz = 1", "zzz", "1",
+                                   "unknown key; allowed keys: "),
     "negative mass": ("mass_kg = 1.70", "mass_kg = -1.70", "mass_kg", "-1.7", "> 0"),
     "zero mass": ("mass_kg = 1.70", "mass_kg = 0.0", "mass_kg", "0.0", "> 0"),
     "nan mass": ("mass_kg = 1.70", "mass_kg = nan", "mass_kg", "nan", "finite"),

@@ -279,9 +279,10 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
         moved_to = moved(key) if moved is not None and isinstance(key, str) else None
         if moved_to:
             raise ConfigError(f"{_where(source, section, key)} = {shown}: {moved_to}")
-        raise ConfigError(
-            f"{_where(source, section, key)} = {shown}: unknown key{hint} "
-            f"Allowed keys: {', '.join(k for k in fields if k not in INTERNAL_KEYS)}")
+        allowed = ", ".join(k for k in fields if k not in INTERNAL_KEYS)
+        # after a question the list is a new sentence; without one it follows a semicolon
+        raise ConfigError(f"{_where(source, section, key)} = {shown}: unknown key"
+                          + (f"{hint} Allowed keys: {allowed}" if hint else f"; allowed keys: {allowed}"))
     kwargs = {}
     for name, f in fields.items():
         where = _where(source, section, name)
