@@ -158,6 +158,37 @@ def test_scenario_that_is_a_folder_or_binary_or_missing(tmp_path, capsys):
            "not found")
 
 
+@pytest.mark.parametrize("argv, needle", [
+    (["campaign", "x.toml", "--runs", "1.5", "--out", "o"], "argument --runs: invalid int value"),
+    (["fit"], "required: DATA.csv, --out"),
+    (["probe", "evaluate"], "required: CALIBRATION, DATA, --out"),
+    (["no-such-command"], "invalid choice"),
+    ([], "required: command"),
+])
+def test_a_command_line_mistake_is_one_line_naming_the_help_to_read(capsys, argv, needle):
+    """argparse prints its usage block before the error; the usage is one --help away."""
+    line = _check(argv, capsys, ExitCode.BAD_INPUT, needle, "--help')")
+    assert line.startswith("vtoladapt")
+
+
+def test_an_input_that_is_a_device_or_a_pipe_is_refused_before_it_is_read(tmp_path, capsys):
+    """/dev/zero has size 0 to stat() and never ends: read, it would fill the memory."""
+    import os
+
+    fifo = tmp_path / "pipe.toml"
+    os.mkfifo(fifo)  # nobody writes to it: opening it to read would block forever
+    for path in (Path("/dev/zero"), fifo):
+        _check(["run", path, "--out", tmp_path / "o"], capsys, ExitCode.BAD_INPUT, str(path),
+               "not a regular file")
+    _check(["fit", "/dev/zero", "--out", tmp_path / "f"], capsys, ExitCode.BAD_INPUT, "not a regular file")
+    topics = tmp_path / "csvs"
+    topics.mkdir()
+    (topics / "log_vehicle_attitude_0.csv").symlink_to("/dev/zero")
+    _check(["replay", topics, "--vehicle", "caltech_vtol", "--out", tmp_path / "r"], capsys,
+           ExitCode.BAD_INPUT, "log_vehicle_attitude_0.csv", "not a regular file")
+    assert not any((tmp_path / d).exists() for d in ("o", "f", "r"))
+
+
 def test_very_long_vehicle_string(tmp_path, capsys):
     line = _check(["tunnel", "--vehicle", "x" * 5000, "--out", tmp_path / "d.csv"], capsys,
                   ExitCode.BAD_INPUT, "--vehicle", "at most 4096")

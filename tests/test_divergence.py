@@ -10,6 +10,7 @@ import pytest
 from vtoladapt.campaign import RunSpec, run_campaign
 from vtoladapt.config import ConfigError
 from vtoladapt.monitor import DivergenceError
+from vtoladapt.monitor import EnvelopeConfig as EnvelopeDefault
 from vtoladapt.results import SimulationResult
 from vtoladapt.scenario import scenario_from_mapping
 from vtoladapt.simulate import simulate
@@ -152,3 +153,31 @@ def test_the_readme_divergence_example_runs_as_written():
     assert shown["divergence_reason"] == repr(res.divergence_reason)
     with pytest.raises(DivergenceError):
         res.raise_if_diverged()
+
+
+def test_a_vehicle_far_from_its_reference_is_lost_whatever_its_speed_and_height():
+    """A run pushed off its hold point stops at the first tick whose distance from the reference,
+    computed from the same run's log without the bound, exceeds envelope.max_position_error_m."""
+    gusty = {"duration_s": 4.0, "wind": {"gusts": [{"shape": "step", "start_s": 0.5, "duration_s": 1.0, "amplitude_mps": [8.0, 0.0, 0.0]}]}}
+    free = _run(**gusty)
+    err_m = np.linalg.norm(free.columns_like(["p_N_m", "p_E_m", "p_D_m"])
+                           - free.columns_like(["ref_p_N_m", "ref_p_E_m", "ref_p_D_m"]), axis=1)
+    assert not free.diverged and err_m.max() > 0.2
+    bound_m = 0.5 * err_m.max()
+    first = int(np.argmax(err_m > bound_m))
+    res = _run(envelope={"max_position_error_m": bound_m}, **gusty)
+    assert res.diverged and res.diverged_at_s == pytest.approx(first * DT)
+    np.testing.assert_array_equal(res.data, free.data[:first])   # the same flight up to there
+    assert res.divergence_reason.startswith(f"position {err_m[first]:.3g} m from the reference, above "
+                                            f"envelope.max_position_error_m = {bound_m:g}")
+    # the default bound is far outside that flight
+    assert EnvelopeDefault().max_position_error_m == 1000.0 > 100 * err_m.max()
+
+
+def test_a_start_far_from_the_reference_stops_before_the_first_tick():
+    res = _run(initial={"position_m": [0.0, 0.0, -1.5]},
+               reference={"kind": "hold", "position_m": [3.0, 4.0, -1.5]},
+               envelope={"max_position_error_m": 2.0})
+    assert res.diverged and res.diverged_at_s == 0.0 and len(res) == 0
+    assert res.divergence_reason == ("position 5 m from the reference, above envelope.max_position_error_m = 2, "
+                                     "at t = 0.000 s")

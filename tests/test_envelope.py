@@ -257,3 +257,41 @@ def test_readme_envelope_tables_are_generated_from_the_committed_summary():
     """The README's envelope block is what envelope_readme renders from docs/envelope_summary.json."""
     summary = json.loads((REPO / "docs" / "envelope_summary.json").read_text())
     assert readme_block((REPO / "README.md").read_text()) == envelope_tables(summary)
+
+
+def test_the_envelope_readme_tool_refuses_bad_input_and_writes_nothing(tmp_path, capsys):
+    """A missing or foreign summary, or a README without the markers: one line, status 2, no write."""
+    import json
+    import shutil
+
+    from vtoladapt.experiments import envelope_readme as tool
+
+    readme = tmp_path / "README.md"
+    readme.write_text(f"intro\n{tool.BEGIN}\nold\n{tool.END}\n")
+    DOCS_SUMMARY = REPO / "docs" / "envelope_summary.json"
+    good = json.loads(DOCS_SUMMARY.read_text())
+    foreign = tmp_path / "foreign.json"
+    foreign.write_text(json.dumps({**good, "campaign": {**good["campaign"], "file": "tiny.toml"}}))
+    partial = tmp_path / "partial" / "summary.json"
+    partial.parent.mkdir()
+    partial.write_text(json.dumps({"campaign": {"file": "scenarios/envelope.toml"}}))
+    no_markers = tmp_path / "plain.md"
+    no_markers.write_text("no block here\n")
+    cases = [([str(tmp_path / "missing.json"), str(readme)], "no such file"),
+             ([str(foreign), str(readme)], "campaign file = 'tiny.toml'"),
+             ([str(partial), str(readme)], "not a complete envelope summary.json"),
+             ([str(DOCS_SUMMARY), str(no_markers)], "README has no block"),
+             ([str(readme)], "usage:")]
+    for argv, needle in cases:
+        assert tool.run_tool("envelope_readme", "usage: ...", argv, {(2, None): tool.update_readme}) == 2
+        err = capsys.readouterr().err
+        assert needle in err and len(err.strip().splitlines()) == 1, err
+    assert readme.read_text() == f"intro\n{tool.BEGIN}\nold\n{tool.END}\n"
+    assert no_markers.read_text() == "no block here\n"
+    assert not (tmp_path / "docs").exists()
+    # a README in a folder without docs/: the folder is made, the block and the copy written
+    shutil.copyfile(DOCS_SUMMARY, tmp_path / "summary.json")
+    assert tool.run_tool("envelope_readme", "", [str(tmp_path / "summary.json"), str(readme)],
+                         {(2, None): tool.update_readme}) == 0
+    assert tool.readme_block(readme.read_text()) == tool.envelope_tables(good).strip("\n") + "\n"
+    assert json.loads((tmp_path / "docs" / "envelope_summary.json").read_text()) == good

@@ -29,3 +29,19 @@ def test_readme_lists_every_range_as_the_code_checks_it():
     """README "When things go wrong" holds the table; regenerate it with
     ``python -c "from vtoladapt.limits import ranges_markdown; print(ranges_markdown())"``."""
     assert ranges_markdown() in README.read_text(encoding="utf-8")
+
+
+def test_readme_log_size_row_counts_the_logs_columns_and_their_ceilings():
+    """The size-ceiling row is written by hand: it must follow the log's width and the budget."""
+    from types import SimpleNamespace
+
+    from vtoladapt.limits import log_columns, max_duration_s
+
+    row = next(ln for ln in README.read_text(encoding="utf-8").splitlines()
+               if ln.startswith("| simulation logs"))
+    assert f"x {log_columns()} columns" in row
+    at_250_hz = SimpleNamespace(dt_control_s=0.004)
+    for n_runs, label in ((1, "one run at 250 Hz: "), (8, "comparison: "), (7, "study: ")):
+        shown = float(row.split(label)[1].split(" s")[0].replace(" ", ""))
+        exact = max_duration_s(at_250_hz, n_runs)
+        assert shown <= exact and shown > 0.99 * exact, (label, shown, exact)

@@ -199,6 +199,17 @@ def format_vehicle(name_or_path) -> str:
     return "\n".join(lines)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with a usage error on one line, like every other error (the usage is one --help away).
+
+    Sub-command parsers are made by ``add_subparsers``, which takes its parent's class, so every
+    sub-command's parser is one of these too.
+    """
+
+    def error(self, message: str):
+        self.exit(int(ExitCode.BAD_INPUT), f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``vtoladapt`` parser: every sub-command registers itself here."""
     from .campaign import register_cli as register_campaign
@@ -206,7 +217,7 @@ def build_parser() -> argparse.ArgumentParser:
     from .probe.cli import register_cli as register_probe
     from .replay.cli import register_cli as register_replay
 
-    parser = argparse.ArgumentParser(prog="vtoladapt", description=__doc__.split("\n\n")[0])
+    parser = _Parser(prog="vtoladapt", description=__doc__.split("\n\n")[0])
     parser.add_argument("--debug", action="store_true",
                         help="show the traceback of an error (accepted anywhere on the line)")
     sub = parser.add_subparsers(dest="command", required=True)

@@ -203,11 +203,11 @@ def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state,
     work = np.empty(RK4_WORK_SIZE)
     u_max = mixer_p[MX_U_MAX]
     for k in range(n_ticks):
-        reason = check_envelope(x, envelope)
+        ref = ref_table[k]
+        reason = check_envelope(x, envelope, ref)
         if reason != REASON_OK:
             return k, reason
         t = t0 + k * dt
-        ref = ref_table[k]
         tick_sense(x, plant_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state, ref, t, dt, rng,
                    False, v_wind, f_B, v_i, meas, cmd, diag, work)
         apply_measurement_faults(faults, fault_state, t, dt, meas)
@@ -217,4 +217,4 @@ def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state,
         apply_actuator_faults(faults, fault_state, t, u_max, motor_cmd)
         tick_log_advance(x, plant_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag,
                          motor_cmd, saturated, active_mask(faults, t), work, theta_true, gamma, log[k])
-    return n_ticks, check_envelope(x, envelope)
+    return n_ticks, check_envelope(x, envelope, ref_table[n_ticks - 1])

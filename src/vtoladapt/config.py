@@ -14,6 +14,7 @@ import functools
 import math
 import os
 import re
+import stat
 import tomllib
 import types
 import typing
@@ -308,7 +309,8 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
 
 def check_input_file(path: str | Path, what: str = "file") -> Path:
     """``path`` if it is a readable regular file within :data:`MAX_INPUT_FILE_BYTES`, else a
-    :class:`ConfigError` naming it (missing, a folder, unreadable, too large, name too long)."""
+    :class:`ConfigError` naming it (missing, a folder, a device or pipe, unreadable, too large,
+    name too long)."""
     path = Path(path)
     shown = str(path) if len(str(path)) <= 120 else str(path)[:60] + "..." + str(path)[-40:]
     try:
@@ -317,8 +319,11 @@ def check_input_file(path: str | Path, what: str = "file") -> Path:
         raise ConfigError(f"{shown}: {what} not found") from None
     except OSError as exc:
         raise ConfigError(f"{shown}: cannot read the {what}: {exc.strerror}") from None
-    if path.is_dir():
+    if stat.S_ISDIR(st.st_mode):
         raise ConfigError(f"{shown}: is a folder; expected a {what}")
+    if not stat.S_ISREG(st.st_mode):
+        # a device or pipe has no size to check against the ceiling, and /dev/zero never ends
+        raise ConfigError(f"{shown}: is not a regular file (a device, pipe or socket); expected a {what}")
     if not os.access(path, os.R_OK):
         raise ConfigError(f"{shown}: no permission to read the {what}")
     if st.st_size > MAX_INPUT_FILE_BYTES:

@@ -120,7 +120,8 @@ def stream_run(scenario: Scenario, out: str | Path, chunk_s: float = 60.0) -> Lo
                 n_done = k0 + done
                 break
     diverged_at = n_done * dt if reason != 0 else None
-    why = scenario.envelope.describe_violation(reason, x, diverged_at) if reason != 0 else None
+    why = (scenario.envelope.describe_violation(reason, x, diverged_at, run.reference_table[min(n_done, k1 - 1)])
+           if reason != 0 else None)
     return LongRunReport(
         simulated_s=n_done * dt, ticks=n_done, row_groups=groups, diverged_at_s=diverged_at,
         divergence_reason=why, R_orthonormality_err_max=R_err, P_symmetry_err_max=P_sym,

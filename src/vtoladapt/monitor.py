@@ -19,7 +19,7 @@ from numba import njit
 
 from .config import setting
 from .errors import RunFailed
-from .layout import X_OMEGA_B, X_P_W, X_SIZE, X_V_W, BlockLayout, Field
+from .layout import REF_P_W, X_OMEGA_B, X_P_W, X_SIZE, X_V_W, BlockLayout, Field
 
 REASON_OK = 0
 REASON_NON_FINITE = 1
@@ -27,10 +27,11 @@ REASON_SPEED = 2
 REASON_BODY_RATE = 3
 REASON_HEIGHT_LOW = 4
 REASON_HEIGHT_HIGH = 5
+REASON_POSITION_ERROR = 6
 DIVERGENCE_REASONS: tuple[str, ...] = (
     "", "non-finite state", "speed above envelope.max_speed_mps",
     "body rate above envelope.max_body_rate_radps", "height below envelope.min_height_m",
-    "height above envelope.max_height_m")
+    "height above envelope.max_height_m", "distance from the reference above envelope.max_position_error_m")
 """Reason code (what :func:`check_envelope` returns) -> words; code 0 is "inside the envelope"."""
 
 ENVELOPE_PARAMS = BlockLayout("envelope parameters", [
@@ -39,9 +40,10 @@ ENVELOPE_PARAMS = BlockLayout("envelope parameters", [
     Field("MAX_RATE", 1, "rad/s", "largest |omega_B|"),
     Field("MIN_H", 1, "m", "lowest height -p_D"),
     Field("MAX_H", 1, "m", "highest height -p_D"),
+    Field("MAX_POS_ERR", 1, "m", "largest |p_W - p_ref_W|"),
 ])
-_E_ON, _E_MAX_SPEED, _E_MAX_RATE, _E_MIN_H, _E_MAX_H = ENVELOPE_PARAMS.offsets(
-    "ON", "MAX_SPEED", "MAX_RATE", "MIN_H", "MAX_H")
+_E_ON, _E_MAX_SPEED, _E_MAX_RATE, _E_MIN_H, _E_MAX_H, _E_MAX_POS_ERR = ENVELOPE_PARAMS.offsets(
+    "ON", "MAX_SPEED", "MAX_RATE", "MIN_H", "MAX_H", "MAX_POS_ERR")
 
 
 @dataclass(frozen=True)
@@ -57,6 +59,12 @@ class EnvelopeConfig:
                                   ge=-1e5, le=1e5)
     max_height_m: float = setting("m", "highest height -p_D above the world origin", default=1000.0,
                                   ge=-1e5, le=1e5)
+    max_position_error_m: float = setting(
+        "m", "largest distance |p_W - p_ref_W| from the reference position: a vehicle blown or flown this far "
+        "from where it should be is lost, whatever its speed and height. The default is as far outside the "
+        "flights we fly as the height limits: the pusher stuck at full throttle for 4 s (faults/pusher_saturated) "
+        "carries the aircraft 180 m away and it flies back; a hold test may set 10",
+        default=1000.0, gt=0.0, le=1e6)
 
     def _check(self, source: str) -> None:
         from .config import ConfigError
@@ -69,10 +77,11 @@ class EnvelopeConfig:
         """The envelope as the loop's parameter array (:data:`ENVELOPE_PARAMS`)."""
         return ENVELOPE_PARAMS.pack(ON=float(self.enabled), MAX_SPEED=self.max_speed_mps,
                                     MAX_RATE=self.max_body_rate_radps, MIN_H=self.min_height_m,
-                                    MAX_H=self.max_height_m)
+                                    MAX_H=self.max_height_m, MAX_POS_ERR=self.max_position_error_m)
 
-    def describe_violation(self, code: int, x: np.ndarray, t_s: float) -> str:
-        """One line: what left the envelope, by how much, and when (``x`` the offending state)."""
+    def describe_violation(self, code: int, x: np.ndarray, t_s: float, ref: np.ndarray) -> str:
+        """One line: what left the envelope, by how much, and when (``x`` the offending state,
+        ``ref`` the reference row it was checked against)."""
         if code == REASON_NON_FINITE:
             bad = [i for i in range(X_SIZE) if not math.isfinite(x[i])]
             from .layout import STATE_COLUMNS
@@ -89,6 +98,10 @@ class EnvelopeConfig:
         if code == REASON_HEIGHT_HIGH:
             return (f"height {-x[X_P_W + 2]:.3g} m above envelope.max_height_m = {self.max_height_m:g} "
                     f"at t = {t_s:.3f} s")
+        if code == REASON_POSITION_ERROR:
+            err = np.linalg.norm(x[X_P_W:X_P_W + 3] - ref[REF_P_W:REF_P_W + 3])
+            return (f"position {err:.3g} m from the reference, above envelope.max_position_error_m = "
+                    f"{self.max_position_error_m:g}, at t = {t_s:.3f} s")
         return ""
 
 
@@ -105,10 +118,11 @@ class DivergenceError(RunFailed):
 
 
 @njit(cache=True, nogil=True, _nrt=False)
-def check_envelope(x, env) -> int:
+def check_envelope(x, env, ref) -> int:
     """Reason code (:data:`DIVERGENCE_REASONS`) of the first envelope limit ``x`` violates, else 0.
 
-    A handful of multiplications per tick: the speed and rate are compared squared.
+    ``ref`` is the reference row (``REF_*``) of the same tick. A handful of multiplications per
+    tick: the speed, rate and position error are compared squared.
     """
     if env[_E_ON] == 0.0:
         return REASON_OK
@@ -126,4 +140,8 @@ def check_envelope(x, env) -> int:
         return REASON_HEIGHT_LOW
     if h > env[_E_MAX_H]:
         return REASON_HEIGHT_HIGH
+    e2 = ((x[X_P_W] - ref[REF_P_W]) ** 2 + (x[X_P_W + 1] - ref[REF_P_W + 1]) ** 2
+          + (x[X_P_W + 2] - ref[REF_P_W + 2]) ** 2)
+    if e2 > env[_E_MAX_POS_ERR] ** 2:
+        return REASON_POSITION_ERROR
     return REASON_OK

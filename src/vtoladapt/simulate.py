@@ -171,7 +171,9 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
     if reason != 0:
         log = log[:n_done].copy()
         diverged_at_s = n_done * scenario.dt_control_s
-        why = scenario.envelope.describe_violation(reason, x, diverged_at_s)
+        # the row the failed check read: the tick's own, or the chunk's last for the check after it
+        why = scenario.envelope.describe_violation(reason, x, diverged_at_s,
+                                                   run.reference_table[min(n_done, k1 - 1)])
     metadata = {
         "scenario": scenario.name, "scenario_path": scenario.source_path, "vehicle": run.vehicle.name,
         "controller": scenario.controller.kind, "seed": scenario.seed,

@@ -172,7 +172,9 @@ class SharedControllerConfig:
         "m/s^2", "lift (per unit mass) the wing solution leaves to the lift rotors, so that their collective "
         "keeps moment authority at speed (the aircraft's only moment effectors; not in the paper's eq:alphad, "
         "0 gives it); 5 (~0.5 g): 2.5 still left the mixer saturated 22 % of a fan step to 12.9 m/s, since "
-        "gusts of +-3 deg alpha swing the wing's lift by ~2.3 m/s^2 there", default=5.0, ge=0.0, le=20.0)
+        "gusts of +-3 deg alpha swing the wing's lift by ~2.3 m/s^2 there; at most 8 (0.8 g): near g the wing "
+        "is asked for no lift or a downward one (alpha_d negative) and measured, 10 lost the aircraft",
+        default=5.0, ge=0.0, le=8.0)
 
     def _check(self, source: str) -> None:
         wv = self.weathervane_airspeed_mps

@@ -14,6 +14,7 @@ copies the metrics to ``docs/reproduce_metrics.json`` and rewrites the README's 
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 import sys
@@ -101,23 +102,73 @@ def readme_block(text: str, begin: str = BEGIN, end: str = END) -> str:
     return text[start:stop].strip("\n") + "\n"
 
 
-def replace_readme_block(readme_path: Path, block: str, begin: str = BEGIN, end: str = END) -> None:
-    """Rewrite the generated block of the README at ``readme_path`` with ``block`` (Markdown)."""
-    text = Path(readme_path).read_text()
+def with_readme_block(text: str, block: str, begin: str = BEGIN, end: str = END) -> str:
+    """``text`` with its generated block (between the markers) replaced by ``block`` (Markdown)."""
     readme_block(text, begin, end)  # the markers must be there
     start = text.index(begin) + len(begin)
     stop = text.index(end, start)
-    Path(readme_path).write_text(text[:start] + "\n\n" + block + "\n" + text[stop:])
+    return text[:start] + "\n\n" + block + "\n" + text[stop:]
+
+
+def replace_readme_block(readme_path: Path, block: str, begin: str = BEGIN, end: str = END) -> None:
+    """Rewrite the generated block of the README at ``readme_path`` with ``block`` (Markdown)."""
+    text = Path(readme_path).read_text()
+    Path(readme_path).write_text(with_readme_block(text, block, begin, end))
+
+
+def read_json_input(path: Path, what: str) -> dict:
+    """A JSON object from ``path``; a missing, unreadable or non-object file is a ``ValueError``."""
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ValueError(f"{path}: no such file; expected {what}") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path}: cannot read {what}: {exc}") from None
+    if not isinstance(doc, dict):
+        raise ValueError(f"{path}: not {what} (a JSON object)")
+    return doc
+
+
+def write_readme_and_copy(readme_path: Path, text: str, source: Path, copy_to: Path) -> None:
+    """Write the README's new ``text`` and copy ``source`` to ``copy_to`` (relative to the README),
+    after checking both can be written, so that a failure leaves neither half-updated."""
+    readme_path = Path(readme_path)
+    target = readme_path.parent / copy_to
+    target.parent.mkdir(parents=True, exist_ok=True)
+    for path in (readme_path, target):
+        if path.exists() and not os.access(path, os.W_OK):
+            raise ValueError(f"{path}: not writable")
+    readme_path.write_text(text)
+    if Path(source).resolve() != target.resolve():
+        shutil.copyfile(source, target)
 
 
 def update_readme(metrics_path: Path, readme_path: Path) -> None:
     """Rewrite the README's generated block from ``metrics_path`` and keep a copy of the metrics
-    in ``docs/reproduce_metrics.json`` next to the README."""
-    metrics = json.loads(Path(metrics_path).read_text())
-    replace_readme_block(readme_path, readme_tables(metrics))
-    docs = Path(readme_path).parent / "docs" / "reproduce_metrics.json"
-    if Path(metrics_path).resolve() != docs.resolve():
-        shutil.copyfile(metrics_path, docs)
+    in ``docs/reproduce_metrics.json`` next to the README. Everything is read and checked first:
+    a bad input writes nothing."""
+    metrics = read_json_input(metrics_path, "make reproduce's metrics.json")
+    try:
+        block = readme_tables(metrics)
+    except (KeyError, TypeError, IndexError) as exc:
+        raise ValueError(f"{metrics_path}: not make reproduce's metrics.json (no {exc})") from None
+    text = with_readme_block(Path(readme_path).read_text(), block)
+    write_readme_and_copy(readme_path, text, metrics_path, Path("docs") / "reproduce_metrics.json")
+
+
+def run_tool(prog: str, usage: str, argv: list[str], commands: dict) -> int:
+    """A maintainer script's entry point: ``commands[len(argv) or flag]`` runs; a bad input is one
+    line on stderr and exit status 2, nothing written."""
+    fn = commands.get((len(argv), argv[0] if argv else None)) or commands.get((len(argv), None))
+    if fn is None:
+        print(usage, file=sys.stderr)
+        return 2
+    try:
+        fn(*[Path(a) for a in argv if not a.startswith("--")])
+    except (OSError, ValueError) as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
 
 
 def update_toc(readme_path: Path) -> None:
@@ -126,10 +177,7 @@ def update_toc(readme_path: Path) -> None:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) == 3 and sys.argv[1] == "--toc":
-        update_toc(Path(sys.argv[2]))
-    elif len(sys.argv) == 3:
-        update_readme(Path(sys.argv[1]), Path(sys.argv[2]))
-    else:
-        sys.exit("usage: python -m vtoladapt.experiments.readme METRICS_JSON README_MD\n"
-                 "       python -m vtoladapt.experiments.readme --toc README_MD")
+    sys.exit(run_tool("vtoladapt.experiments.readme",
+                      "usage: python -m vtoladapt.experiments.readme METRICS_JSON README_MD\n"
+                      "       python -m vtoladapt.experiments.readme --toc README_MD",
+                      sys.argv[1:], {(2, "--toc"): update_toc, (2, None): update_readme}))

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config import ConfigError, check_input_file
 from .flightlog import KNOWN_TOPICS, FlightLog, ReadSettings, ReplayError, assemble_flight_log
 
 _PATTERNS = [(t, re.compile(rf"(?:^|_){re.escape(t)}_(\d+)$")) for t in
@@ -33,8 +34,13 @@ def read_topic_csv(path: Path) -> dict:
     Raises
     ------
     ReplayError
-        If the file has no header, no ``timestamp`` column, or a cell is not a number.
+        If the file is not a readable regular file within the input-size ceiling, has no header,
+        no ``timestamp`` column, or a cell is not a number.
     """
+    try:
+        check_input_file(path, "PX4 topic CSV")
+    except ConfigError as exc:
+        raise ReplayError(str(exc)) from None
     with open(path, encoding="utf-8", errors="replace") as fh:
         header = fh.readline().strip()
         if not header:
