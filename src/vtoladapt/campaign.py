@@ -45,7 +45,6 @@ from .control.registry import CONTROLLER_IDS
 from .outputs import OutputDir, add_force_argument, output_path, write_json, write_parquet
 
 
-
 @dataclass(frozen=True)
 class Variation:
     """A scenario key drawn uniformly in ``[low, high]`` for each run."""
@@ -426,17 +425,17 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
     # ones before, so an error names the table where its value was written (the vehicle lookup
     # named the base scenario for a vehicle a choice option had set)
     base = {**base, "experiment": {"kind": "single"}}
-    _validate_written(cf, base, f"{at_base} ({cf.base_path})", base)
+    _validate_written(cf, base, f"{at_base} ({cf.base_path})")
     for key, value in cf.set_values.items():
         _set_dotted(base, key, copy.deepcopy(value), f"{cf.path}: [campaign.set]")
-    base_scenario = _validate_written(cf, base, f"{cf.path}: [campaign.set]", cf.set_values)
+    base_scenario = _validate_written(cf, base, f"{cf.path}: [campaign.set]")
     for dim, options in cf.choices.items():
         for name, option in options.items():
             mapping = copy.deepcopy(base)
             table = f"{cf.path}: [campaign.choices.{dim}.{name}]"
             for key, value in option.items():
                 _set_dotted(mapping, key, copy.deepcopy(value), table)
-            _validate_written(cf, mapping, table, option)
+            _validate_written(cf, mapping, table)
     source = str(cf.base_path)
     where = f"{cf.path} ([campaign] base {cfg.base} with [campaign.set])"
     check_campaign_runs(runs * len(cfg.controllers), base)
@@ -488,10 +487,11 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
     return cf, specs
 
 
-def _validate_written(cf: CampaignFile, mapping: dict, where: str, written: dict):
-    """The scenario of ``mapping`` (what ``written``, at ``where`` in the campaign file, makes of
-    the scenario so far), or a one-line ConfigError naming ``where``; a vehicle that fails to load
-    is reported as ``where``'s ``vehicle = ...`` (its lookup names only the scenario's file)."""
+def _validate_written(cf: CampaignFile, mapping: dict, where: str):
+    """The scenario of ``mapping`` (the scenario so far with the values written at ``where`` in
+    the campaign file), or a one-line ConfigError naming ``where``. The scenario so far has
+    passed, so a vehicle that fails to load is the one written there: it is reported as
+    ``where``'s ``vehicle = ...`` (the lookup itself names only the base scenario's file)."""
     from .scenario import Scenario, scenario_from_mapping
 
     scenario = build(Scenario, {**mapping, "source_path": str(cf.base_path)}, source=where)
@@ -723,7 +723,7 @@ def _cmd_campaign(args) -> int:
     if args.runs is None:
         raise ConfigError(f"--runs: required with a scenario file ({args.scenario} has no [campaign] "
                           f"table); allowed: a whole number >= 1 and <= {MAX_CAMPAIGN_RUNS}")
-    check_runs_flag(args.runs)  # before the draws: 10^6 of them took minutes to validate
+    check_runs_flag(args.runs)  # before the draws: 200 000 of them took minutes to validate
     variations = [Variation.parse(v) for v in args.vary]
     _check_variations(variations)
     check_scheduler(args.scheduler)
