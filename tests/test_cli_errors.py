@@ -75,7 +75,8 @@ def test_huge_tunnel_repeats_and_walkers_and_runs_are_refused(tmp_path, capsys):
     _check(["fit", tmp_path / "d.csv", "--out", tmp_path / "f", "--walkers", "100000000"], capsys,
            ExitCode.BAD_INPUT, "--walkers", "memory budget")
     _check(["campaign", _scenario(tmp_path), "--runs", "100000000", "--out", tmp_path / "c",
-            "--scheduler", "none", "--quiet"], capsys, ExitCode.BAD_INPUT, "--runs", "100000000 runs")
+            "--scheduler", "none", "--quiet"], capsys, ExitCode.BAD_INPUT,
+           "--runs = 100000000: out of range; allowed: >= 1 and <= 100000")
     assert not (tmp_path / "f").exists() and not (tmp_path / "c").exists()
 
 

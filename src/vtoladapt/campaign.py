@@ -11,7 +11,8 @@ on one thread per core (``--scheduler none``: no worker processes to start). It 
 
 The local cluster's scheduler, workers and status page listen on ``127.0.0.1`` only (another
 address with ``--listen``); connecting to a given scheduler gives up after
-:data:`SCHEDULER_CONNECT_TIMEOUT_S` with a one-line error.
+:data:`~vtoladapt.campaign_cluster.SCHEDULER_CONNECT_TIMEOUT_S` with a one-line error; a Ctrl-C
+reaches this process only, never the local cluster's workers (:mod:`vtoladapt.campaign_cluster`).
 
 All draws come from ``numpy.random.default_rng(scenario seed)``: the same command gives the same
 campaign, whatever the cluster.
@@ -38,14 +39,10 @@ from typing import Optional
 
 import numpy as np
 
+from .campaign_cluster import LOOPBACK, check_listen, check_scheduler, connect_scheduler, local_cluster
 from .config import PATH_PATTERN, ConfigError, build, check_flag, read_toml, refuse_internal_keys, setting
 from .control.registry import CONTROLLER_IDS
 from .outputs import OutputDir, add_force_argument, output_path, write_json, write_parquet
-
-SCHEDULER_CONNECT_TIMEOUT_S = 5.0
-"""How long ``--scheduler ADDRESS`` waits for the scheduler to answer."""
-LOOPBACK = "127.0.0.1"
-SCHEDULER_SCHEMES = ("tcp://", "tls://", "ucx://", "inproc://", "ws://", "wss://")
 
 
 @dataclass(frozen=True)
@@ -88,14 +85,46 @@ class RunSpec:
     groups: dict = field(default_factory=dict)
 
 
-def _set_dotted(mapping: dict, key: str, value) -> None:
+MAX_CAMPAIGN_RUNS = 100_000
+"""Most runs of a campaign (``--runs``), or draws of a campaign file (each flown by every controller)."""
+CAMPAIGN_OWNED_KEYS = ("seed", "experiment", "controller.kind")
+"""Scenario keys a campaign sets itself (each run's seed, single runs, the controller flown)."""
+
+
+def check_runs_flag(runs: int) -> int:
+    """``--runs``: a whole number 1 to :data:`MAX_CAMPAIGN_RUNS`, for a scenario and a campaign file alike."""
+    return check_flag("--runs", runs, ge=1, le=MAX_CAMPAIGN_RUNS, integer=True)
+
+
+def keys_overlap(a: str, b: str) -> bool:
+    """Whether writing dotted key ``a`` and dotted key ``b`` touch the same value (equal, or one
+    a table holding the other: ``wind.fan_array`` and ``wind.fan_array.schedule``)."""
+    return a == b or a.startswith(b + ".") or b.startswith(a + ".")
+
+
+def _set_dotted(mapping: dict, key: str, value, where: str) -> None:
     parts = key.split(".")
     node = mapping
     for p in parts[:-1]:
         node = node.setdefault(p, {})
         if not isinstance(node, dict):
-            raise ConfigError(f"--vary {key}: '{p}' is not a table in the scenario")
+            raise ConfigError(f"{where}: {key!r}: '{p}' is not a table in the scenario; allowed: a key "
+                              "inside one of the scenario's tables")
     node[parts[-1]] = value
+
+
+def _check_variations(variations: list[Variation]) -> None:
+    """Refuse ``--vary`` keys the campaign sets itself or that another ``--vary`` also draws (the
+    later draw silently replaced the earlier one, and ``--vary experiment.runs`` was dropped)."""
+    owned = ", ".join(CAMPAIGN_OWNED_KEYS)
+    for i, v in enumerate(variations):
+        if any(keys_overlap(v.key, o) for o in CAMPAIGN_OWNED_KEYS):
+            raise ConfigError(f"--vary {v.key}={v.low:g}:{v.high:g}: {v.key!r} is set by the campaign itself "
+                              f"(--seed, single runs, --controller); allowed: any key but {owned}")
+        for w in variations[:i]:
+            if keys_overlap(v.key, w.key):
+                raise ConfigError(f"--vary {w.key}={w.low:g}:{w.high:g} and --vary {v.key}={v.low:g}:{v.high:g}: "
+                                  "both draw the same value; allowed: each key in one --vary")
 
 
 def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variation],
@@ -111,7 +140,8 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
     from .limits import check_campaign_runs, check_run_size
     from .scenario import Scenario, scenario_from_mapping
 
-    runs = check_flag("--runs", runs, ge=1, integer=True)
+    runs = check_runs_flag(runs)
+    _check_variations(variations)
     if seed is not None:
         seed = check_value(Scenario, "seed", seed, "--seed")
     path = Path(scenario_path)
@@ -138,7 +168,7 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
         mapping["seed"] = drawn["seed"]
         for v in variations:
             drawn[v.key] = float(rng.uniform(v.low, v.high))
-            _set_dotted(mapping, v.key, drawn[v.key])
+            _set_dotted(mapping, v.key, drawn[v.key], f"--vary {v.key}")
         mapping["experiment"] = {"kind": "single"}
         scenario_from_mapping(mapping, f"{path} (campaign run {i}, {drawn})", source_path=path)
         specs.append(RunSpec(i, mapping, str(path), drawn))
@@ -147,12 +177,8 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
 
 # --- campaign files: a [campaign] table -----------------------------------------------------------
 SAMPLINGS = ("latin_hypercube", "uniform")
-MAX_CAMPAIGN_DRAWS = 100_000
-"""Most draws of a campaign file (each flown by every controller)."""
 DOTTED_KEY_PATTERN = r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*"
 LABEL_PATTERN = r"[^\x00\n]{0,64}"
-CAMPAIGN_OWNED_KEYS = ("seed", "experiment", "controller.kind")
-"""Scenario keys a campaign file sets itself (each draw's seed, single runs, each controller)."""
 
 
 @dataclass(frozen=True)
@@ -226,7 +252,7 @@ class CampaignConfig:
 
     base: str = setting("-", "scenario every draw starts from (path relative to the campaign file)",
                         pattern=PATH_PATTERN)
-    runs: int = setting("-", "number of draws, each flown by every controller", ge=1, le=MAX_CAMPAIGN_DRAWS)
+    runs: int = setting("-", "number of draws, each flown by every controller", ge=1, le=MAX_CAMPAIGN_RUNS)
     seed: int = setting("-", "seed of every draw: numpy.random.default_rng(seed)", ge=0, le=2**63 - 1)
     controllers: tuple[str, ...] = setting("-", "controllers flying every draw (same seed, same conditions)",
                                            choices=CONTROLLER_IDS)
@@ -264,23 +290,27 @@ class CampaignFile:
         return base if base.is_absolute() else self.path.parent / base
 
 
-def _flatten(table: dict, prefix: str = "") -> dict:
+def _flatten(table: dict, prefix: str = "") -> list[tuple[str, object]]:
     """``{"wind": {"fan_array": {"schedule": x}}}`` and ``{"wind.fan_array.schedule": x}`` alike
-    -> ``{"wind.fan_array.schedule": x}``."""
-    out = {}
+    -> ``[("wind.fan_array.schedule", x)]`` (a key written both ways appears twice)."""
+    out = []
     for k, v in table.items():
         key = f"{prefix}.{k}" if prefix else str(k)
-        if isinstance(v, dict):
-            out.update(_flatten(v, key))
-        else:
-            out[key] = v
+        out += _flatten(v, key) if isinstance(v, dict) else [(key, v)]
     return out
 
 
 def _check_dotted(source: str, section: str, table) -> dict:
     if not isinstance(table, dict):
         raise ConfigError(f"{source}: [{section}] = {table!r:.60}: must be a table of scenario keys")
-    flat = _flatten(table)
+    flat: dict = {}
+    for key, value in _flatten(table):
+        clash = next((k for k in flat if keys_overlap(k, key)), None)
+        if clash is not None:  # "plant.stall_angle_deg" = 14 beside [..plant] stall_angle_deg = 15
+            shown = repr(key) if clash == key else f"{clash!r} and {key!r}"
+            raise ConfigError(f"{source}: [{section}] {shown}: the same value written twice (as a dotted key "
+                              "and in a nested table); allowed: each scenario key once")
+        flat[key] = value
     for key in flat:
         if not re.fullmatch(DOTTED_KEY_PATTERN, key):
             raise ConfigError(f"{source}: [{section}] {key!r}: not a dotted scenario key; allowed: "
@@ -328,7 +358,32 @@ def load_campaign_file(path: str | Path) -> CampaignFile:
         dup = next(n for n in names if names.count(n) > 1)
         raise ConfigError(f"{path}: [campaign] {dup!r}: two dimensions report under this name; give "
                           "each [[campaign.vary]] a distinct label")
+    _refuse_conflicts(path, set_values, choices, config.vary)
     return CampaignFile(path, config, set_values, choices)
+
+
+def _refuse_conflicts(path: Path, set_values: dict, choices: dict, vary: tuple[VaryEntry, ...]) -> None:
+    """Refuse a scenario key written in two places of a campaign file: a draw applies
+    ``[campaign.set]``, then the choices in order, then the ``[[campaign.vary]]`` draws, so the
+    later silently replaced the earlier, and a draw reported ``choice.vehicle =
+    px4_standard_vtol`` while it flew the vehicle another choice had set. The options of one
+    choice dimension are alternatives: they may (and usually do) write the same keys."""
+    places = [("[campaign.set]", "set", list(set_values))]
+    places += [(f"[campaign.choices.{dim}.{name}]", f"choice {dim}", list(option))
+               for dim, options in choices.items() for name, option in options.items()]
+    places += [(f"[[campaign.vary]] keys = {list(v.keys)}", f"vary {j}", list(v.keys)) for j, v in enumerate(vary)]
+    for i, (place, owner, keys) in enumerate(places):
+        for earlier, earlier_owner, earlier_keys in places[:i]:
+            if owner == earlier_owner:
+                continue
+            for key in keys:
+                clash = next((k for k in earlier_keys if keys_overlap(k, key)), None)
+                if clash is not None:
+                    shown = repr(key) if clash == key else f"{clash!r} / {key!r}"
+                    raise ConfigError(
+                        f"{path}: {earlier} and {place}: both set {shown} (the later would silently "
+                        "replace the earlier); allowed: each scenario key in one place ([campaign.set], one "
+                        "[campaign.choices] dimension or one [[campaign.vary]] entry)")
 
 
 def latin_hypercube(rng: np.random.Generator, n: int, d: int) -> np.ndarray:
@@ -356,19 +411,33 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
 
     cf = load_campaign_file(path)
     cfg = cf.config
-    runs = cfg.runs if runs is None else check_flag("--runs", runs, ge=1, le=MAX_CAMPAIGN_DRAWS, integer=True)
+    runs = cfg.runs if runs is None else check_runs_flag(runs)
     seed = cfg.seed if seed is None else check_value(CampaignConfig, "seed", seed, "--seed")
-    base = read_toml(cf.base_path)
-    refuse_internal_keys(base, str(cf.base_path))
+    at_base = f"{cf.path}: [campaign] base = {cfg.base!r}"
+    try:
+        base = read_toml(cf.base_path)
+        refuse_internal_keys(base, str(cf.base_path))
+    except ConfigError as exc:
+        raise ConfigError(f"{at_base}: {exc}") from None
     if "campaign" in base:
-        raise ConfigError(f"{cf.path}: [campaign] base = {cfg.base!r}: is itself a campaign file; "
-                          "allowed: a scenario file")
+        raise ConfigError(f"{at_base}: is itself a campaign file; allowed: a scenario file")
+    # the base, [campaign.set] and each choice option are validated in turn, each on top of the
+    # ones before, so an error names the table where its value was written (the vehicle lookup
+    # named the base scenario for a vehicle a choice option had set)
+    base = {**base, "experiment": {"kind": "single"}}
+    _validate_written(cf, base, f"{at_base} ({cf.base_path})")
     for key, value in cf.set_values.items():
-        _set_dotted(base, key, copy.deepcopy(value))
+        _set_dotted(base, key, copy.deepcopy(value), f"{cf.path}: [campaign.set]")
+    base_scenario = _validate_written(cf, base, f"{cf.path}: [campaign.set]")
+    for dim, options in cf.choices.items():
+        for name, option in options.items():
+            mapping = copy.deepcopy(base)
+            table = f"{cf.path}: [campaign.choices.{dim}.{name}]"
+            for key, value in option.items():
+                _set_dotted(mapping, key, copy.deepcopy(value), table)
+            _validate_written(cf, mapping, table)
     source = str(cf.base_path)
     where = f"{cf.path} ([campaign] base {cfg.base} with [campaign.set])"
-    base_scenario = scenario_from_mapping({**base, "experiment": {"kind": "single"}}, where,
-                                          source_path=cf.base_path)
     check_campaign_runs(runs * len(cfg.controllers), base)
     check_run_size(base_scenario, f"{where} (each campaign run)", n_runs=os.cpu_count() or 1)
 
@@ -388,7 +457,7 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
             names = list(options)
             pick = names[min(int(u[i, len(dims) + j] * len(names)), len(names) - 1)]
             for key, value in options[pick].items():
-                _set_dotted(mapping, key, copy.deepcopy(value))
+                _set_dotted(mapping, key, copy.deepcopy(value), f"{cf.path}: [campaign.choices.{dim}.{pick}]")
             drawn[f"choice.{dim}"] = pick
             groups[dim] = pick
         vehicle = None
@@ -404,7 +473,8 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
                     raise ConfigError(f"{cf.path}: [[campaign.vary]] {key!r}: relative_to_vehicle: the vehicle's "
                                       f"[force_model] has no {name!r}")
                 value = x * getattr(vehicle.force_model, name)
-            _set_dotted(mapping, key, [c * value for c in v.components] if v.components is not None else value)
+            _set_dotted(mapping, key, [c * value for c in v.components] if v.components is not None else value,
+                        f"{cf.path}: [[campaign.vary]]")
             drawn[key] = value
             if v.relative_to_vehicle:
                 drawn[f"{key}:factor"] = x
@@ -415,6 +485,22 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
         scenario_from_mapping(mapping, f"{cf.path} (campaign draw {i}: {shown})", source_path=cf.base_path)
         specs += [RunSpec(i, mapping, source, drawn, cid, groups) for cid in cfg.controllers]
     return cf, specs
+
+
+def _validate_written(cf: CampaignFile, mapping: dict, where: str):
+    """The scenario of ``mapping`` (the scenario so far with the values written at ``where`` in
+    the campaign file), or a one-line ConfigError naming ``where``. The scenario so far has
+    passed, so a vehicle that fails to load is the one written there: it is reported as
+    ``where``'s ``vehicle = ...`` (the lookup itself names only the base scenario's file)."""
+    from .scenario import Scenario, scenario_from_mapping
+
+    scenario = build(Scenario, {**mapping, "source_path": str(cf.base_path)}, source=where)
+    try:
+        scenario.load_vehicle()
+    except ConfigError as exc:
+        reason = str(exc).removeprefix(f"{cf.base_path}: ").removeprefix(f"vehicle {scenario.vehicle!r}: ")
+        raise ConfigError(f"{where}: vehicle = {scenario.vehicle!r}: {reason}") from None
+    return scenario_from_mapping(mapping, where, source_path=cf.base_path)
 
 
 def _run_controller(spec: RunSpec) -> dict:
@@ -457,46 +543,6 @@ MAX_WORKERS = 1024
 """Most local worker processes or threads (each holds one run's log)."""
 
 
-def connect_scheduler(address: str):
-    """A Dask client of the scheduler at ``address``; a one-line ``ConfigError`` if none answers
-    within :data:`SCHEDULER_CONNECT_TIMEOUT_S`."""
-    from dask.distributed import Client
-
-    _check_scheduler(address)
-    try:
-        return Client(address, timeout=SCHEDULER_CONNECT_TIMEOUT_S)
-    except (OSError, TimeoutError, ValueError) as exc:
-        reason = " ".join(str(exc).split()) or type(exc).__name__
-        raise ConfigError(f"--scheduler {address!r}: no Dask scheduler answered within "
-                          f"{SCHEDULER_CONNECT_TIMEOUT_S:g} s ({reason[:200]})") from None
-
-
-def local_cluster(n_workers: Optional[int] = None, listen: str = LOOPBACK):
-    """The campaign's local Dask cluster: one single-threaded worker process per core.
-
-    Scheduler, workers (and their nannies) and the status page all listen on ``listen``
-    (loopback by default, so nothing is reachable from the network), each on a free port so two
-    campaigns can run at once.
-    """
-    import logging
-
-    from dask.distributed import LocalCluster
-
-    # Dask's own log lines are kept to the critical ones: at shutdown a worker whose heartbeat
-    # meets the closing scheduler logs a three-part traceback at ERROR, which is noise; a failed
-    # or lost run still surfaces through its future as a one-line error.
-    return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, host=listen,
-                        dashboard_address=f"{listen}:0", silence_logs=logging.CRITICAL)
-
-
-def _check_scheduler(address: str) -> None:
-    if address in ("local", "none"):
-        return
-    if not address.startswith(SCHEDULER_SCHEMES) and ":" not in address:
-        raise ConfigError(f"--scheduler {address!r}: expected 'local', 'none' or an address such "
-                          "as tcp://host:8786")
-
-
 def run_campaign(specs: list[RunSpec], out: Path, scheduler: Optional[str] = "local",
                  n_workers: Optional[int] = None, show_progress: bool = True,
                  listen: str = LOOPBACK, campaign: Optional[dict] = None) -> list[dict]:
@@ -531,21 +577,23 @@ def run_campaign(specs: list[RunSpec], out: Path, scheduler: Optional[str] = "lo
     else:
         from dask.distributed import Client, as_completed
 
-        cluster = None
-        if scheduler == "local":
-            cluster = local_cluster(n_workers, listen)
-            client = Client(cluster)
-        else:
-            client = connect_scheduler(scheduler)
-        bar = _progress(len(specs), show_progress)
-        try:
+        cluster = client = None
+        bar = _NoProgress()
+        try:  # a Ctrl-C at any point, the cluster's start included, still shuts every worker down
+            if scheduler == "local":
+                cluster = local_cluster(n_workers, listen)
+                client = Client(cluster)
+            else:
+                client = connect_scheduler(scheduler)
+            bar = _progress(len(specs), show_progress)
             futures = client.map(run_one, specs, pure=False)
             for fut in as_completed(futures):
                 rows.append(fut.result())
                 bar.update(1)
         finally:
             bar.close()
-            client.close()
+            if client is not None:
+                client.close()
             if cluster is not None:
                 cluster.close()
     out.mkdir(parents=True, exist_ok=True)
@@ -649,7 +697,8 @@ def register_cli(subparsers) -> None:
     p.add_argument("scenario", help="scenario TOML, or a campaign file (a [campaign] table: base scenario, "
                                     "controllers, draws, variations; e.g. scenarios/envelope.toml)")
     p.add_argument("--runs", type=int, default=None,
-                   help="number of runs (required for a scenario; for a campaign file: draws, default its [campaign] runs)")
+                   help=f"number of runs, 1 to {MAX_CAMPAIGN_RUNS} (required for a scenario; for a campaign file: "
+                        "draws, default its [campaign] runs)")
     p.add_argument("--vary", action="append", default=[], metavar="KEY=LOW:HIGH",
                    help="draw this dotted scenario key uniformly per run (repeatable)")
     p.add_argument("--out", type=output_path, required=True, help="output directory")
@@ -668,28 +717,17 @@ def register_cli(subparsers) -> None:
     p.set_defaults(handler=_cmd_campaign)
 
 
-def _check_listen(host: str) -> None:
-    import ipaddress
-    import re
-
-    try:
-        ipaddress.ip_address(host)
-        return
-    except ValueError:
-        pass
-    if not re.fullmatch(r"[A-Za-z0-9]([A-Za-z0-9.-]{0,251}[A-Za-z0-9])?", host):
-        raise ConfigError(f"--listen {host!r}: not an IP address or host name")
-
-
 def _cmd_campaign(args) -> int:
     if is_campaign_file(args.scenario):
         return _cmd_campaign_file(args)
     if args.runs is None:
         raise ConfigError(f"--runs: required with a scenario file ({args.scenario} has no [campaign] "
-                          "table); allowed: a whole number >= 1")
+                          f"table); allowed: a whole number >= 1 and <= {MAX_CAMPAIGN_RUNS}")
+    check_runs_flag(args.runs)  # before the draws: 200 000 of them took minutes to validate
     variations = [Variation.parse(v) for v in args.vary]
-    _check_listen(args.listen)
-    _check_scheduler(args.scheduler)
+    _check_variations(variations)
+    check_scheduler(args.scheduler)
+    check_listen(args.listen)
     target = OutputDir(args.out, "campaign", force=args.force)
     if args.workers is not None:
         check_flag("--workers", args.workers, ge=1, le=MAX_WORKERS, integer=True)
@@ -710,8 +748,10 @@ def _cmd_campaign_file(args) -> int:
             raise ConfigError(f"{flag} {value if isinstance(value, str) else value[0]!r}: not with a campaign "
                               f"file ({args.scenario} has a [campaign] table); allowed: set it in the file's "
                               "[[campaign.vary]] or [campaign] controllers")
-    _check_listen(args.listen)
-    _check_scheduler(args.scheduler)
+    if args.runs is not None:
+        check_runs_flag(args.runs)
+    check_scheduler(args.scheduler)
+    check_listen(args.listen)
     target = OutputDir(args.out, "campaign", force=args.force)
     if args.workers is not None:
         check_flag("--workers", args.workers, ge=1, le=MAX_WORKERS, integer=True)
