@@ -13,9 +13,10 @@ import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional
+from typing import Mapping, Optional
 
-from .config import NAME_PATTERN, PATH_PATTERN, ConfigError, build, read_toml, refuse_internal_keys, setting
+from .config import NAME_PATTERN, PATH_PATTERN, ConfigError, build, check_value, read_toml, refuse_internal_keys, \
+    setting
 from .control.config import ControllerConfig
 from .control.registry import CONTROLLER_IDS, THETA_ADAPTIVE_IDS
 from .faults import FaultConfig
@@ -110,6 +111,10 @@ class ExperimentConfig:
                               "must be a non-empty list without repeats")
 
 
+LOOP_RATE_RTOL = 1e-9
+"""``[controller] loop_rate_hz`` and ``1 / dt_control_s`` agree within this relative tolerance."""
+
+
 @dataclass(frozen=True)
 class Scenario:
     """A validated scenario (see the module docstring)."""
@@ -119,8 +124,8 @@ class Scenario:
     duration_s: float = setting("s", "simulated time", gt=0.0, le=3600.0)
     seed: int = setting("-", "seed of every random draw in the run", default=0, ge=0, le=2**63 - 1)
     description: str = setting("-", "what the scenario is for", default="")
-    dt_control_s: float = setting("s", "controller period (250 Hz in the paper)", default=0.004, ge=1e-4,
-                                  le=0.05)
+    dt_control_s: float = setting("s", "controller period (250 Hz in the paper); the controller's [controller] "
+                                  "loop_rate_hz is 1/dt_control_s (set from it)", default=0.004, ge=1e-4, le=0.05)
     plant_substeps: int = setting("-", "RK4 plant steps per controller period (4 -> 1 kHz)", default=4,
                                   ge=1, le=100)
     initial: InitialCondition = setting("-", "initial condition", default=InitialCondition())
@@ -142,6 +147,20 @@ class Scenario:
             raise ConfigError(f"{source}: [controller] kind = {self.controller.kind!r}: a convergence experiment "
                               f"judges how theta-hat converges; allowed: {', '.join(THETA_ADAPTIVE_IDS)} "
                               f"(the others hold theta-hat = theta_0)")
+        self.check_loop_rate(source)
+        if self.experiment.kind == "comparison":  # each compared law flies these shared settings
+            for kind in self.experiment.controllers:
+                self.controller.check_law(kind, source)
+
+    def check_loop_rate(self, source: str) -> None:
+        """A :class:`ConfigError` unless the controller's ``loop_rate_hz`` is ``1 / dt_control_s``: the
+        rate its stability checks and its nominal tick assume is the rate the run steps it at."""
+        rate = self.controller.loop_rate_hz
+        if not abs(rate * self.dt_control_s - 1.0) <= LOOP_RATE_RTOL:
+            raise ConfigError(
+                f"{source}: [controller] loop_rate_hz = {rate:g}: the controller runs at the scenario's rate, "
+                f"1/dt_control_s = {1.0 / self.dt_control_s:g} Hz (dt_control_s = {self.dt_control_s:g}); leave "
+                f"loop_rate_hz out (it is set from dt_control_s) or make the two agree")
 
     @property
     def n_ticks(self) -> int:
@@ -178,6 +197,19 @@ class Scenario:
         return dataclasses.replace(self, **changes)
 
 
+def _controller_rate_from_dt(data: dict, source: str) -> None:
+    """Set ``[controller] loop_rate_hz`` to ``1 / dt_control_s`` where the mapping leaves it out, so that
+    the controller's checks (L1's ``a_s dt``, the sigma step) and nominal tick are the run's; a value the
+    file sets is kept for :meth:`Scenario.check_loop_rate` to compare."""
+    controller = data.get("controller", {})
+    if not isinstance(controller, Mapping) or "loop_rate_hz" in controller:
+        return  # a bad table is build's to report; a set rate is compared, never overwritten
+    dt_field = {f.name: f for f in dataclasses.fields(Scenario)}["dt_control_s"]
+    # the same check and message as the build that follows
+    dt = check_value(Scenario, "dt_control_s", data.get("dt_control_s", dt_field.default), f"{source}: dt_control_s")
+    data["controller"] = {**controller, "loop_rate_hz": 1.0 / dt}
+
+
 def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | None = None) -> Scenario:
     """Validate a parsed scenario mapping; errors name ``source``.
 
@@ -191,6 +223,7 @@ def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | 
         data["source_path"] = str(source_path)
     else:
         data.setdefault("source_path", source)
+    _controller_rate_from_dt(data, source)
     scenario = build(Scenario, data, source=source)
     scenario.load_vehicle()  # fail now, naming the file, if the vehicle is unknown
     posterior = scenario.posterior_path()

@@ -49,20 +49,29 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any, Mapping, Optional
 
-from ..config import ConfigError, build, read_toml, setting
+from ..config import ConfigError, Validated, build, read_toml, setting
 from .registry import CONTROLLER_IDS, CONTROLLERS, ControllerInfo, controller_info
 
 CONTROLLER_KINDS = CONTROLLER_IDS
 """The registered controllers' ids (:data:`.registry.CONTROLLER_IDS`)."""
 
 
+LOOP_RATE_MIN_HZ = 10.0
+"""Slowest controller rate: the compiled step takes a tick longer than 0.1 s for a fault."""
+LOOP_RATE_MAX_HZ = 10000.0
+"""Fastest controller rate (a scenario's ``dt_control_s`` >= 1e-4 s)."""
+
+
 @dataclass(frozen=True)
-class SharedControllerConfig:
+class SharedControllerConfig(Validated):
     """The ``[controller]`` table's own keys: the controller's kind and the gains every law shares.
 
     All 3-vectors are diagonals of the paper's gain matrices, in NED (``K_v``, ``Lambda_p``) or
     body FRD (``Lambda_q``, ``K_omega``) axes. :class:`ControllerConfig` adds one field per law.
+    Built in Python it is validated as a file's table is (:class:`vtoladapt.config.Validated`).
     """
+
+    config_section = "controller"
 
     kind: str = setting("-", "which controller, an id of vtoladapt.control.registry: "
                         + "; ".join(f"'{c.id}': {c.description}" for c in CONTROLLERS.values()),
@@ -123,8 +132,11 @@ class SharedControllerConfig:
     wind_estimate_fade_s: float = setting(
         "s", "while the probe is invalid the wind estimate fades toward zero with this time constant",
         default=2.0, gt=0.0)
-    loop_rate_hz: float = setting("Hz", "nominal controller rate (the Python API's first step)",
-                                  default=250.0, gt=0.0)
+    loop_rate_hz: float = setting(
+        "Hz", "the rate the controller runs at: the Python API's first tick and the tick that replaces an invalid "
+        "one, and the dt of the laws' stability checks (L1's a_s dt, the sigma step); in a scenario it is "
+        "1/dt_control_s (set from it; a different value is refused)",
+        default=250.0, ge=LOOP_RATE_MIN_HZ, le=LOOP_RATE_MAX_HZ)
     weathervane_airspeed_mps: Optional[tuple[float, ...]] = setting(
         "m/s", "the commanded heading turns into the flow above the second horizontal airspeed and back to "
         "the reference yaw below the first (hysteresis); default: 0.75 and 1 times the vehicle's "
@@ -191,6 +203,23 @@ class SharedControllerConfig:
         if amax is not None and self.alpha_min_deg is not None and not self.alpha_min_deg < amax:
             raise ConfigError(f"{source}: [controller] alpha_min_deg = {self.alpha_min_deg}: must be "
                               f"below alpha_max_deg = {amax}")
+        if hasattr(self, self.kind):  # ControllerConfig (the shared table alone has no law tables)
+            self.check_law(self.kind, source)
+
+    def check_law(self, kind: str, source: str) -> None:
+        """The rules law ``kind``'s settings must meet together with the shared ones (its module's
+        ``check_config``, e.g. L1's ``a_s dt < 0.5`` at :attr:`loop_rate_hz`); a
+        :class:`~vtoladapt.config.ConfigError` naming ``source`` otherwise. Checked for the law that
+        flies (:attr:`kind`) when the configuration is made, and by a scenario for each law it compares."""
+        law = controller_info(kind).law
+        check = getattr(law, "check_config", None)
+        if check is not None:
+            check(getattr(self, kind), self, source)
+
+    @property
+    def dt_nominal_s(self) -> float:
+        """The controller's tick, ``1 / loop_rate_hz`` (s)."""
+        return 1.0 / self.loop_rate_hz
 
     @property
     def kind_id(self) -> int:
@@ -231,6 +260,8 @@ def _make_controller_config() -> type:
     for c in CONTROLLERS.values():
         if c.id in shared:
             raise TypeError(f"controller id {c.id!r} clashes with a [controller] key")
+        # the table the law's settings are in a file, for the messages of a Validated Settings made by hand
+        c.settings.config_section = f"controller.{c.id}"
         fields.append((c.id, c.settings, setting("-", f"settings of the {c.id} law ([controller.{c.id}], "
                                                  f"{c.law.__name__}.Settings)", default=c.settings())))
     cls = dataclasses.make_dataclass("ControllerConfig", fields, bases=(SharedControllerConfig,), frozen=True)
@@ -256,5 +287,5 @@ def load_controller_config(path) -> ControllerConfig:
     return controller_config_from_mapping(data.get("controller", {}), source=str(path))
 
 
-__all__ = ["CONTROLLER_KINDS", "ControllerConfig", "SharedControllerConfig", "controller_config_from_mapping",
+__all__ = ["CONTROLLER_KINDS", "LOOP_RATE_MAX_HZ", "LOOP_RATE_MIN_HZ", "ControllerConfig", "SharedControllerConfig", "controller_config_from_mapping",
            "load_controller_config"]
