@@ -134,7 +134,7 @@ def _float_vector(name: str, value, sizes: tuple[int, ...]) -> np.ndarray:
         raise ValueError(f"{name}: has shape {a.shape}; allowed: " + " or ".join(f"({n},)" for n in sizes))
     bad = np.flatnonzero(~np.isfinite(a))
     if bad.size:
-        raise ValueError(f"{name}[{bad[0]}] = {a[bad[0]]!r}: must be finite")
+        raise ValueError(f"{name}[{bad[0]}] = {float(a[bad[0]])!r}: must be finite")
     return a
 
 
@@ -171,5 +171,5 @@ def lift_collective(motor_cmd) -> float:
     u = _float_vector("motor_cmd", motor_cmd, (N_MOTORS, N_LIFT))
     if np.any(u < 0.0) or np.any(u > 1.0):
         i = int(np.flatnonzero((u < 0.0) | (u > 1.0))[0])
-        raise ValueError(f"motor_cmd[{i}] = {u[i]!r}: out of range; allowed: 0 to 1 (fraction)")
+        raise ValueError(f"motor_cmd[{i}] = {float(u[i])!r}: out of range; allowed: 0 to 1 (fraction)")
     return float(applied_collective(u))

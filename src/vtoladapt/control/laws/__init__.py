@@ -48,7 +48,7 @@ def check_sigma_step(sigma: float, ctx: LawContext, table: str) -> None:
     x = sigma * eig * ctx.dt_nominal_s
     if not x < 1.0:
         raise ConfigError(
-            f"[{table}] sigma = {sigma:g}: the explicit sigma step needs sigma * max eig(P0) * dt < 1, here {x:.3g} "
+            f"[{table}] sigma = {sigma}: the explicit sigma step needs sigma * max eig(P0) * dt < 1, here {x:.3g} "
             f"with max eig(P0) = {eig:.3g} (the vehicle's [adaptation] P0_diag or the posterior) and dt = "
             f"{ctx.dt_nominal_s:g} s ([controller] loop_rate_hz = {1.0 / ctx.dt_nominal_s:g}; in a scenario "
             f"1/dt_control_s); lower sigma or P0, or run the controller faster")

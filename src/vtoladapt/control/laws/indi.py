@@ -151,7 +151,7 @@ def check_config(settings: IndiSettings, config, source: str) -> None:
     if bandwidth < TIME_SCALE_SEPARATION * k_v_max:
         prefix = f"{source}: " if source else ""
         raise ConfigError(
-            f"{prefix}[controller] lowpass_cutoff_hz = {config.lowpass_cutoff_hz:g}: the indi law needs 2 pi "
+            f"{prefix}[controller] lowpass_cutoff_hz = {config.lowpass_cutoff_hz}: the indi law needs 2 pi "
             f"lowpass_cutoff_hz >= {TIME_SCALE_SEPARATION:g} x max(K_v) = {TIME_SCALE_SEPARATION * k_v_max:g} 1/s "
             f"([controller] K_v = {list(config.K_v)}; its increment must settle faster than the velocity loop); "
             f"raise lowpass_cutoff_hz or lower K_v")

@@ -153,7 +153,7 @@ def check_a_s_dt(settings: L1Settings, dt_s: float, source: str) -> None:
     if not x < A_S_DT_MAX:
         prefix = f"{source}: " if source else ""
         raise ConfigError(
-            f"{prefix}[controller.l1] predictor_pole_radps = {settings.predictor_pole_radps:g}: needs a_s * dt < "
+            f"{prefix}[controller.l1] predictor_pole_radps = {settings.predictor_pole_radps}: needs a_s * dt < "
             f"{A_S_DT_MAX} (the estimate keeps e^(-a_s dt) of the uncertainty), here {x:.3g} with dt = {dt_s:g} s "
             f"([controller] loop_rate_hz = {1.0 / dt_s:g}; in a scenario 1/dt_control_s); lower predictor_pole_radps "
             f"or run the controller faster")
