@@ -321,3 +321,17 @@ def test_the_controller_sections_python_snippets_run(capsys):
         exec(compile(code, "README.md", "exec"), {"__name__": "readme_snippet"})
     out = capsys.readouterr().out
     assert "theta-hat:" in out and "predictor_pole_radps = 200.0" in out
+
+
+def test_a_scenarios_controller_table_loaded_alone_takes_its_rate(tmp_path):
+    from vtoladapt.control import load_controller_config
+
+    path = tmp_path / "s.toml"
+    path.write_text('dt_control_s = 0.01\n[controller]\nkind = "l1"\n')
+    assert load_controller_config(path).loop_rate_hz == 100.0
+    path.write_text('dt_control_s = 0.05\n[controller]\nkind = "l1"\n[controller.l1]\npredictor_pole_radps = 100.0\n')
+    with pytest.raises(ConfigError, match=r"s\.toml: \[controller\.l1\] predictor_pole_radps = 100\.0: .*here 5 "):
+        load_controller_config(path)
+    path.write_text('dt_control_s = 0.05\n[controller]\nloop_rate_hz = 250.0\n')
+    with pytest.raises(ConfigError, match=r"s\.toml: \[controller\] loop_rate_hz = 250: .*= 20 Hz"):
+        load_controller_config(path)

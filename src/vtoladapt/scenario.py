@@ -155,12 +155,7 @@ class Scenario:
     def check_loop_rate(self, source: str) -> None:
         """A :class:`ConfigError` unless the controller's ``loop_rate_hz`` is ``1 / dt_control_s``: the
         rate its stability checks and its nominal tick assume is the rate the run steps it at."""
-        rate = self.controller.loop_rate_hz
-        if not abs(rate * self.dt_control_s - 1.0) <= LOOP_RATE_RTOL:
-            raise ConfigError(
-                f"{source}: [controller] loop_rate_hz = {rate:g}: the controller runs at the scenario's rate, "
-                f"1/dt_control_s = {1.0 / self.dt_control_s:g} Hz (dt_control_s = {self.dt_control_s:g}); leave "
-                f"loop_rate_hz out (it is set from dt_control_s) or make the two agree")
+        check_controller_rate(self.controller.loop_rate_hz, self.dt_control_s, source)
 
     @property
     def n_ticks(self) -> int:
@@ -197,17 +192,28 @@ class Scenario:
         return dataclasses.replace(self, **changes)
 
 
-def _controller_rate_from_dt(data: dict, source: str) -> None:
+def check_controller_rate(loop_rate_hz: float, dt_control_s: float, source: str) -> None:
+    """A :class:`ConfigError` naming ``source`` unless ``loop_rate_hz`` is ``1 / dt_control_s``
+    (within :data:`LOOP_RATE_RTOL`)."""
+    if not abs(loop_rate_hz * dt_control_s - 1.0) <= LOOP_RATE_RTOL:
+        raise ConfigError(
+            f"{source}: [controller] loop_rate_hz = {loop_rate_hz:g}: the controller runs at the scenario's rate, "
+            f"1/dt_control_s = {1.0 / dt_control_s:g} Hz (dt_control_s = {dt_control_s:g}); leave loop_rate_hz "
+            f"out (it is set from dt_control_s) or make the two agree")
+
+
+def controller_rate_from_dt(data: dict, source: str) -> float:
     """Set ``[controller] loop_rate_hz`` to ``1 / dt_control_s`` where the mapping leaves it out, so that
     the controller's checks (L1's ``a_s dt``, the sigma step) and nominal tick are the run's; a value the
-    file sets is kept for :meth:`Scenario.check_loop_rate` to compare."""
-    controller = data.get("controller", {})
-    if not isinstance(controller, Mapping) or "loop_rate_hz" in controller:
-        return  # a bad table is build's to report; a set rate is compared, never overwritten
+    file sets is kept for :func:`check_controller_rate` to compare. Returns the validated ``dt_control_s``."""
     dt_field = {f.name: f for f in dataclasses.fields(Scenario)}["dt_control_s"]
     # the same check and message as the build that follows
     dt = check_value(Scenario, "dt_control_s", data.get("dt_control_s", dt_field.default), f"{source}: dt_control_s")
-    data["controller"] = {**controller, "loop_rate_hz": 1.0 / dt}
+    controller = data.get("controller", {})
+    if isinstance(controller, Mapping) and "loop_rate_hz" not in controller:
+        data["controller"] = {**controller, "loop_rate_hz": 1.0 / dt}
+    # otherwise a bad table is build's to report, and a set rate is compared, never overwritten
+    return dt
 
 
 def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | None = None) -> Scenario:
@@ -223,7 +229,7 @@ def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | 
         data["source_path"] = str(source_path)
     else:
         data.setdefault("source_path", source)
-    _controller_rate_from_dt(data, source)
+    controller_rate_from_dt(data, source)
     scenario = build(Scenario, data, source=source)
     scenario.load_vehicle()  # fail now, naming the file, if the vehicle is unknown
     posterior = scenario.posterior_path()

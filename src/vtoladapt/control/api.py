@@ -269,7 +269,9 @@ class Controller:
     vehicle : Vehicle
         The controller's model of the aircraft (inertia, force model, limits).
     config : ControllerConfig, optional
-        Gains and settings (default: ``ControllerConfig()``, the composite controller).
+        Gains and settings (default: ``ControllerConfig()``, the composite controller), validated
+        when it was made. Set its ``loop_rate_hz`` to the rate you call :meth:`step` at: the first
+        tick and the laws' stability checks (L1's ``a_s dt``, the sigma step) use ``1/loop_rate_hz``.
     theta_0, P0_diag, theta_lower, theta_upper, theta_init : arrays, optional
         Prior mean, initial gain (diagonal or full 8x8), bounds and initial theta-hat, all in the
         adaptation scaling (see :func:`.kernel.controller_params`).

@@ -282,9 +282,15 @@ def controller_config_from_mapping(data: Mapping[str, Any], source: str = "<cont
 
 
 def load_controller_config(path) -> ControllerConfig:
-    """The ``[controller]`` table of a scenario TOML file (defaults if the table is absent)."""
-    data = read_toml(path)
-    return controller_config_from_mapping(data.get("controller", {}), source=str(path))
+    """The ``[controller]`` table of a scenario TOML file (defaults if the table is absent), with the
+    scenario's rate: ``loop_rate_hz`` is ``1 / dt_control_s`` (set from it; a different value is refused)."""
+    from ..scenario import check_controller_rate, controller_rate_from_dt
+
+    data = dict(read_toml(path))
+    dt = controller_rate_from_dt(data, str(path))
+    config = controller_config_from_mapping(data.get("controller", {}), source=str(path))
+    check_controller_rate(config.loop_rate_hz, dt, str(path))
+    return config
 
 
 __all__ = ["CONTROLLER_KINDS", "LOOP_RATE_MAX_HZ", "LOOP_RATE_MIN_HZ", "ControllerConfig", "SharedControllerConfig", "controller_config_from_mapping",
