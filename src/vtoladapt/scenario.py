@@ -13,11 +13,10 @@ import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Optional
+from typing import Optional
 
-from .config import NAME_PATTERN, PATH_PATTERN, ConfigError, build, check_value, read_toml, refuse_internal_keys, \
-    setting
-from .control.config import ControllerConfig
+from .config import NAME_PATTERN, PATH_PATTERN, ConfigError, build, read_toml, refuse_internal_keys, setting
+from .control.config import SCENARIO_DT_RANGE_S, ControllerConfig, check_rate_matches_dt, rate_from_dt
 from .control.registry import CONTROLLER_IDS, THETA_ADAPTIVE_IDS
 from .faults import FaultConfig
 from .monitor import EnvelopeConfig
@@ -111,10 +110,6 @@ class ExperimentConfig:
                               "must be a non-empty list without repeats")
 
 
-LOOP_RATE_RTOL = 1e-9
-"""``[controller] loop_rate_hz`` and ``1 / dt_control_s`` agree within this relative tolerance."""
-
-
 @dataclass(frozen=True)
 class Scenario:
     """A validated scenario (see the module docstring)."""
@@ -125,7 +120,8 @@ class Scenario:
     seed: int = setting("-", "seed of every random draw in the run", default=0, ge=0, le=2**63 - 1)
     description: str = setting("-", "what the scenario is for", default="")
     dt_control_s: float = setting("s", "controller period (250 Hz in the paper); the controller's [controller] "
-                                  "loop_rate_hz is 1/dt_control_s (set from it)", default=0.004, ge=1e-4, le=0.05)
+                                  "loop_rate_hz is 1/dt_control_s (set from it)", default=0.004,
+                                  ge=SCENARIO_DT_RANGE_S[0], le=SCENARIO_DT_RANGE_S[1])
     plant_substeps: int = setting("-", "RK4 plant steps per controller period (4 -> 1 kHz)", default=4,
                                   ge=1, le=100)
     initial: InitialCondition = setting("-", "initial condition", default=InitialCondition())
@@ -155,7 +151,7 @@ class Scenario:
     def check_loop_rate(self, source: str) -> None:
         """A :class:`ConfigError` unless the controller's ``loop_rate_hz`` is ``1 / dt_control_s``: the
         rate its stability checks and its nominal tick assume is the rate the run steps it at."""
-        check_controller_rate(self.controller.loop_rate_hz, self.dt_control_s, source)
+        check_rate_matches_dt(self.controller.loop_rate_hz, self.dt_control_s, source)
 
     @property
     def n_ticks(self) -> int:
@@ -192,28 +188,7 @@ class Scenario:
         return dataclasses.replace(self, **changes)
 
 
-def check_controller_rate(loop_rate_hz: float, dt_control_s: float, source: str) -> None:
-    """A :class:`ConfigError` naming ``source`` unless ``loop_rate_hz`` is ``1 / dt_control_s``
-    (within :data:`LOOP_RATE_RTOL`)."""
-    if not abs(loop_rate_hz * dt_control_s - 1.0) <= LOOP_RATE_RTOL:
-        raise ConfigError(
-            f"{source}: [controller] loop_rate_hz = {loop_rate_hz:g}: the controller runs at the scenario's rate, "
-            f"1/dt_control_s = {1.0 / dt_control_s:g} Hz (dt_control_s = {dt_control_s:g}); leave loop_rate_hz "
-            f"out (it is set from dt_control_s) or make the two agree")
-
-
-def controller_rate_from_dt(data: dict, source: str) -> float:
-    """Set ``[controller] loop_rate_hz`` to ``1 / dt_control_s`` where the mapping leaves it out, so that
-    the controller's checks (L1's ``a_s dt``, the sigma step) and nominal tick are the run's; a value the
-    file sets is kept for :func:`check_controller_rate` to compare. Returns the validated ``dt_control_s``."""
-    dt_field = {f.name: f for f in dataclasses.fields(Scenario)}["dt_control_s"]
-    # the same check and message as the build that follows
-    dt = check_value(Scenario, "dt_control_s", data.get("dt_control_s", dt_field.default), f"{source}: dt_control_s")
-    controller = data.get("controller", {})
-    if isinstance(controller, Mapping) and "loop_rate_hz" not in controller:
-        data["controller"] = {**controller, "loop_rate_hz": 1.0 / dt}
-    # otherwise a bad table is build's to report, and a set rate is compared, never overwritten
-    return dt
+_DT_CONTROL_DEFAULT_S = {f.name: f for f in dataclasses.fields(Scenario)}["dt_control_s"].default
 
 
 def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | None = None) -> Scenario:
@@ -229,7 +204,7 @@ def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | 
         data["source_path"] = str(source_path)
     else:
         data.setdefault("source_path", source)
-    controller_rate_from_dt(data, source)
+    rate_from_dt(data, source, dt_default=_DT_CONTROL_DEFAULT_S)
     scenario = build(Scenario, data, source=source)
     scenario.load_vehicle()  # fail now, naming the file, if the vehicle is unknown
     posterior = scenario.posterior_path()

@@ -49,7 +49,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any, Mapping, Optional
 
-from ..config import ConfigError, Validated, build, read_toml, setting
+from ..config import ConfigError, Validated, build, check_flag, read_toml, setting
 from .registry import CONTROLLER_IDS, CONTROLLERS, ControllerInfo, controller_info
 
 CONTROLLER_KINDS = CONTROLLER_IDS
@@ -281,17 +281,48 @@ def controller_config_from_mapping(data: Mapping[str, Any], source: str = "<cont
     return build(ControllerConfig, dict(data), source=source, section="controller")
 
 
+SCENARIO_DT_RANGE_S = (1e-4, 0.05)
+"""The controller periods a scenario's ``dt_control_s`` may take (s): 20 to 10000 Hz."""
+LOOP_RATE_RTOL = 1e-9
+"""``[controller] loop_rate_hz`` and a scenario's ``1 / dt_control_s`` agree within this relative tolerance."""
+
+
+def rate_from_dt(data: dict, source: str, dt_default: float) -> float:
+    """Set ``data["controller"]["loop_rate_hz"]`` to ``1 / dt_control_s`` of a scenario mapping where the
+    table leaves it out, so that the controller's checks (L1's ``a_s dt``, the sigma step) and nominal tick
+    are the run's; a rate the file sets is kept for :func:`check_rate_matches_dt`. Returns ``dt_control_s``
+    (``dt_default`` if absent), checked as the scenario's key (:data:`SCENARIO_DT_RANGE_S`)."""
+    dt = check_flag(f"{source}: dt_control_s", data.get("dt_control_s", dt_default), unit="s",
+                    ge=SCENARIO_DT_RANGE_S[0], le=SCENARIO_DT_RANGE_S[1])
+    controller = data.get("controller", {})
+    if isinstance(controller, Mapping) and "loop_rate_hz" not in controller:
+        data["controller"] = {**controller, "loop_rate_hz": 1.0 / dt}
+    # otherwise a bad table is build's to report, and a set rate is compared, never overwritten
+    return dt
+
+
+def check_rate_matches_dt(loop_rate_hz: float, dt_control_s: float, source: str) -> None:
+    """A :class:`ConfigError` naming ``source`` unless ``loop_rate_hz`` is ``1 / dt_control_s``: the rate
+    the controller's checks and nominal tick assume must be the rate a run steps it at."""
+    if not abs(loop_rate_hz * dt_control_s - 1.0) <= LOOP_RATE_RTOL:
+        raise ConfigError(
+            f"{source}: [controller] loop_rate_hz = {loop_rate_hz:g}: the controller runs at the scenario's rate, "
+            f"1/dt_control_s = {1.0 / dt_control_s:g} Hz (dt_control_s = {dt_control_s:g}); leave loop_rate_hz "
+            f"out (it is set from dt_control_s) or make the two agree")
+
+
 def load_controller_config(path) -> ControllerConfig:
     """The ``[controller]`` table of a scenario TOML file (defaults if the table is absent), with the
     scenario's rate: ``loop_rate_hz`` is ``1 / dt_control_s`` (set from it; a different value is refused)."""
-    from ..scenario import check_controller_rate, controller_rate_from_dt
-
     data = dict(read_toml(path))
-    dt = controller_rate_from_dt(data, str(path))
-    config = controller_config_from_mapping(data.get("controller", {}), source=str(path))
-    check_controller_rate(config.loop_rate_hz, dt, str(path))
+    if "dt_control_s" not in data:  # the scenario's default 4 ms: the default 250 Hz
+        return controller_config_from_mapping(data.get("controller", {}), source=str(path))
+    dt = rate_from_dt(data, str(path), dt_default=data["dt_control_s"])
+    config = controller_config_from_mapping(data["controller"], source=str(path))
+    check_rate_matches_dt(config.loop_rate_hz, dt, str(path))
     return config
 
 
-__all__ = ["CONTROLLER_KINDS", "LOOP_RATE_MAX_HZ", "LOOP_RATE_MIN_HZ", "ControllerConfig", "SharedControllerConfig", "controller_config_from_mapping",
+__all__ = ["CONTROLLER_KINDS", "LOOP_RATE_MAX_HZ", "LOOP_RATE_MIN_HZ", "LOOP_RATE_RTOL", "SCENARIO_DT_RANGE_S",
+           "ControllerConfig", "check_rate_matches_dt", "rate_from_dt", "SharedControllerConfig", "controller_config_from_mapping",
            "load_controller_config"]
