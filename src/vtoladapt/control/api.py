@@ -9,9 +9,10 @@
 >>> 0.55 < cmd.u_z < 0.61      # hover throttle: sqrt(g / C_Tz) with C_Tz = 28.7 m/s^2
 True
 
-``step`` does no Python-level work beyond one call of the compiled kernel
-(:func:`.kernel.controller_step`): the records are thin named views of float64 arrays in the
-layouts of :mod:`vtoladapt.layout`. The same class steps every registered law (the config's
+``step`` does no Python-level work beyond checking its arguments (a Measurement, a Reference, a
+finite increasing time: the compiled step reads the records' arrays by offset, unchecked) and one
+call of the compiled kernel (:func:`.kernel.controller_step`): the records are thin named views of
+float64 arrays in the layouts of :mod:`vtoladapt.layout`. The same class steps every registered law (the config's
 ``kind``); :attr:`Controller.state` names the shared memory and, by :meth:`ControllerState.law_field`,
 the law's own (its ``STATE`` layout).
 """
