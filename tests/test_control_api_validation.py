@@ -289,7 +289,8 @@ def test_identifiability_of_a_known_sum(caltech):
 # --- 7. messages name the file and the key set wrong -------------------------------------------------
 
 def test_law_rules_name_the_file_and_both_keys():
-    with pytest.raises(ConfigError, match=r"^s\.toml: \[controller\.l1\] predictor_pole_radps = 125\.0: .*loop_rate_hz"):
+    with pytest.raises(ConfigError,
+                       match=r"^s\.toml: \[controller\.l1\] predictor_pole_radps = 125\.0: .*loop_rate_hz"):
         scenario_from_mapping({**BASE, "controller": {"kind": "l1", "l1": {"predictor_pole_radps": 125.0}}}, "s.toml")
     with pytest.raises(ConfigError, match=r"^s\.toml: \[controller\] lowpass_cutoff_hz = 1\.0: .*K_v"):
         scenario_from_mapping({**BASE, "controller": {"kind": "indi", "lowpass_cutoff_hz": 1.0}}, "s.toml")
@@ -299,7 +300,8 @@ def test_law_rules_name_the_file_and_both_keys():
 
 
 def test_a_table_without_keys_says_so():
-    with pytest.raises(ConfigError, match=r"^s\.toml: \[controller\.nominal\] x = 1: unknown key; this table takes no keys$"):
+    with pytest.raises(ConfigError,
+                       match=r"^s\.toml: \[controller\.nominal\] x = 1: unknown key; this table takes no keys$"):
         scenario_from_mapping({**BASE, "controller": {"nominal": {"x": 1}}}, "s.toml")
 
 

@@ -285,7 +285,8 @@ class Controller:
         from ..vehicle import Vehicle
 
         if not isinstance(vehicle, Vehicle):
-            raise TypeError(f"vehicle must be a vtoladapt Vehicle (vtoladapt.load_vehicle), got {type(vehicle).__name__}")
+            raise TypeError(f"vehicle must be a vtoladapt Vehicle (vtoladapt.load_vehicle), "
+                            f"got {type(vehicle).__name__}")
         self.vehicle = vehicle
         self.config = ControllerConfig() if config is None else config
         if not isinstance(self.config, ControllerConfig):

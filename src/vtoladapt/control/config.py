@@ -324,5 +324,6 @@ def load_controller_config(path) -> ControllerConfig:
 
 
 __all__ = ["CONTROLLER_KINDS", "LOOP_RATE_MAX_HZ", "LOOP_RATE_MIN_HZ", "LOOP_RATE_RTOL", "SCENARIO_DT_RANGE_S",
-           "ControllerConfig", "check_rate_matches_dt", "rate_from_dt", "SharedControllerConfig", "controller_config_from_mapping",
+           "ControllerConfig", "check_rate_matches_dt", "rate_from_dt", "SharedControllerConfig",
+           "controller_config_from_mapping",
            "load_controller_config"]
