@@ -8,10 +8,12 @@ what is allowed. Nothing is partly built: either the whole object validates or a
 """
 from __future__ import annotations
 
+import contextvars
 import dataclasses
 import difflib
 import functools
 import math
+import numbers
 import os
 import re
 import stat
@@ -20,6 +22,8 @@ import types
 import typing
 from pathlib import Path
 from typing import Any, Mapping
+
+import numpy as np
 
 
 class ConfigError(ValueError):
@@ -174,6 +178,10 @@ def _check_scalar(value: float, meta: Mapping[str, Any], where: str) -> None:
         raise ConfigError(f"{where} = {_shown(value)}: out of range; allowed: {_allowed_text(meta)}")
 
 
+def _is_bool(value: Any) -> bool:
+    return isinstance(value, (bool, np.bool_))
+
+
 def _convert(value: Any, tp: Any, meta: Mapping[str, Any], where: str, source: str) -> Any:
     origin = typing.get_origin(tp)
     if origin is typing.Union or origin is types.UnionType:
@@ -183,6 +191,8 @@ def _convert(value: Any, tp: Any, meta: Mapping[str, Any], where: str, source: s
         return _convert(value, args[0], meta, where, source)
     if origin is tuple:
         args = typing.get_args(tp)
+        if isinstance(value, np.ndarray) and value.ndim == 1:  # a Python caller's array, as a list
+            value = value.tolist()
         if not isinstance(value, (list, tuple)):
             raise ConfigError(f"{where} = {_shown(value)}: must be a list; allowed: {_allowed_text(meta)}")
         if meta.get("length") is not None and len(value) != meta["length"]:
@@ -193,22 +203,23 @@ def _convert(value: Any, tp: Any, meta: Mapping[str, Any], where: str, source: s
         return tuple(_convert(v, inner, inner_meta, f"{where}[{i}]", source)
                      for i, v in enumerate(value))
     if tp is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if _is_bool(value) or not isinstance(value, numbers.Real):
             raise ConfigError(f"{where} = {_shown(value)}: must be a number; allowed: {_allowed_text(meta)}")
         value = float(value)
         _check_scalar(value, meta, where)
         return value
     if tp is int:
-        if isinstance(value, bool) or not isinstance(value, int):
+        if _is_bool(value) or not isinstance(value, numbers.Integral):
             raise ConfigError(f"{where} = {_shown(value)}: must be a whole number; allowed: {_allowed_text(meta)}")
+        value = int(value)
         if abs(value) >= 2**63:
             raise ConfigError(f"{where} = {_shown(value)}: out of range; allowed: {_allowed_text(meta)}")
         _check_scalar(value, meta, where)
         return value
     if tp is bool:
-        if not isinstance(value, bool):
+        if not _is_bool(value):
             raise ConfigError(f"{where} = {_shown(value)}: must be true or false")
-        return value
+        return bool(value)
     if tp is str:
         if not isinstance(value, str):
             raise ConfigError(f"{where} = {_shown(value)}: must be a string")
@@ -281,6 +292,8 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
         if moved_to:
             raise ConfigError(f"{_where(source, section, key)} = {shown}: {moved_to}")
         allowed = ", ".join(k for k in fields if k not in INTERNAL_KEYS)
+        if not allowed:
+            raise ConfigError(f"{_where(source, section, key)} = {shown}: unknown key; this table takes no keys")
         # after a question the list is a new sentence; without one it follows a semicolon
         raise ConfigError(f"{_where(source, section, key)} = {shown}: unknown key"
                           + (f"{hint} Allowed keys: {allowed}" if hint else f"; allowed keys: {allowed}"))
@@ -300,11 +313,74 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
             kwargs[name] = _build_table_list(hints[name], data[name], where, source, sub_section)
         else:
             kwargs[name] = _convert(data[name], hints[name], f.metadata, where, source)
-    obj = cls(**kwargs)
+    # the values are converted and checked above: a Validated class's own check would repeat it
+    # and, worse, name the class instead of the file
+    token = _BUILDING.set(True)
+    try:
+        obj = cls(**kwargs)
+    finally:
+        _BUILDING.reset(token)
     check = getattr(obj, "_check", None)
     if check is not None:
         check(source)
     return obj
+
+
+_BUILDING = contextvars.ContextVar("vtoladapt_config_building", default=False)
+"""True while :func:`build` constructs a dataclass from values it has already validated."""
+
+
+def validate(obj: Any, source: str, section: str = "") -> None:
+    """Validate a settings dataclass built in Python exactly as :func:`build` validates a file's table.
+
+    Every field against its :func:`setting` metadata (type, range, length, choices, pattern; a
+    nested settings table must be an instance of its class), then the class's ``_check(source)``
+    (its cross-field rules). Converted values (a list or 1-D array to a tuple, an int to a float,
+    numpy scalars to Python's) replace the given ones, so the object is what a file would give.
+    Raises :class:`ConfigError` naming ``source`` (e.g. the class), the section and the field.
+    """
+    cls = type(obj)
+    hints = _type_hints(cls)
+    for f in dataclasses.fields(cls):
+        if not f.init or f.name in INTERNAL_KEYS:
+            continue
+        value = getattr(obj, f.name)
+        tp = hints[f.name]
+        where = _where(source, section, f.name)
+        if dataclasses.is_dataclass(tp):
+            if not isinstance(value, tp):
+                raise ConfigError(f"{where} = {_shown(value)}: must be a {tp.__name__}")
+            if not isinstance(value, Validated):  # a Validated one checked itself when it was made
+                validate(value, source, f"{section}.{f.name}" if section else f.name)
+            continue
+        if _is_table_list(tp):
+            item_cls = typing.get_args(tp)[0]
+            if not isinstance(value, (list, tuple)) or not all(isinstance(v, item_cls) for v in value):
+                raise ConfigError(f"{where} = {_shown(value)}: must be a tuple of {item_cls.__name__}")
+            converted = tuple(value)
+        else:
+            converted = _convert(value, tp, f.metadata, where, source)
+        if converted is not value:
+            object.__setattr__(obj, f.name, converted)  # frozen: the dataclass is still being made
+    check = getattr(obj, "_check", None)
+    if check is not None:
+        check(source)
+
+
+class Validated:
+    """Base of a settings dataclass that validates itself when built in Python (:func:`validate`).
+
+    A file's table goes through :func:`build`, whose messages name the file; an object made by
+    hand (``ControllerConfig(K_v=...)``, ``dataclasses.replace``) is checked by the same rules
+    with the class named in their place: ``ControllerConfig: [controller] K_v[0] = nan: must be
+    finite; allowed: > 0 (1/s)``. ``config_section`` is the table it is in a file (for messages).
+    """
+
+    config_section = ""
+
+    def __post_init__(self) -> None:
+        if not _BUILDING.get():
+            validate(self, type(self).__name__, self.config_section)
 
 
 def check_input_file(path: str | Path, what: str = "file") -> Path:

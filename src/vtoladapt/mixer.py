@@ -10,13 +10,17 @@ thrust ``T_i`` along body -z, so
 mixer inverts this 4x4 map. When a motor would leave ``[0, T_max]`` it gives up yaw first, then
 shifts the collective, then clips (roll and pitch, which hold the attitude, are kept longest),
 as PX4's multicopter mixer does, and reports that it saturated.
+
+From Python call :func:`motor_commands` and :func:`lift_collective`: they check their inputs and
+call the compiled :func:`mix` and :func:`applied_collective`, which the compiled loop calls
+directly and which read their arrays unchecked (a wrong shape reads past the end).
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
-from .layout import CMD_TAU_B, CMD_U_X, CMD_U_Z, MOTOR_PUSHER, N_LIFT, BlockLayout, Field
+from .layout import CMD_SIZE, CMD_TAU_B, CMD_U_X, CMD_U_Z, MOTOR_PUSHER, N_LIFT, N_MOTORS, BlockLayout, Field
 from .vehicle import Vehicle
 
 MIXER_PARAMS = BlockLayout("mixer parameters", [
@@ -59,8 +63,10 @@ def _solve(p, T_total, tx, ty, tz) -> tuple:
 
 @njit(cache=True, _nrt=False)
 def mix(cmd, p, motor_cmd) -> bool:
-    """Motor commands (fractions, lift rotors 1-4 then pusher) from a controller command.
+    """Motor commands (fractions, lift rotors 1-4 then pusher) from a controller command (compiled, unchecked).
 
+    ``cmd``: float64 array in the ``CMD_*`` layout; ``p``: :func:`mixer_params`; writes ``motor_cmd``
+    (``N_MOTORS``). From Python use :func:`motor_commands`, which checks them.
     Returns True if any limit was hit (yaw reduced, collective shifted or a motor clipped).
     Non-finite inputs are treated as zero so that the motors never receive NaN. The thrusts are
     tuples, not arrays: the mixer runs every tick and an array would be allocated each time.
@@ -110,8 +116,60 @@ def mix(cmd, p, motor_cmd) -> bool:
 @njit(cache=True, _nrt=False)
 def applied_collective(motor_cmd) -> float:
     """The collective the lift-rotor commands amount to: ``sqrt(mean u_i^2)`` (total thrust = that of
-    four rotors at this throttle). Equals the commanded collective unless the mixer saturated."""
+    four rotors at this throttle). Equals the commanded collective unless the mixer saturated.
+    Compiled and unchecked (reads ``motor_cmd[0:4]``); from Python use :func:`lift_collective`."""
     s = 0.0
     for i in range(N_LIFT):
         s += motor_cmd[i] * motor_cmd[i]
     return np.sqrt(s / N_LIFT)
+
+
+def _float_vector(name: str, value, sizes: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a contiguous float64 vector of one of ``sizes`` entries, all finite; else a one-line error."""
+    try:
+        a = np.ascontiguousarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name}: expected an array of numbers, got {type(value).__name__}") from None
+    if a.ndim != 1 or a.size not in sizes:
+        raise ValueError(f"{name}: has shape {a.shape}; allowed: " + " or ".join(f"({n},)" for n in sizes))
+    bad = np.flatnonzero(~np.isfinite(a))
+    if bad.size:
+        raise ValueError(f"{name}[{bad[0]}] = {float(a[bad[0]])!r}: must be finite")
+    return a
+
+
+def motor_commands(command, mixer) -> tuple[np.ndarray, bool]:
+    """Five motor commands (fractions: lift rotors 1-4, then the pusher) for a controller command.
+
+    ``command``: a :class:`vtoladapt.control.Command` (what ``Controller.step`` returns) or a float
+    array in its ``CMD_*`` layout; ``mixer``: the :class:`~vtoladapt.vehicle.Vehicle` whose geometry
+    mixes (the controller's model) or its :func:`mixer_params`. Returns ``(motor_cmd, saturated)``:
+    a new array of ``N_MOTORS`` and whether a limit was hit (yaw given up, collective shifted, a
+    motor clipped). Shape, type and finiteness are checked (TypeError or ValueError otherwise),
+    then the compiled :func:`mix` runs.
+    """
+    from .control.api import Command
+
+    cmd = _float_vector("command", command.array if isinstance(command, Command) else command, (CMD_SIZE,))
+    p = mixer_params(mixer) if isinstance(mixer, Vehicle) else _float_vector("mixer params", mixer, (MX_SIZE,))
+    if not p[MX_T_UNIT] > 0.0 or not 0.0 < p[MX_U_MAX] <= 1.0:
+        raise ValueError("mixer params: not from mixer_params (thrust per rotor must be > 0 and the throttle "
+                         "limit in (0, 1])")
+    out = np.zeros(N_MOTORS)
+    saturated = mix(cmd, p, out)
+    return out, bool(saturated)
+
+
+def lift_collective(motor_cmd) -> float:
+    """The collective (fraction) the four lift-rotor commands amount to, ``sqrt(mean u_i^2)``: what
+    ``Controller.report_applied`` takes (times 100, in percent) after a saturated mix.
+
+    ``motor_cmd``: the ``N_MOTORS`` commands of :func:`motor_commands` or the ``N_LIFT`` lift-rotor
+    ones, finite fractions in [0, 1]; anything else raises TypeError or ValueError. Then the
+    compiled :func:`applied_collective` runs.
+    """
+    u = _float_vector("motor_cmd", motor_cmd, (N_MOTORS, N_LIFT))
+    if np.any(u < 0.0) or np.any(u > 1.0):
+        i = int(np.flatnonzero((u < 0.0) | (u > 1.0))[0])
+        raise ValueError(f"motor_cmd[{i}] = {float(u[i])!r}: out of range; allowed: 0 to 1 (fraction)")
+    return float(applied_collective(u))

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Optional
 
 from .config import NAME_PATTERN, PATH_PATTERN, ConfigError, build, read_toml, refuse_internal_keys, setting
-from .control.config import ControllerConfig
+from .control.config import SCENARIO_DT_RANGE_S, ControllerConfig, check_rate_matches_dt, rate_from_dt
 from .control.registry import CONTROLLER_IDS, THETA_ADAPTIVE_IDS
 from .faults import FaultConfig
 from .monitor import EnvelopeConfig
@@ -119,8 +119,9 @@ class Scenario:
     duration_s: float = setting("s", "simulated time", gt=0.0, le=3600.0)
     seed: int = setting("-", "seed of every random draw in the run", default=0, ge=0, le=2**63 - 1)
     description: str = setting("-", "what the scenario is for", default="")
-    dt_control_s: float = setting("s", "controller period (250 Hz in the paper)", default=0.004, ge=1e-4,
-                                  le=0.05)
+    dt_control_s: float = setting("s", "controller period (250 Hz in the paper); the controller's [controller] "
+                                  "loop_rate_hz is 1/dt_control_s (set from it)", default=0.004,
+                                  ge=SCENARIO_DT_RANGE_S[0], le=SCENARIO_DT_RANGE_S[1])
     plant_substeps: int = setting("-", "RK4 plant steps per controller period (4 -> 1 kHz)", default=4,
                                   ge=1, le=100)
     initial: InitialCondition = setting("-", "initial condition", default=InitialCondition())
@@ -142,6 +143,15 @@ class Scenario:
             raise ConfigError(f"{source}: [controller] kind = {self.controller.kind!r}: a convergence experiment "
                               f"judges how theta-hat converges; allowed: {', '.join(THETA_ADAPTIVE_IDS)} "
                               f"(the others hold theta-hat = theta_0)")
+        self.check_loop_rate(source)
+        if self.experiment.kind == "comparison":  # each compared law flies these shared settings
+            for kind in self.experiment.controllers:
+                self.controller.check_law(kind, source)
+
+    def check_loop_rate(self, source: str) -> None:
+        """A :class:`ConfigError` unless the controller's ``loop_rate_hz`` is ``1 / dt_control_s``: the
+        rate its stability checks and its nominal tick assume is the rate the run steps it at."""
+        check_rate_matches_dt(self.controller.loop_rate_hz, self.dt_control_s, source)
 
     @property
     def n_ticks(self) -> int:
@@ -178,6 +188,9 @@ class Scenario:
         return dataclasses.replace(self, **changes)
 
 
+_DT_CONTROL_DEFAULT_S = {f.name: f for f in dataclasses.fields(Scenario)}["dt_control_s"].default
+
+
 def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | None = None) -> Scenario:
     """Validate a parsed scenario mapping; errors name ``source``.
 
@@ -191,6 +204,7 @@ def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | 
         data["source_path"] = str(source_path)
     else:
         data.setdefault("source_path", source)
+    rate_from_dt(data, source, dt_default=_DT_CONTROL_DEFAULT_S)
     scenario = build(Scenario, data, source=source)
     scenario.load_vehicle()  # fail now, naming the file, if the vehicle is unknown
     posterior = scenario.posterior_path()

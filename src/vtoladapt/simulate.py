@@ -14,6 +14,7 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 
 from . import layout
+from .config import ConfigError
 from .errors import check_interrupt
 from .frames import quat_from_euler
 from .mixer import mixer_params
@@ -70,9 +71,15 @@ def prepare(scenario: Scenario) -> PreparedRun:
     if scenario.controller_prior.initial_theta == "random":
         frac = scenario.controller_prior.random_fraction
         theta_init = np.clip(theta0 * (1.0 + frac * rng.uniform(-1.0, 1.0, size=theta0.shape)), lower, upper)
-    ctrl_params, ctrl_state = controller_arrays(
-        ctrl_vehicle, scenario.controller, theta_0=theta0, P0_diag=P0_diag, theta_lower=lower,
-        theta_upper=upper, theta_init=theta_init)
+    where = scenario.source_path or f"scenario {scenario.name!r}"
+    # the controller's checks and nominal tick assume its loop rate: it must be the rate the run steps it at
+    scenario.check_loop_rate(where)
+    try:
+        ctrl_params, ctrl_state = controller_arrays(
+            ctrl_vehicle, scenario.controller, theta_0=theta0, P0_diag=P0_diag, theta_lower=lower,
+            theta_upper=upper, theta_init=theta_init)
+    except ConfigError as exc:  # a rule needing the prior (the sigma step's P0): the scenario's mistake
+        raise ConfigError(f"{where}: {exc}") from None
     ic = scenario.initial
     motors = hover_trim_motor(vehicle, plant) if ic.trimmed_motors else np.zeros(layout.N_MOTORS)
     q0 = quat_from_euler(np.radians(ic.yaw_deg), np.radians(ic.pitch_deg), np.radians(ic.roll_deg))

@@ -15,7 +15,9 @@ Package map
 * the equations: :mod:`.tracking` (eq:wr, eq:f_ctrl, eq:m_ctrl), :mod:`.attitude` (eq:fbar_solve,
   eq:alphad, eq:Rd and the hover blend), :mod:`.allocation` (eq:f_proj), :mod:`.adaptation`
   (eq:prediction_error, eq:th_adapt, eq:P_adapt, projection, Lyapunov function);
-* :mod:`.config`: :class:`ControllerConfig` (``[controller]`` and the ``[controller.<id>]`` tables);
+* :mod:`.config`: :class:`ControllerConfig` (``[controller]`` and the ``[controller.<id>]`` tables;
+  validated when made, in Python as from a file); each law's settings class is exported here too
+  (:class:`PIDSettings`, :class:`L1Settings`, ...);
 * :mod:`.api`: :class:`Controller` for use in your own loop; :mod:`.trajectory`: references.
 
 One tick
@@ -36,6 +38,8 @@ A law is a module with these six names (:func:`.laws.check_law` checks them):
     ``[controller.<id>]`` and the field ``ControllerConfig.<id>``. Gains every law shares
     (``K_v``, ``Lambda_p``, ``Lambda_q``, ``K_omega``, limits, filters) stay in ``[controller]``
     and are read from the shared parameters; a law's field may not repeat one of their names.
+    It derives from :class:`vtoladapt.config.Validated` (made in Python, it is checked as the
+    table is) and is exported from this package under its class name (``PIDSettings``).
 ``PARAMS``, ``STATE``
     :class:`vtoladapt.layout.BlockLayout` of the law's own parameters and memory. They are laid
     after the shared blocks, at :data:`.layouts.P_LAW` and :data:`.layouts.S_LAW`; bind absolute
@@ -45,7 +49,13 @@ A law is a module with these six names (:func:`.laws.check_law` checks them):
 ``fill_params(settings, ctx) -> ndarray``
     Python, once per run: the law's parameter block (``PARAMS.pack(...)``) from its settings and a
     :class:`.laws.LawContext` (the whole config, the vehicle, theta_0, P0, the nominal dt). Raise
-    ``ValueError`` naming the setting for a value the law cannot fly.
+    ``ConfigError`` (a ``ValueError``) naming the setting for a value the law cannot fly with this
+    vehicle or prior (the sigma step's P0); a run adds the scenario file to the message.
+``check_config(settings, config, source) -> None`` (optional)
+    The rules the law's settings meet together with the shared ones (L1's ``a_s dt`` at
+    ``config.loop_rate_hz``, INDI's filter against ``K_v``): a ``ConfigError`` starting with
+    ``source``. :class:`ControllerConfig` runs it for its ``kind`` whenever it is made (from a file
+    or in Python), a scenario for every law it compares.
 ``init_state(params, state) -> None``
     Python, at start and reset: anything the law's memory needs beyond zeros (the shared start
     is theta-hat = theta_init, P^-1 = P0^-1, filters empty; ``state`` is the whole array).
@@ -82,11 +92,18 @@ Design notes
 """
 from .api import Command, Controller, ControllerSnapshot, ControllerState, Measurement, Reference, controller_arrays
 from .config import CONTROLLER_KINDS, ControllerConfig, controller_config_from_mapping, load_controller_config
+from .registry import CONTROLLERS as _CONTROLLERS
 from .kernel import CONTROLLER_DIAG_COLUMNS, controller_initial_state, controller_params, controller_step, \
     default_theta_bounds
 from .trajectory import Hold, MinJerkWaypoints, PositionReference, VelocityProfile, trajectory_from_reference
 
-__all__ = ["CONTROLLER_DIAG_COLUMNS", "CONTROLLER_KINDS", "Command", "Controller", "ControllerConfig",
+# each registered law's settings class under its own name (PIDSettings, L1Settings, ...), from the registry,
+# so that a new law needs no line here
+_LAW_SETTINGS = {c.settings.__name__: c.settings for c in _CONTROLLERS.values()}
+globals().update(_LAW_SETTINGS)
+
+__all__ = sorted(_LAW_SETTINGS) + [
+           "CONTROLLER_DIAG_COLUMNS", "CONTROLLER_KINDS", "Command", "Controller", "ControllerConfig",
            "ControllerSnapshot", "ControllerState", "Hold", "Measurement", "MinJerkWaypoints",
            "PositionReference", "Reference", "VelocityProfile", "controller_arrays",
            "controller_config_from_mapping", "controller_initial_state", "controller_params",

@@ -9,13 +9,17 @@
 >>> 0.55 < cmd.u_z < 0.61      # hover throttle: sqrt(g / C_Tz) with C_Tz = 28.7 m/s^2
 True
 
-``step`` does no Python-level work beyond one call of the compiled kernel
-(:func:`.kernel.controller_step`): the records are thin named views of float64 arrays in the
-layouts of :mod:`vtoladapt.layout`. The same class steps every registered law (the config's
+``step`` does no Python-level work beyond checking its arguments (a Measurement, a Reference, a
+finite increasing time: the compiled step reads the records' arrays by offset, unchecked) and one
+call of the compiled kernel (:func:`.kernel.controller_step`): the records are thin named views of
+float64 arrays in the layouts of :mod:`vtoladapt.layout`. The same class steps every registered law (the config's
 ``kind``); :attr:`Controller.state` names the shared memory and, by :meth:`ControllerState.law_field`,
 the law's own (its ``STATE`` layout).
 """
 from __future__ import annotations
+
+import math
+import numbers
 
 import numpy as np
 
@@ -266,7 +270,9 @@ class Controller:
     vehicle : Vehicle
         The controller's model of the aircraft (inertia, force model, limits).
     config : ControllerConfig, optional
-        Gains and settings (default: ``ControllerConfig()``, the composite controller).
+        Gains and settings (default: ``ControllerConfig()``, the composite controller), validated
+        when it was made. Set its ``loop_rate_hz`` to the rate you call :meth:`step` at: the first
+        tick and the laws' stability checks (L1's ``a_s dt``, the sigma step) use ``1/loop_rate_hz``.
     theta_0, P0_diag, theta_lower, theta_upper, theta_init : arrays, optional
         Prior mean, initial gain (diagonal or full 8x8), bounds and initial theta-hat, all in the
         adaptation scaling (see :func:`.kernel.controller_params`).
@@ -276,6 +282,11 @@ class Controller:
 
     def __init__(self, vehicle, config: ControllerConfig | None = None, theta_0=None, P0_diag=None,
                  theta_lower=None, theta_upper=None, theta_init=None):
+        from ..vehicle import Vehicle
+
+        if not isinstance(vehicle, Vehicle):
+            raise TypeError(f"vehicle must be a vtoladapt Vehicle (vtoladapt.load_vehicle), "
+                            f"got {type(vehicle).__name__}")
         self.vehicle = vehicle
         self.config = ControllerConfig() if config is None else config
         if not isinstance(self.config, ControllerConfig):
@@ -298,8 +309,14 @@ class Controller:
         """Compute the command for time ``t`` (s) from a measurement and a reference.
 
         ``dt`` is ``t`` minus the previous call's ``t`` (``1/loop_rate_hz`` on the first call).
-        Raises ValueError if ``t`` does not increase.
+        Raises TypeError if ``measurement`` is not a :class:`Measurement` or ``reference`` not a
+        :class:`Reference` (the compiled step reads their arrays by the layouts' offsets), and
+        ValueError if ``t`` is not a finite number or does not increase; a refused call changes nothing.
         """
+        if not (isinstance(measurement, Measurement) and isinstance(reference, Reference)):
+            _refuse_records(measurement, reference)
+        if type(t) is not float or not math.isfinite(t):
+            t = _finite_time(t, self._t_last)
         t_last = self._t_last
         if t_last is None:
             dt = self._dt_nominal
@@ -346,12 +363,31 @@ class Controller:
         return ControllerSnapshot(self._state.copy(), self._t_last)
 
     def set_state(self, snapshot: ControllerSnapshot) -> None:
-        """Restore a snapshot taken by :meth:`get_state` (of a controller with the same layout)."""
-        s = np.asarray(snapshot.state, dtype=float)
+        """Restore a snapshot taken by :meth:`get_state` of a controller of the same kind.
+
+        Allowed: a :class:`ControllerSnapshot` whose ``state`` has this controller's shape and only
+        finite entries (a controller's memory never holds anything else: the step sanitises its
+        inputs and guards its own arithmetic) and whose ``t_last`` is None (not stepped) or a finite
+        time in s. Anything else raises TypeError or ValueError and leaves the controller as it was.
+        """
+        if not isinstance(snapshot, ControllerSnapshot):
+            raise TypeError(f"set_state: expected a ControllerSnapshot (from get_state), got {type(snapshot).__name__}")
+        try:
+            s = np.array(snapshot.state, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"set_state: snapshot state = {snapshot.state!r:.60}: must be a float array") from None
         if s.shape != self._state.shape:
-            raise ValueError(f"snapshot state has shape {s.shape}, expected {self._state.shape}")
-        self._state = s.copy()
-        self._t_last = snapshot.t_last
+            raise ValueError(f"set_state: snapshot state has shape {s.shape}, expected {self._state.shape} "
+                             f"(a snapshot of a {self.config.kind} controller)")
+        bad = np.flatnonzero(~np.isfinite(s))
+        if bad.size:
+            raise ValueError(f"set_state: snapshot state[{bad[0]}] = {float(s[bad[0]])!r}: must be finite "
+                             f"({bad.size} non-finite entries)")
+        t_last = snapshot.t_last
+        if t_last is not None:
+            t_last = _finite_time(t_last, None, "set_state: snapshot t_last")
+        self._state = s
+        self._t_last = t_last
 
     @property
     def params(self) -> np.ndarray:
@@ -367,6 +403,26 @@ class Controller:
     def diagnostics(self) -> dict[str, float]:
         """``{name: value}`` of the last step's internals (units in the names)."""
         return {n: float(v) for n, v in zip(CONTROLLER_DIAG_COLUMNS, self._diag)}
+
+
+def _refuse_records(measurement, reference) -> None:
+    """The TypeError of :meth:`Controller.step` given something other than a Measurement and a Reference."""
+    for name, value, cls in (("measurement", measurement, Measurement), ("reference", reference, Reference)):
+        if not isinstance(value, cls):
+            raise TypeError(f"step: {name} must be a {cls.__name__} (vtoladapt.control.{cls.__name__}), "
+                            f"got {type(value).__name__}")
+
+
+def _finite_time(t, t_last, what: str = "step: t") -> float:
+    """``t`` as a float if it is a finite real number (s); ValueError naming ``what`` otherwise."""
+    ok = isinstance(t, numbers.Real) and not isinstance(t, (bool, np.bool_))
+    if ok:
+        t = float(t)
+        ok = math.isfinite(t)
+    if not ok:
+        before = "" if t_last is None else f" (previous step at t = {t_last!r})"
+        raise ValueError(f"{what} = {t!r}: must be a finite time in s{before}")
+    return t
 
 
 def controller_arrays(vehicle, config: ControllerConfig, theta_0=None, P0_diag=None, theta_lower=None,

@@ -49,20 +49,29 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any, Mapping, Optional
 
-from ..config import ConfigError, build, read_toml, setting
+from ..config import ConfigError, Validated, build, check_flag, read_toml, setting
 from .registry import CONTROLLER_IDS, CONTROLLERS, ControllerInfo, controller_info
 
 CONTROLLER_KINDS = CONTROLLER_IDS
 """The registered controllers' ids (:data:`.registry.CONTROLLER_IDS`)."""
 
 
+LOOP_RATE_MIN_HZ = 10.0
+"""Slowest controller rate: the compiled step takes a tick longer than 0.1 s for a fault."""
+LOOP_RATE_MAX_HZ = 10000.0
+"""Fastest controller rate (a scenario's ``dt_control_s`` >= 1e-4 s)."""
+
+
 @dataclass(frozen=True)
-class SharedControllerConfig:
+class SharedControllerConfig(Validated):
     """The ``[controller]`` table's own keys: the controller's kind and the gains every law shares.
 
     All 3-vectors are diagonals of the paper's gain matrices, in NED (``K_v``, ``Lambda_p``) or
     body FRD (``Lambda_q``, ``K_omega``) axes. :class:`ControllerConfig` adds one field per law.
+    Built in Python it is validated as a file's table is (:class:`vtoladapt.config.Validated`).
     """
+
+    config_section = "controller"
 
     kind: str = setting("-", "which controller, an id of vtoladapt.control.registry: "
                         + "; ".join(f"'{c.id}': {c.description}" for c in CONTROLLERS.values()),
@@ -123,8 +132,11 @@ class SharedControllerConfig:
     wind_estimate_fade_s: float = setting(
         "s", "while the probe is invalid the wind estimate fades toward zero with this time constant",
         default=2.0, gt=0.0)
-    loop_rate_hz: float = setting("Hz", "nominal controller rate (the Python API's first step)",
-                                  default=250.0, gt=0.0)
+    loop_rate_hz: float = setting(
+        "Hz", "the rate the controller runs at: the Python API's first tick and the tick that replaces an invalid "
+        "one, and the dt of the laws' stability checks (L1's a_s dt, the sigma step); in a scenario it is "
+        "1/dt_control_s (set from it; a different value is refused)",
+        default=250.0, ge=LOOP_RATE_MIN_HZ, le=LOOP_RATE_MAX_HZ)
     weathervane_airspeed_mps: Optional[tuple[float, ...]] = setting(
         "m/s", "the commanded heading turns into the flow above the second horizontal airspeed and back to "
         "the reference yaw below the first (hysteresis); default: 0.75 and 1 times the vehicle's "
@@ -193,6 +205,23 @@ class SharedControllerConfig:
         if amax is not None and self.alpha_min_deg is not None and not self.alpha_min_deg < amax:
             raise ConfigError(f"{source}: [controller] alpha_min_deg = {self.alpha_min_deg}: must be "
                               f"below alpha_max_deg = {amax}")
+        if hasattr(self, self.kind):  # ControllerConfig (the shared table alone has no law tables)
+            self.check_law(self.kind, source)
+
+    def check_law(self, kind: str, source: str) -> None:
+        """The rules law ``kind``'s settings must meet together with the shared ones (its module's
+        ``check_config``, e.g. L1's ``a_s dt < 0.5`` at :attr:`loop_rate_hz`); a
+        :class:`~vtoladapt.config.ConfigError` naming ``source`` otherwise. Checked for the law that
+        flies (:attr:`kind`) when the configuration is made, and by a scenario for each law it compares."""
+        law = controller_info(kind).law
+        check = getattr(law, "check_config", None)
+        if check is not None:
+            check(getattr(self, kind), self, source)
+
+    @property
+    def dt_nominal_s(self) -> float:
+        """The controller's tick, ``1 / loop_rate_hz`` (s)."""
+        return 1.0 / self.loop_rate_hz
 
     @property
     def kind_id(self) -> int:
@@ -233,6 +262,8 @@ def _make_controller_config() -> type:
     for c in CONTROLLERS.values():
         if c.id in shared:
             raise TypeError(f"controller id {c.id!r} clashes with a [controller] key")
+        # the table the law's settings are in a file, for the messages of a Validated Settings made by hand
+        c.settings.config_section = f"controller.{c.id}"
         fields.append((c.id, c.settings, setting("-", f"settings of the {c.id} law ([controller.{c.id}], "
                                                  f"{c.law.__name__}.Settings)", default=c.settings())))
     cls = dataclasses.make_dataclass("ControllerConfig", fields, bases=(SharedControllerConfig,), frozen=True)
@@ -252,11 +283,49 @@ def controller_config_from_mapping(data: Mapping[str, Any], source: str = "<cont
     return build(ControllerConfig, dict(data), source=source, section="controller")
 
 
+SCENARIO_DT_RANGE_S = (1e-4, 0.05)
+"""The controller periods a scenario's ``dt_control_s`` may take (s): 20 to 10000 Hz."""
+LOOP_RATE_RTOL = 1e-9
+"""``[controller] loop_rate_hz`` and a scenario's ``1 / dt_control_s`` agree within this relative tolerance."""
+
+
+def rate_from_dt(data: dict, source: str, dt_default: float) -> float:
+    """Set ``data["controller"]["loop_rate_hz"]`` to ``1 / dt_control_s`` of a scenario mapping where the
+    table leaves it out, so that the controller's checks (L1's ``a_s dt``, the sigma step) and nominal tick
+    are the run's; a rate the file sets is kept for :func:`check_rate_matches_dt`. Returns ``dt_control_s``
+    (``dt_default`` if absent), checked as the scenario's key (:data:`SCENARIO_DT_RANGE_S`)."""
+    dt = check_flag(f"{source}: dt_control_s", data.get("dt_control_s", dt_default), unit="s",
+                    ge=SCENARIO_DT_RANGE_S[0], le=SCENARIO_DT_RANGE_S[1])
+    controller = data.get("controller", {})
+    if isinstance(controller, Mapping) and "loop_rate_hz" not in controller:
+        data["controller"] = {**controller, "loop_rate_hz": 1.0 / dt}
+    # otherwise a bad table is build's to report, and a set rate is compared, never overwritten
+    return dt
+
+
+def check_rate_matches_dt(loop_rate_hz: float, dt_control_s: float, source: str) -> None:
+    """A :class:`ConfigError` naming ``source`` unless ``loop_rate_hz`` is ``1 / dt_control_s``: the rate
+    the controller's checks and nominal tick assume must be the rate a run steps it at."""
+    if not abs(loop_rate_hz * dt_control_s - 1.0) <= LOOP_RATE_RTOL:
+        raise ConfigError(
+            f"{source}: [controller] loop_rate_hz = {loop_rate_hz:g}: the controller runs at the scenario's rate, "
+            f"1/dt_control_s = {1.0 / dt_control_s:g} Hz (dt_control_s = {dt_control_s:g}); leave loop_rate_hz "
+            f"out (it is set from dt_control_s) or make the two agree")
+
+
 def load_controller_config(path) -> ControllerConfig:
-    """The ``[controller]`` table of a scenario TOML file (defaults if the table is absent)."""
-    data = read_toml(path)
-    return controller_config_from_mapping(data.get("controller", {}), source=str(path))
+    """The ``[controller]`` table of a scenario TOML file (defaults if the table is absent), with the
+    scenario's rate: ``loop_rate_hz`` is ``1 / dt_control_s`` (set from it; a different value is refused)."""
+    data = dict(read_toml(path))
+    if "dt_control_s" not in data:  # the scenario's default 4 ms: the default 250 Hz
+        return controller_config_from_mapping(data.get("controller", {}), source=str(path))
+    dt = rate_from_dt(data, str(path), dt_default=data["dt_control_s"])
+    config = controller_config_from_mapping(data["controller"], source=str(path))
+    check_rate_matches_dt(config.loop_rate_hz, dt, str(path))
+    return config
 
 
-__all__ = ["CONTROLLER_KINDS", "ControllerConfig", "SharedControllerConfig", "controller_config_from_mapping",
+__all__ = ["CONTROLLER_KINDS", "LOOP_RATE_MAX_HZ", "LOOP_RATE_MIN_HZ", "LOOP_RATE_RTOL", "SCENARIO_DT_RANGE_S",
+           "ControllerConfig", "check_rate_matches_dt", "rate_from_dt", "SharedControllerConfig",
+           "controller_config_from_mapping",
            "load_controller_config"]

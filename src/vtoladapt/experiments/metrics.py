@@ -2,6 +2,8 @@
 controller, and the spread of theta-hat across the random-start runs."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..control.registry import COMPOSITE_IDS
@@ -122,8 +124,29 @@ def identifiability(information_sum: np.ndarray, theta_0: np.ndarray, adapt_time
     eigenvector's components by parameter, its ``dominant`` parameters (signed components of
     magnitude >= :data:`DOMINANT_COMPONENT_MIN`), ``determined`` flags and their count, and the
     threshold used.
+
+    Raises ValueError unless ``information_sum`` is a finite, symmetric (8, 8) matrix (or its 64
+    entries), ``theta_0`` eight finite numbers and ``adapt_time_s`` a finite time > 0 s (with no
+    time adapted there is no information, and dividing by it would report every direction determined).
     """
-    S = np.asarray(information_sum, dtype=float).reshape(len(PARAMETER_NAMES), len(PARAMETER_NAMES))
+    n = len(PARAMETER_NAMES)
+    S = np.asarray(information_sum, dtype=float)
+    if S.shape not in ((n, n), (n * n,)):
+        raise ValueError(f"identifiability: information_sum has shape {S.shape}; allowed: ({n}, {n}) or ({n * n},)")
+    S = S.reshape(n, n)
+    if not np.all(np.isfinite(S)) or not np.allclose(S, S.T, rtol=1e-9, atol=0.0):
+        raise ValueError("identifiability: information_sum must be finite and symmetric (a sum of W^T W dt)")
+    th0 = np.asarray(theta_0, dtype=float)
+    if th0.shape != (n,) or not np.all(np.isfinite(th0)):
+        raise ValueError(f"identifiability: theta_0 must be {n} finite numbers, got shape {th0.shape}")
+    T = float(adapt_time_s)
+    if not (math.isfinite(T) and T > 0.0):
+        raise ValueError(f"identifiability: adapt_time_s = {adapt_time_s!r}: must be a finite time > 0 s")
+    return _spectrum(S, th0, T)
+
+
+def _spectrum(S: np.ndarray, theta_0: np.ndarray, adapt_time_s: float) -> dict:
+    """:func:`identifiability` without the checks (a run's own sum, possibly after no adapting at all)."""
     scale = np.where(np.asarray(theta_0) != 0.0, np.abs(theta_0), 1.0)
     A = scale[:, None] * S * scale[None, :] / max(adapt_time_s, 1e-12)
     mu, V = np.linalg.eigh(0.5 * (A + A.T))
@@ -157,4 +180,6 @@ def run_identifiability(result: SimulationResult, theta_0: np.ndarray) -> dict |
         return None
     dt = float(result.metadata.get("dt_control_s", np.median(np.diff(result.time_s))))
     t_adapt = float(np.sum(result["adaptation_active"] > 0.5)) * dt
-    return identifiability(np.asarray(S), theta_0, t_adapt)
+    # a run that never adapted has an all-zero sum: its spectrum (nothing determined) is still reported
+    n = len(PARAMETER_NAMES)
+    return _spectrum(np.asarray(S, dtype=float).reshape(n, n), theta_0, t_adapt)

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from ...config import ConfigError
 from ...layout import BlockLayout
 
 REQUIRED = ("Settings", "PARAMS", "STATE", "fill_params", "init_state", "update")
@@ -41,11 +42,16 @@ class LawContext:
 
 
 def check_sigma_step(sigma: float, ctx: LawContext, table: str) -> None:
-    """The explicit sigma step is stable only while ``sigma * max eig(P0) * dt < 1``: raise otherwise."""
-    x = sigma * ctx.P0_max_eig * ctx.dt_nominal_s
-    if x >= 1.0:
-        raise ValueError(f"[{table}] sigma = {sigma}: the explicit sigma step needs sigma * max eig(P0) * dt < 1, "
-                         f"here {x:.3g}; lower sigma or P0")
+    """The explicit sigma step is stable only while ``sigma * max eig(P0) * dt < 1``: a
+    :class:`~vtoladapt.config.ConfigError` naming the three otherwise (a run names its file)."""
+    eig = ctx.P0_max_eig
+    x = sigma * eig * ctx.dt_nominal_s
+    if not x < 1.0:
+        raise ConfigError(
+            f"[{table}] sigma = {sigma}: the explicit sigma step needs sigma * max eig(P0) * dt < 1, here {x:.3g} "
+            f"with max eig(P0) = {eig:.3g} (the vehicle's [adaptation] P0_diag or the posterior) and dt = "
+            f"{ctx.dt_nominal_s:g} s ([controller] loop_rate_hz = {1.0 / ctx.dt_nominal_s:g}; in a scenario "
+            f"1/dt_control_s); lower sigma or P0, or run the controller faster")
 
 
 def check_law(module) -> None:

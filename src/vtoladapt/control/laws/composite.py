@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ...config import setting
+from ...config import Validated, setting
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
 from ..layouts import P_K_V, P_LAW, S_LAW, law_offsets
@@ -45,7 +45,7 @@ from ._adaptive import adaptive_estimate, model_validity, saturated
 
 
 @dataclass(frozen=True)
-class CompositeSettings:
+class CompositeSettings(Validated):
     """The composite law's own gains (the ``[controller.composite]`` table)."""
 
     forgetting_lambda: float = setting("1/s", "forgetting factor lambda (eq:P_adapt, information form "

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ...config import setting
+from ...config import Validated, setting
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
 from ..layouts import P_K_V, P_LAW, S_LAW, law_offsets
@@ -20,7 +20,7 @@ from ._adaptive import adaptive_estimate
 
 
 @dataclass(frozen=True)
-class CompositePConstSettings:
+class CompositePConstSettings(Validated):
     """The constant-P composite law's own gains (the ``[controller.composite_pconst]`` table)."""
 
     sigma: float = setting("adaptation units", "sigma-modification toward theta_0 (eq:th_adapt)",

@@ -96,7 +96,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ...config import setting
+from ...config import ConfigError, Validated, setting
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
 from ...frames import rows_times
@@ -110,7 +110,7 @@ TIME_SCALE_SEPARATION = 3.0
 
 
 @dataclass(frozen=True)
-class IndiSettings:
+class IndiSettings(Validated):
     """The INDI law's own settings (the ``[controller.indi]`` table): its fault handling."""
 
     increment_limit_mps2: float = setting(
@@ -144,16 +144,22 @@ S_INCREMENT, S_WEIGHT, S_FADE, S_BLEND_STEP = law_offsets(STATE, S_LAW, "INCREME
                                                           "BLEND_STEP")
 
 
-def fill_params(settings: IndiSettings, ctx: LawContext) -> np.ndarray:
-    """The law's parameter block; ``ValueError`` if the shared filter is too slow for the velocity loop."""
-    cfg = ctx.config
-    bandwidth = 2.0 * np.pi * cfg.lowpass_cutoff_hz
-    k_v_max = max(cfg.K_v)
+def check_config(settings: IndiSettings, config, source: str) -> None:
+    """``ConfigError`` naming ``source`` if the shared filter is too slow for the velocity loop (module notes)."""
+    bandwidth = 2.0 * np.pi * config.lowpass_cutoff_hz
+    k_v_max = max(config.K_v)
     if bandwidth < TIME_SCALE_SEPARATION * k_v_max:
-        raise ValueError(
-            f"[controller] lowpass_cutoff_hz = {cfg.lowpass_cutoff_hz}: the indi law needs 2 pi lowpass_cutoff_hz "
-            f">= {TIME_SCALE_SEPARATION:g} x max(K_v) = {TIME_SCALE_SEPARATION * k_v_max:g} 1/s (its increment must "
-            f"settle faster than the velocity loop); raise lowpass_cutoff_hz or lower K_v")
+        prefix = f"{source}: " if source else ""
+        raise ConfigError(
+            f"{prefix}[controller] lowpass_cutoff_hz = {config.lowpass_cutoff_hz}: the indi law needs 2 pi "
+            f"lowpass_cutoff_hz >= {TIME_SCALE_SEPARATION:g} x max(K_v) = {TIME_SCALE_SEPARATION * k_v_max:g} 1/s "
+            f"([controller] K_v = {list(config.K_v)}; its increment must settle faster than the velocity loop); "
+            f"raise lowpass_cutoff_hz or lower K_v")
+
+
+def fill_params(settings: IndiSettings, ctx: LawContext) -> np.ndarray:
+    """The law's parameter block; ``ConfigError`` if the shared filter is too slow for the velocity loop."""
+    check_config(settings, ctx.config, "")
     return PARAMS.pack(INC_LIMIT=settings.increment_limit_mps2, FADE_S=settings.fault_fade_s,
                        BLEND_S=settings.reentry_blend_s)
 

@@ -92,7 +92,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ...config import setting
+from ...config import ConfigError, Validated, setting
 from ...frames import GRAVITY_MPS2
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
@@ -109,7 +109,7 @@ A_S_DT_MAX = 0.5
 
 
 @dataclass(frozen=True)
-class L1Settings:
+class L1Settings(Validated):
     """The L1 law's own gains (the ``[controller.l1]`` table); the rule behind the defaults is in the module notes."""
 
     cutoff_radps: float = setting("rad/s", "bandwidth omega_c of the low-pass C(s) = omega_c / (s + omega_c) "
@@ -147,13 +147,26 @@ S_V_HAT, S_V_HOLD, S_F_PREV, S_SIGMA_HAT, S_SIGMA_LPF, S_RUNNING, S_GAINS_L1 = l
 G_DECAY, G_ADAPT, G_FILTER, G_BLEED = range(4)
 
 
+def check_a_s_dt(settings: L1Settings, dt_s: float, source: str) -> None:
+    """``ConfigError`` naming ``source`` unless ``a_s dt < A_S_DT_MAX`` at the controller's tick ``dt_s``."""
+    x = settings.predictor_pole_radps * dt_s
+    if not x < A_S_DT_MAX:
+        prefix = f"{source}: " if source else ""
+        raise ConfigError(
+            f"{prefix}[controller.l1] predictor_pole_radps = {settings.predictor_pole_radps}: needs a_s * dt < "
+            f"{A_S_DT_MAX} (the estimate keeps e^(-a_s dt) of the uncertainty), here {x:.3g} with dt = {dt_s:g} s "
+            f"([controller] loop_rate_hz = {1.0 / dt_s:g}; in a scenario 1/dt_control_s); lower predictor_pole_radps "
+            f"or run the controller faster")
+
+
+def check_config(settings: L1Settings, config, source: str) -> None:
+    """The rule the law's settings and the shared ones meet together: ``a_s dt < 0.5`` at ``loop_rate_hz``."""
+    check_a_s_dt(settings, config.dt_nominal_s, source)
+
+
 def fill_params(settings: L1Settings, ctx: LawContext) -> np.ndarray:
-    """The law's parameter block; ``ValueError`` if ``a_s dt`` leaves too little of the estimate."""
-    x = settings.predictor_pole_radps * ctx.dt_nominal_s
-    if x >= A_S_DT_MAX:
-        raise ValueError(f"[controller.l1] predictor_pole_radps = {settings.predictor_pole_radps}: needs a_s * dt "
-                         f"< {A_S_DT_MAX} (the estimate keeps e^(-a_s dt) of the uncertainty), here {x:.3g}; "
-                         f"lower predictor_pole_radps")
+    """The law's parameter block; ``ConfigError`` if ``a_s dt`` leaves too little of the estimate."""
+    check_a_s_dt(settings, ctx.dt_nominal_s, "")
     return PARAMS.pack(A_S=settings.predictor_pole_radps, OMEGA_C=settings.cutoff_radps,
                        TERM_MAX=settings.adaptive_term_max_mps2, BLEED_S=settings.fault_bleed_s)
 

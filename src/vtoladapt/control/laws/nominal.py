@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ...config import Validated
 from ...layout import BlockLayout
 from ..frontend import prediction_error
 from ..layouts import N_THETA, P_K_V, P_THETA0, S_THETA
@@ -20,7 +21,7 @@ from . import LawContext
 
 
 @dataclass(frozen=True)
-class NominalSettings:
+class NominalSettings(Validated):
     """The nominal law has no settings of its own (the ``[controller.nominal]`` table is empty)."""
 
 

@@ -12,13 +12,13 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ...config import setting
+from ...config import Validated, setting
 from . import LawContext
 from .pid import FEEDFORWARD_CHOICES, FEEDFORWARD_DOC, PARAMS, STATE, feedforward_flag, pid_update
 
 
 @dataclass(frozen=True)
-class PDSettings:
+class PDSettings(Validated):
     """The PD's own gains (the ``[controller.pd]`` table)."""
 
     K_D: tuple[float, ...] = setting("-", "velocity-derivative gain on the measured acceleration, NED",

@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ...config import setting
+from ...config import Validated, setting
 from ...frames import GRAVITY_MPS2
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
@@ -61,7 +61,7 @@ FEEDFORWARD_DOC = ("reference feed-forward of the force command: 'v_r_dot' = a_d
 
 
 @dataclass(frozen=True)
-class PIDSettings:
+class PIDSettings(Validated):
     """The PID's own gains (the ``[controller.pid]`` table)."""
 
     K_I: tuple[float, ...] = setting("1/s^2", "velocity-error integral gain, NED", default=(0.4, 0.4, 2.0),

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ...config import setting
+from ...config import Validated, setting
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
 from ..layouts import N_THETA, P_K_V, P_LAW, P_P0, S_LAW, law_offsets
@@ -47,7 +47,7 @@ from ._adaptive import adaptive_estimate
 
 
 @dataclass(frozen=True)
-class TrackingOnlySettings:
+class TrackingOnlySettings(Validated):
     """The tracking-error law's own gains (the ``[controller.tracking_only]`` table)."""
 
     sigma: float = setting("adaptation units", "sigma-modification toward theta_0 (not in the paper's law "
