@@ -31,19 +31,25 @@ PRINT_SIGINT = "import signal; print(signal.getsignal(signal.SIGINT) == signal.S
 def test_a_process_started_while_sigint_is_held_ignores_it_and_the_held_ctrl_c_is_raised_after():
     if threading.current_thread() is not threading.main_thread():
         pytest.skip("only the main thread handles signals")
-    before = signal.getsignal(signal.SIGINT)
-    with _SigintHeld() as release:
-        # a Ctrl-C while the cluster starts: held, not lost (sent to this thread: another thread of
-        # the test process that does not block SIGINT would take a process-wide one and drop it;
-        # the command has no other thread then)
-        signal.pthread_kill(threading.main_thread().ident, signal.SIGINT)
-        child = subprocess.run([sys.executable, "-c", PRINT_SIGINT], capture_output=True, text=True, check=True)
-        with pytest.raises(KeyboardInterrupt):
-            release()
-    assert child.stdout.strip() == "True"
-    assert signal.getsignal(signal.SIGINT) is before
-    after = subprocess.run([sys.executable, "-c", PRINT_SIGINT], capture_output=True, text=True, check=True)
-    assert after.stdout.strip() == "False"  # only processes started inside the block ignore it
+    # a suite started in the background by a non-interactive shell inherits SIGINT ignored; the
+    # command line runs with Python's handler, so the test does too
+    found = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with _SigintHeld() as release:
+            # a Ctrl-C while the cluster starts: held, not lost (sent to this thread: another thread
+            # of the test process that does not block SIGINT would take a process-wide one and drop
+            # it; the command has no other thread then)
+            signal.pthread_kill(threading.main_thread().ident, signal.SIGINT)
+            child = subprocess.run([sys.executable, "-c", PRINT_SIGINT], capture_output=True, text=True,
+                                   check=True)
+            with pytest.raises(KeyboardInterrupt):
+                release()
+        assert child.stdout.strip() == "True"
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        after = subprocess.run([sys.executable, "-c", PRINT_SIGINT], capture_output=True, text=True, check=True)
+        assert after.stdout.strip() == "False"  # only processes started inside the block ignore it
+    finally:
+        signal.signal(signal.SIGINT, found)
 
 
 def _group_alive(pgid: int) -> bool:
