@@ -36,6 +36,16 @@ settings.register_profile(
 settings.load_profile(HYPOTHESIS_PROFILE)
 
 
+SHORT_FAN_SCENARIO = """name = "b"
+vehicle = "caltech_vtol"
+duration_s = 1.0
+seed = 3
+[wind.fan_array]
+schedule = [[0, 60], [1, 60]]
+"""
+"""A campaign's base: a 1 s hold in the fan at 60 % (short enough to run many in a test)."""
+
+
 def examples(n: int) -> int:
     """A property's example count: ``n``, or at least :data:`THOROUGH_EXAMPLES` under the ``thorough`` profile.
 

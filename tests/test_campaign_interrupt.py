@@ -13,18 +13,13 @@ import time
 
 import pytest
 
+from conftest import SHORT_FAN_SCENARIO
 from vtoladapt.campaign_cluster import _SigintHeld
 from vtoladapt.errors import ExitCode
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "killpg") or not hasattr(signal, "pthread_sigmask"),
                                 reason="process groups and signal masks are POSIX")
-SCENARIO = """name = "mc"
-vehicle = "caltech_vtol"
-duration_s = 1.0
-seed = 3
-[wind.fan_array]
-schedule = [[0, 30], [1, 30]]
-"""
+SCENARIO = SHORT_FAN_SCENARIO
 PRINT_SIGINT = "import signal; print(signal.getsignal(signal.SIGINT) == signal.SIG_IGN)"
 
 

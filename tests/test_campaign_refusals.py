@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from conftest import SHORT_FAN_SCENARIO
 import vtoladapt.campaign as campaign
 from vtoladapt.campaign import MAX_CAMPAIGN_RUNS, Variation, plan_campaign, plan_campaign_file
 from vtoladapt.campaign_cluster import check_listen
@@ -16,13 +17,7 @@ from vtoladapt.cli import main
 from vtoladapt.config import ConfigError
 from vtoladapt.errors import ExitCode
 
-BASE = """name = "b"
-vehicle = "caltech_vtol"
-duration_s = 1.0
-seed = 3
-[wind.fan_array]
-schedule = [[0, 60], [1, 60]]
-"""
+BASE = SHORT_FAN_SCENARIO
 HEAD = """[campaign]
 base = "base.toml"
 runs = 4

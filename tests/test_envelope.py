@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.stats import binomtest
 
-from conftest import examples
+from conftest import SHORT_FAN_SCENARIO, examples
 from vtoladapt.campaign import VaryEntry, load_campaign_file, plan_campaign_file, run_campaign
 from vtoladapt.cli import main
 from vtoladapt.config import ConfigError
@@ -98,13 +98,7 @@ low = 12.0
 high = 18.0
 bands = 2
 """
-BASE = """name = "b"
-vehicle = "caltech_vtol"
-duration_s = 1.0
-seed = 3
-[wind.fan_array]
-schedule = [[0, 60], [1, 60]]
-"""
+BASE = SHORT_FAN_SCENARIO
 
 
 def _campaign(tmp_path: Path, text: str = GOOD) -> Path:
