@@ -337,3 +337,9 @@ def test_a_scenarios_controller_table_loaded_alone_takes_its_rate(tmp_path):
     path.write_text('dt_control_s = 0.05\n[controller]\nloop_rate_hz = 250.0\n')
     with pytest.raises(ConfigError, match=r"s\.toml: \[controller\] loop_rate_hz = 250: .*= 20 Hz"):
         load_controller_config(path)
+    # no dt_control_s: the scenario's default 4 ms, as the scenario loader takes it
+    path.write_text('[controller]\nloop_rate_hz = 100.0\n')
+    with pytest.raises(ConfigError, match=r"s\.toml: \[controller\] loop_rate_hz = 100: .*= 250 Hz"):
+        load_controller_config(path)
+    with pytest.raises(ConfigError, match=r"loop_rate_hz = 100: .*= 250 Hz"):
+        scenario_from_mapping({**BASE, "controller": {"loop_rate_hz": 100.0}}, "s.toml")

@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import Optional
 
 from .config import NAME_PATTERN, PATH_PATTERN, ConfigError, build, read_toml, refuse_internal_keys, setting
-from .control.config import SCENARIO_DT_RANGE_S, ControllerConfig, check_rate_matches_dt, rate_from_dt
+from .control.config import (SCENARIO_DT_DEFAULT_S, SCENARIO_DT_RANGE_S, ControllerConfig, check_rate_matches_dt,
+                             rate_from_dt)
 from .control.registry import CONTROLLER_IDS, THETA_ADAPTIVE_IDS
 from .faults import FaultConfig
 from .monitor import EnvelopeConfig
@@ -120,7 +121,7 @@ class Scenario:
     seed: int = setting("-", "seed of every random draw in the run", default=0, ge=0, le=2**63 - 1)
     description: str = setting("-", "what the scenario is for", default="")
     dt_control_s: float = setting("s", "controller period (250 Hz in the paper); the controller's [controller] "
-                                  "loop_rate_hz is 1/dt_control_s (set from it)", default=0.004,
+                                  "loop_rate_hz is 1/dt_control_s (set from it)", default=SCENARIO_DT_DEFAULT_S,
                                   ge=SCENARIO_DT_RANGE_S[0], le=SCENARIO_DT_RANGE_S[1])
     plant_substeps: int = setting("-", "RK4 plant steps per controller period (4 -> 1 kHz)", default=4,
                                   ge=1, le=100)
@@ -188,9 +189,6 @@ class Scenario:
         return dataclasses.replace(self, **changes)
 
 
-_DT_CONTROL_DEFAULT_S = {f.name: f for f in dataclasses.fields(Scenario)}["dt_control_s"].default
-
-
 def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | None = None) -> Scenario:
     """Validate a parsed scenario mapping; errors name ``source``.
 
@@ -204,7 +202,7 @@ def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | 
         data["source_path"] = str(source_path)
     else:
         data.setdefault("source_path", source)
-    rate_from_dt(data, source, dt_default=_DT_CONTROL_DEFAULT_S)
+    rate_from_dt(data, source, dt_default=SCENARIO_DT_DEFAULT_S)
     scenario = build(Scenario, data, source=source)
     scenario.load_vehicle()  # fail now, naming the file, if the vehicle is unknown
     posterior = scenario.posterior_path()

@@ -285,6 +285,8 @@ def controller_config_from_mapping(data: Mapping[str, Any], source: str = "<cont
 
 SCENARIO_DT_RANGE_S = (1e-4, 0.05)
 """The controller periods a scenario's ``dt_control_s`` may take (s): 20 to 10000 Hz."""
+SCENARIO_DT_DEFAULT_S = 0.004
+"""A scenario's ``dt_control_s`` when it gives none (250 Hz, the paper's rate)."""
 LOOP_RATE_RTOL = 1e-9
 """``[controller] loop_rate_hz`` and a scenario's ``1 / dt_control_s`` agree within this relative tolerance."""
 
@@ -317,15 +319,14 @@ def load_controller_config(path) -> ControllerConfig:
     """The ``[controller]`` table of a scenario TOML file (defaults if the table is absent), with the
     scenario's rate: ``loop_rate_hz`` is ``1 / dt_control_s`` (set from it; a different value is refused)."""
     data = dict(read_toml(path))
-    if "dt_control_s" not in data:  # the scenario's default 4 ms: the default 250 Hz
-        return controller_config_from_mapping(data.get("controller", {}), source=str(path))
-    dt = rate_from_dt(data, str(path), dt_default=data["dt_control_s"])
-    config = controller_config_from_mapping(data["controller"], source=str(path))
+    dt = rate_from_dt(data, str(path), dt_default=SCENARIO_DT_DEFAULT_S)
+    config = controller_config_from_mapping(data.get("controller", {}), source=str(path))
     check_rate_matches_dt(config.loop_rate_hz, dt, str(path))
     return config
 
 
-__all__ = ["CONTROLLER_KINDS", "LOOP_RATE_MAX_HZ", "LOOP_RATE_MIN_HZ", "LOOP_RATE_RTOL", "SCENARIO_DT_RANGE_S",
+__all__ = ["CONTROLLER_KINDS", "LOOP_RATE_MAX_HZ", "LOOP_RATE_MIN_HZ", "LOOP_RATE_RTOL", "SCENARIO_DT_DEFAULT_S",
+           "SCENARIO_DT_RANGE_S",
            "ControllerConfig", "check_rate_matches_dt", "rate_from_dt", "SharedControllerConfig",
            "controller_config_from_mapping",
            "load_controller_config"]
