@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 
 from conftest import SHORT_FAN_SCENARIO
-import vtoladapt.campaign as campaign
-from vtoladapt.campaign import MAX_CAMPAIGN_RUNS, Variation, plan_campaign, plan_campaign_file
-from vtoladapt.campaign_cluster import check_listen
+import vtoladapt.campaign.runner as campaign
+from vtoladapt.campaign.runner import MAX_CAMPAIGN_RUNS, Variation, plan_campaign, plan_campaign_file
+from vtoladapt.campaign.cluster import check_listen
 from vtoladapt.cli import main
 from vtoladapt.config import ConfigError
 from vtoladapt.errors import ExitCode

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from vtoladapt.cli import main
-from vtoladapt.compiled_loop import LOG_COLUMNS
+from vtoladapt.sim.loop import LOG_COLUMNS
 from vtoladapt.errors import ExitCode
 from vtoladapt.outputs import MANIFEST_NAME, OutputDir, write_text
 
@@ -357,13 +357,13 @@ def test_a_ctrl_c_that_python_dropped_still_interrupts(tmp_path, capsys, monkeyp
 
 
 def test_the_simulator_stops_between_chunks_on_a_dropped_ctrl_c():
-    """A pending Ctrl-C request stops :func:`vtoladapt.simulate.simulate` at its next chunk."""
+    """A pending Ctrl-C request stops :func:`vtoladapt.sim.driver.simulate` at its next chunk."""
     import os
     import signal
 
     from vtoladapt.errors import sigint_handling
-    from vtoladapt.scenario import scenario_from_mapping
-    from vtoladapt.simulate import simulate
+    from vtoladapt.sim.scenario import scenario_from_mapping
+    from vtoladapt.sim.driver import simulate
 
     scenario = scenario_from_mapping({"name": "t", "vehicle": "caltech_vtol", "duration_s": 0.2}, "<t>")
     with sigint_handling():

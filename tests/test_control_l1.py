@@ -36,8 +36,8 @@ from vtoladapt.control.kernel import (
 from vtoladapt.control.laws import l1
 from vtoladapt.control.registry import CONTROLLERS, law_index
 from vtoladapt.frames import GRAVITY_MPS2, quat_to_rotmat
-from vtoladapt.scenario import scenario_from_mapping
-from vtoladapt.simulate import simulate
+from vtoladapt.sim.scenario import scenario_from_mapping
+from vtoladapt.sim.driver import simulate
 from vtoladapt.wind import FAN_MAX_SPEED_MPS
 
 COL = {n: i for i, n in enumerate(CONTROLLER_DIAG_COLUMNS)}

@@ -19,9 +19,9 @@ from vtoladapt.control.registry import CONTROLLER_IDS, PAPER_ADAPTIVE_IDS
 from vtoladapt.experiments.claims import check_claims
 from vtoladapt.experiments.distribution import summarize_claims, variant_seeds
 from vtoladapt.experiments.readme import readme_block, readme_tables
-from vtoladapt.metrics import airspeed_bin_labels, pred_err_p95_by_airspeed
-from vtoladapt.plant import TABLE_I_DRAW_CLIP_SIGMAS, PlantCoefficients, PlantConfig, draw_table_i_coefficients
-from vtoladapt.scenario import load_scenario
+from vtoladapt.sim.run_metrics import airspeed_bin_labels, pred_err_p95_by_airspeed
+from vtoladapt.sim.plant import TABLE_I_DRAW_CLIP_SIGMAS, PlantCoefficients, PlantConfig, draw_table_i_coefficients
+from vtoladapt.sim.scenario import load_scenario
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -56,7 +56,7 @@ def test_table_i_draw_is_seeded_and_keeps_explicit_overrides(caltech):
 
 
 def test_paper_scenarios_fly_a_drawn_plant_and_the_controller_keeps_table_i():
-    from vtoladapt.simulate import prepare
+    from vtoladapt.sim.driver import prepare
 
     for name in ("paper_comparison", "paper_convergence"):
         sc = load_scenario(name)

@@ -7,13 +7,13 @@ import json
 import numpy as np
 import pytest
 
-from vtoladapt.campaign import RunSpec, run_campaign
+from vtoladapt.campaign.runner import RunSpec, run_campaign
 from vtoladapt.config import ConfigError
-from vtoladapt.monitor import DivergenceError
-from vtoladapt.monitor import EnvelopeConfig as EnvelopeDefault
-from vtoladapt.results import SimulationResult
-from vtoladapt.scenario import scenario_from_mapping
-from vtoladapt.simulate import simulate
+from vtoladapt.sim.monitor import DivergenceError
+from vtoladapt.sim.monitor import EnvelopeConfig as EnvelopeDefault
+from vtoladapt.sim.results import SimulationResult
+from vtoladapt.sim.scenario import scenario_from_mapping
+from vtoladapt.sim.driver import simulate
 
 DT = 0.004
 

@@ -50,7 +50,7 @@ def test_reproduce_reports_the_fault_scenarios(reproduced):
     """Issue #15: the fault table (worst position error, recovered or not) is in the report."""
     import json
 
-    from vtoladapt.faults import FAULT_KINDS
+    from vtoladapt.sim.faults import FAULT_KINDS
 
     rows = json.loads((reproduced / "metrics.json").read_text())["faults"]
     assert [r["faults"] for r in rows] == list(FAULT_KINDS)

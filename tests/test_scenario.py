@@ -7,9 +7,9 @@ import pytest
 
 from vtoladapt.cli import main
 from vtoladapt.config import ConfigError
-from vtoladapt.results import SimulationResult
-from vtoladapt.scenario import load_scenario, scenario_from_mapping
-from vtoladapt.simulate import simulate, simulate_many
+from vtoladapt.sim.results import SimulationResult
+from vtoladapt.sim.scenario import load_scenario, scenario_from_mapping
+from vtoladapt.sim.driver import simulate, simulate_many
 
 BASE = {"name": "t", "vehicle": "caltech_vtol", "duration_s": 2.0, "seed": 5,
         "wind": {"fan_array": {"schedule": [[0, 30], [2, 30]]},

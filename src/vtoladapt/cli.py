@@ -73,13 +73,13 @@ def load_run_scenario(path, duration_s=None, seed=None, controller=None):
     """The scenario of ``vtoladapt run`` with its command-line overrides, fully validated.
 
     The overrides go through the same checks as the file's keys (``--duration`` has
-    ``duration_s``'s range), and the logs must fit the memory budget (:mod:`vtoladapt.limits`).
+    ``duration_s``'s range), and the logs must fit the memory budget (:mod:`vtoladapt.sim.limits`).
     """
     from dataclasses import replace
 
     from .control.config import ControllerConfig
-    from .limits import check_run_size
-    from .scenario import Scenario, load_scenario
+    from .sim.limits import check_run_size
+    from .sim.scenario import Scenario, load_scenario
 
     scenario = load_scenario(path)
     if duration_s is not None:
@@ -142,8 +142,8 @@ def _cmd_reproduce(args) -> int:
 def _check_reproduce_size(scale: float) -> None:
     from dataclasses import replace
 
-    from .limits import check_run_size
-    from .scenario import SCENARIO_DIR, load_scenario
+    from .sim.limits import check_run_size
+    from .sim.scenario import SCENARIO_DIR, load_scenario
 
     for name in ("paper_convergence", "paper_comparison"):
         sc = load_scenario(SCENARIO_DIR / f"{name}.toml")
@@ -212,7 +212,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``vtoladapt`` parser: every sub-command registers itself here."""
-    from .campaign import register_cli as register_campaign
+    from .campaign.runner import register_cli as register_campaign
     from .fitting.cli import register_cli as register_fitting
     from .probe.cli import register_cli as register_probe
     from .replay.cli import register_cli as register_replay

@@ -19,7 +19,7 @@ blocks) and in each law's module (its own blocks); outside them use the accessor
 (:func:`state_theta_hat`, :func:`state_P_inv`, :func:`state_P`, :func:`set_state_theta_hat`, ...).
 
 The step is compiled without Numba's reference counting, as every kernel of the simulator's tick
-(:mod:`vtoladapt.compiled_loop`): a law's ``update`` must not allocate arrays (its scratch lives in
+(:mod:`vtoladapt.sim.loop`): a law's ``update`` must not allocate arrays (its scratch lives in
 its state block, and values pass between functions as tuples).
 """
 from __future__ import annotations

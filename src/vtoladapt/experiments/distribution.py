@@ -24,8 +24,8 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 
 from ..control.registry import COMPOSITE_IDS
-from ..metrics import run_metrics
-from ..scenario import Scenario
+from ..sim.run_metrics import run_metrics
+from ..sim.scenario import Scenario
 from ..stats import fraction_holding, median_iqr
 from .claims import CLAIM_SOURCES, check_claims, is_paper_claim
 from .metrics import convergence_metrics, fan_throttle_series
@@ -73,7 +73,7 @@ def _pool_map(fn, items: Sequence, workers: Optional[int] = None) -> list:
 # --- one variant of each experiment, reduced to numbers ---------------------------------------------
 def comparison_variant(scenario: Scenario, progress: Progress = None) -> dict:
     """Every controller of the comparison flies ``scenario``; their metrics and the claims."""
-    from ..simulate import simulate
+    from ..sim.driver import simulate
 
     fan: dict = {}  # the fan schedule sampled once per variant (every controller logs the same ticks)
     ids = scenario.experiment.controllers
@@ -97,7 +97,7 @@ def comparison_variant(scenario: Scenario, progress: Progress = None) -> dict:
 
 def convergence_variant(scenario: Scenario, progress: Progress = None) -> dict:
     """The convergence experiment (``runs`` random-start runs) on ``scenario``; claims and ratios."""
-    from ..simulate import simulate_many
+    from ..sim.driver import simulate_many
 
     results = simulate_many(convergence_runs(scenario))
     conv = convergence_metrics(scenario, results)
@@ -201,7 +201,7 @@ def wind_condition_scenario(scenario: Scenario, condition: str, time_scale: floa
 def wind_table(scenario: Scenario, n: int, progress: Progress = None, time_scale: float = 1.0) -> dict:
     """Method x wind condition: each controller's mean position error and RMS velocity error
     (after :data:`WIND_SETTLE_S`), median and IQR over ``n`` seeded variants per condition."""
-    from ..simulate import simulate
+    from ..sim.driver import simulate
 
     seeds = variant_seeds(scenario.seed, n)
     ids = scenario.experiment.controllers

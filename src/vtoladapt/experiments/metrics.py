@@ -1,4 +1,4 @@
-"""The experiments' numbers: each run's metrics (:func:`vtoladapt.metrics.run_metrics`) per
+"""The experiments' numbers: each run's metrics (:func:`vtoladapt.sim.run_metrics.run_metrics`) per
 controller, and the spread of theta-hat across the random-start runs."""
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import math
 import numpy as np
 
 from ..control.registry import COMPOSITE_IDS
-from ..metrics import run_metrics
-from ..results import SimulationResult
-from ..scenario import Scenario
+from ..sim.run_metrics import run_metrics
+from ..sim.results import SimulationResult
+from ..sim.scenario import Scenario
 from ..vehicle import PARAMETER_NAMES
 
 THETA_SCALED_UNITS: dict[str, str] = {

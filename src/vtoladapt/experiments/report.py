@@ -3,7 +3,7 @@
 The report is first built as plain data (:class:`Report`: title, paragraphs, tables of words and
 numbers, figures); two Jinja2 templates (``templates/report.md.j2``, ``templates/report.html.j2``)
 render that same data as Markdown and as a standalone HTML page with the figures inline. Table
-headers and row labels come from :data:`vtoladapt.metrics.METRIC_INFO` (words with units), and
+headers and row labels come from :data:`vtoladapt.sim.run_metrics.METRIC_INFO` (words with units), and
 every path shown is relative to the output folder, so a report says nothing about the machine
 that made it.
 
@@ -23,7 +23,7 @@ from typing import Iterable, Optional
 
 from .. import outputs
 from ..control.registry import CONTROLLERS
-from ..metrics import METRIC_INFO, metric_display_value
+from ..sim.run_metrics import METRIC_INFO, metric_display_value
 from ..vehicle import PARAMETER_NAMES
 
 TEMPLATE_DIR = Path(__file__).with_name("templates")

@@ -15,18 +15,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from .config import NAME_PATTERN, PATH_PATTERN, ConfigError, build, read_toml, refuse_internal_keys, setting
-from .control.config import (SCENARIO_DT_DEFAULT_S, SCENARIO_DT_RANGE_S, ControllerConfig, check_rate_matches_dt,
+from ..config import NAME_PATTERN, PATH_PATTERN, ConfigError, build, read_toml, refuse_internal_keys, setting
+from ..control.config import (SCENARIO_DT_DEFAULT_S, SCENARIO_DT_RANGE_S, ControllerConfig, check_rate_matches_dt,
                              rate_from_dt)
-from .control.registry import CONTROLLER_IDS, THETA_ADAPTIVE_IDS
+from ..control.registry import CONTROLLER_IDS, THETA_ADAPTIVE_IDS
 from .faults import FaultConfig
 from .monitor import EnvelopeConfig
 from .plant import PlantConfig
-from .sensors import SensorsConfig
-from .vehicle import Vehicle, load_vehicle
-from .wind import WindConfig
+from ..sensors import SensorsConfig
+from ..vehicle import Vehicle, load_vehicle
+from ..wind import WindConfig
 
-SCENARIO_DIR = Path(__file__).with_name("scenarios")
+SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 A one-hour flight at 250 Hz is 900 000 log rows of ~200 float64 columns (1.4 GB in memory), so
 :func:`stream_run` never holds more than one chunk: it advances the loop ``chunk_s`` at a time
-(:func:`vtoladapt.simulate.run_chunk`, the same kernel :func:`~vtoladapt.simulate.simulate`
+(:func:`vtoladapt.sim.driver.run_chunk`, the same kernel :func:`~vtoladapt.sim.driver.simulate`
 calls), appends each chunk to the Parquet file as one row group, and after each chunk measures
 what a long run could wear out: the orthonormality of ``R_WB`` (from the plant's quaternion and
 from the controller's attitude estimate), the symmetry and eigenvalues of the adaptation gain ``P``
@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .frames import quats_to_rotmats
-from .layout import X_Q_WB
+from ..frames import quats_to_rotmats
+from ..layout import X_Q_WB
 from .scenario import Scenario
 
 
@@ -68,16 +68,16 @@ def stream_run(scenario: Scenario, out: str | Path, chunk_s: float = 60.0) -> Lo
     """Run ``scenario`` writing its log to ``out`` (Parquet, one row group per ``chunk_s``).
 
     Memory stays flat whatever the duration: one chunk of the log is in memory at a time. The
-    file holds the same columns and values :func:`vtoladapt.simulate.simulate` returns (its
+    file holds the same columns and values :func:`vtoladapt.sim.driver.simulate` returns (its
     schema carries the run's metadata once the run ends). Stops at a divergence like
-    :func:`~vtoladapt.simulate.simulate`.
+    :func:`~vtoladapt.sim.driver.simulate`.
     """
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from .compiled_loop import LOG_COLUMNS, N_LOG
-    from .control.kernel import state_P_inv, state_theta_hat
-    from .simulate import controller_prior, prepare, run_chunk
+    from .loop import LOG_COLUMNS, N_LOG
+    from ..control.kernel import state_P_inv, state_theta_hat
+    from .driver import controller_prior, prepare, run_chunk
 
     run = prepare(scenario)
     _, _, _, lower, upper, _ = controller_prior(scenario, run.vehicle)
@@ -130,14 +130,14 @@ def stream_run(scenario: Scenario, out: str | Path, chunk_s: float = 60.0) -> Lo
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m vtoladapt.longrun SCENARIO OUT.parquet [CHUNK_S]``: stream a run, print its report."""
+    """``python -m vtoladapt.sim.longrun SCENARIO OUT.parquet [CHUNK_S]``: stream a run, print its report."""
     import sys
 
     from .scenario import load_scenario
 
     args = sys.argv[1:] if argv is None else argv
     if len(args) not in (2, 3):
-        print("usage: python -m vtoladapt.longrun SCENARIO OUT.parquet [CHUNK_S]", file=sys.stderr)
+        print("usage: python -m vtoladapt.sim.longrun SCENARIO OUT.parquet [CHUNK_S]", file=sys.stderr)
         return 2
     report = stream_run(load_scenario(args[0]), args[1], float(args[2]) if len(args) == 3 else 60.0)
     print(report.to_json())

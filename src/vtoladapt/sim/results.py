@@ -16,7 +16,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from .vehicle import PARAMETER_NAMES
+from ..vehicle import PARAMETER_NAMES
 
 PARQUET_FORMAT_VERSION = 1
 
@@ -79,7 +79,7 @@ class SimulationResult:
         the paper's figures. Computed once and cached.
         """
         if self._v_tilde is None:
-            from .control.tracking import reference_velocity
+            from ..control.tracking import reference_velocity
 
             lam = np.asarray(self.metadata["Lambda_p"], dtype=float)
             corr_max = float(self.metadata["velocity_correction_max_mps"])
@@ -122,7 +122,7 @@ class SimulationResult:
         return self.diverged_at_s is not None
 
     def raise_if_diverged(self) -> "SimulationResult":
-        """Return ``self``, or raise :class:`vtoladapt.monitor.DivergenceError` if the run diverged."""
+        """Return ``self``, or raise :class:`vtoladapt.sim.monitor.DivergenceError` if the run diverged."""
         if self.diverged:
             from .monitor import DivergenceError
 
@@ -141,7 +141,7 @@ class SimulationResult:
         meta = {b"vtoladapt_format": str(PARQUET_FORMAT_VERSION).encode(),
                 b"vtoladapt_metadata": json.dumps(self.metadata, default=_jsonable).encode()}
         table = table.replace_schema_metadata({**(table.schema.metadata or {}), **meta})
-        from .outputs import atomic_path
+        from ..outputs import atomic_path
 
         with atomic_path(path) as tmp:  # never a half-written log; recorded in the folder's manifest
             pq.write_table(table, tmp)

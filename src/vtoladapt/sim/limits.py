@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import pickle
 
-from .config import MEMORY_BUDGET_BYTES, ConfigError, check_memory
+from ..config import MEMORY_BUDGET_BYTES, ConfigError, check_memory
 
 FLOAT_BYTES = 8
 FORCE_BALANCE_COLUMNS = 16
@@ -26,7 +26,7 @@ CAMPAIGN_ROW_BYTES = 4096
 
 def log_columns() -> int:
     """Columns of a simulation log (one float64 each per control tick)."""
-    from .compiled_loop import N_LOG
+    from .loop import N_LOG
 
     return N_LOG
 
@@ -99,7 +99,7 @@ ROW_CHECKS = {
 
 
 def _range_text(meta) -> str:
-    from .config import MAGNITUDE_MAX
+    from ..config import MAGNITUDE_MAX
 
     parts = []
     for name, sym in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")):
@@ -121,7 +121,7 @@ def _settings_rows(cls: type, prefix: str = "") -> list[tuple[str, str, str]]:
     import types
     import typing
 
-    from .config import _type_hints
+    from ..config import _type_hints
 
     rows = []
     hints = _type_hints(cls)
@@ -149,7 +149,7 @@ def _settings_rows(cls: type, prefix: str = "") -> list[tuple[str, str, str]]:
 def ranges_markdown() -> str:
     """The README's table of every numeric key of a scenario and a vehicle file and its range."""
     from .scenario import Scenario
-    from .vehicle import Vehicle
+    from ..vehicle import Vehicle
 
     lines = ["| file | key | allowed (unit) |", "|---|---|---|"]
     for name, cls in (("scenario", Scenario), ("vehicle", Vehicle)):
