@@ -135,7 +135,7 @@ def _package_with_example_law(root: Path) -> Path:
     (pkg / "control" / "laws" / "example.py").write_text(EXAMPLE_LAW)
     registry = pkg / "control" / "registry.py"
     text = registry.read_text()
-    end = text.index(")}\n", text.index("CONTROLLERS: dict[str, ControllerInfo]"))
+    end = text.index("), package=", text.index("CONTROLLERS: Registry = Registry("))
     registry.write_text(text[:end] + REGISTRY_ENTRY + text[end:])
     return root
 
