@@ -1,6 +1,7 @@
 """The divergence monitor: a run that leaves its [envelope] stops, keeps its log, says when and why."""
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 
@@ -28,17 +29,32 @@ def _run(**extra):
     return simulate(scenario_from_mapping(_mapping(**extra), "tests/test_divergence.py"))
 
 
+def _forced(obj, **changes):
+    """A copy of frozen settings ``obj`` with ``changes`` written past its validation."""
+    out = copy.copy(obj)  # copies without __post_init__, so without the checks
+    for name, value in changes.items():
+        object.__setattr__(out, name, value)
+    return out
+
+
 def _absurd_thrust_scenario(duration_s: float = 2.0):
-    """CTz = 1e10: the input ranges refuse it in a file (test below), so the scenario is built past
-    them, as a program could, to see that the loop itself still stops such a run."""
+    """CTz = 1e10: the input ranges refuse it in a file and in Python (tests below), so the scenario
+    is forced past them, as only a determined program can, to see that the loop itself still stops
+    such a run."""
     s = scenario_from_mapping(_mapping(duration_s=duration_s), "tests/test_divergence.py")
-    coeffs = dataclasses.replace(s.plant.coefficients, CTz=1e10)
-    return dataclasses.replace(s, plant=dataclasses.replace(s.plant, coefficients=coeffs))
+    coeffs = _forced(s.plant.coefficients, CTz=1e10)
+    return _forced(s, plant=_forced(s.plant, coefficients=coeffs))
 
 
 def test_absurd_thrust_coefficient_is_refused_in_a_file():
     with pytest.raises(ConfigError, match=r"\[plant.coefficients\] CTz = 10000000000.0: out of range"):
         _run(plant={"coefficients": {"CTz": 1e10}})
+
+
+def test_absurd_thrust_coefficient_is_refused_in_python():
+    s = scenario_from_mapping(_mapping(), "tests/test_divergence.py")
+    with pytest.raises(ConfigError, match=r"PlantCoefficients: \[plant.coefficients\] CTz = 10000000000.0: out"):
+        dataclasses.replace(s.plant.coefficients, CTz=1e10)
 
 
 def test_absurd_thrust_coefficient_stops_at_the_first_ticks():

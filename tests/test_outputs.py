@@ -1,8 +1,10 @@
 """Output folders: refusal of foreign folders, stale outputs removed, atomic writes, valid JSON."""
 from __future__ import annotations
 
+import hashlib
 import json
 import math
+import os
 
 import numpy as np
 import pytest
@@ -32,7 +34,7 @@ def test_new_folder_gets_a_manifest_of_what_was_written(tmp_path):
     manifest = read_manifest(out)
     assert manifest["command"] == "run" and manifest["status"] == "complete"
     assert sorted(manifest["files"]) == ["report.md", "runs/m.json"] == claim.files
-    assert manifest["files"]["report.md"][0] == len("hello")
+    assert manifest["files"]["report.md"] == {"bytes": 5, "sha256": hashlib.sha256(b"hello").hexdigest()}
 
 
 def test_foreign_non_empty_folder_is_refused_without_force(tmp_path):
@@ -176,3 +178,90 @@ def test_single_file_outputs_are_replaced_only_when_ours(tmp_path):
 def test_json_safe_rejects_unknown_objects():
     with pytest.raises(TypeError):
         json_safe({"x": object()})
+
+
+# --- issue #27, item 6: a manifest is a claim, not proof ------------------------------------------------
+
+def _plant(out, victim, manifest_version):
+    """The issue's attack: ``out`` holds a manifest of 'run' listing ``sub/thesis.tex`` with the victim
+    file's own size and time (version 1) or size and SHA-256 (version 2), and ``sub -> victim's folder``."""
+    out.mkdir()
+    target = victim / "thesis.tex"
+    st = target.stat()
+    entry = ([st.st_size, st.st_mtime_ns] if manifest_version == 1 else
+             {"bytes": st.st_size, "sha256": hashlib.sha256(target.read_bytes()).hexdigest()})
+    (out / MANIFEST_NAME).write_text(json.dumps({"format": "vtoladapt.outputs", "version": manifest_version,
+                                                 "command": "run", "status": "complete",
+                                                 "files": {"sub/thesis.tex": entry}}))
+    os.symlink(victim, out / "sub")
+
+
+@pytest.mark.parametrize("version", [1, 2])
+def test_a_planted_manifest_and_link_cannot_delete_a_file_outside_the_folder(tmp_path, version):
+    """Before the fix the rerun deleted victim/thesis.tex (its size and time matched the manifest)."""
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / "thesis.tex").write_text("four years of work")
+    out = tmp_path / "out"
+    _plant(out, victim, version)
+    with pytest.raises(OutputError, match="sub/thesis.tex is (reached through a symbolic link|listed by a manifest)"):
+        OutputDir(out, "run")
+    with OutputDir(out, "run", force=True):  # forced: written beside it, the listed file untouched
+        write_text(out / "report.md", "new")
+    assert (victim / "thesis.tex").read_text() == "four years of work"
+    assert os.path.islink(out / "sub")
+
+
+def test_a_plain_run_into_a_planted_folder_exits_2_and_deletes_nothing(tmp_path):
+    from vtoladapt.cli import main
+
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / "thesis.tex").write_text("four years of work")
+    _plant(tmp_path / "out", victim, 1)
+    assert main(["run", "gym_hold", "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    assert (victim / "thesis.tex").read_text() == "four years of work"
+
+
+def test_same_size_and_time_with_other_content_is_not_deleted(tmp_path):
+    """Size and time are copied as easily as a name: only the content hash proves a file is ours."""
+    with OutputDir(tmp_path, "run"):
+        write_text(tmp_path / "report.md", "generated")
+    before = (tmp_path / "report.md").stat()
+    (tmp_path / "report.md").write_text("GENERATED")  # the user's, same size
+    os.utime(tmp_path / "report.md", ns=(before.st_atime_ns, before.st_mtime_ns))
+    with pytest.raises(OutputError, match="report.md was changed"):
+        OutputDir(tmp_path, "run")
+    with OutputDir(tmp_path, "run", force=True):
+        write_text(tmp_path / "other.md", "x")
+    assert (tmp_path / "report.md").read_text() == "GENERATED"
+
+
+def test_a_listed_path_swapped_for_a_link_after_the_check_is_not_followed(tmp_path):
+    """The check passed on a real folder; a link put in its place before the claim is not followed."""
+    with OutputDir(tmp_path / "out", "run"):
+        write_text(tmp_path / "out" / "runs" / "a.parquet", "log")
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / "a.parquet").write_text("log")  # identical content, outside the folder
+    target = OutputDir(tmp_path / "out", "run")
+    os.rename(tmp_path / "out" / "runs", tmp_path / "moved")
+    os.symlink(victim, tmp_path / "out" / "runs")
+    target.check = lambda: None  # the swap lands between the second check and the removal
+    with target:
+        pass
+    assert (victim / "a.parquet").read_text() == "log"
+
+
+def test_writers_refuse_to_write_through_a_link_inside_the_folder(tmp_path):
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "a.parquet").write_text("the user's")
+    out = tmp_path / "out"
+    with OutputDir(out, "run"):
+        write_text(out / "report.md", "x")
+    os.symlink(elsewhere, out / "runs")
+    with OutputDir(out, "run", force=True):
+        with pytest.raises(OutputError, match="is a symbolic link"):
+            write_text(out / "runs" / "a.parquet", "generated")
+    assert (elsewhere / "a.parquet").read_text() == "the user's"

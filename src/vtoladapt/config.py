@@ -183,6 +183,8 @@ def _is_bool(value: Any) -> bool:
 
 
 def _convert(value: Any, tp: Any, meta: Mapping[str, Any], where: str, source: str) -> Any:
+    if tp is Any:  # a field its class checks itself (the gym's scenario: a name, a mapping or a Scenario)
+        return value
     origin = typing.get_origin(tp)
     if origin is typing.Union or origin is types.UnionType:
         args = [a for a in typing.get_args(tp) if a is not type(None)]

@@ -6,10 +6,14 @@ The rules (README "When things go wrong"):
   not empty and is not an earlier output of the same command is refused (exit 2) unless
   ``--force``; even with ``--force`` only files of the same name are replaced, nothing else.
 * Each output folder carries a manifest, :data:`MANIFEST_NAME`, listing the files the command
-  wrote (size and modification time), the command, its arguments and how it ended.
+  wrote (size and SHA-256 of the content), the command, its arguments and how it ended.
 * A new run into its own earlier output folder first deletes the files that folder's manifest
-  lists (and only those, and only while they are unchanged since they were written), so an
-  earlier run's outputs never mix with a new run's.
+  lists (and only those, and only while their content is still what was written), so an
+  earlier run's outputs never mix with a new run's. A manifest is only a claim (anyone can write
+  one), so the deletion proves each file itself: the path is walked one folder at a time without
+  following a symbolic link (a link anywhere on it and the file is left alone: a planted
+  ``sub -> /elsewhere`` cannot reach outside the folder), the file must be a regular file, and its
+  size and SHA-256 must match the manifest's (size and time are not proof: both can be copied).
 * Every file is written under a temporary name in the same folder and renamed into place, so an
   interrupted or failed run leaves no truncated file. Files written by code that does not use
   these helpers are kept only when the command completes; on failure or Ctrl-C they are removed
@@ -39,11 +43,13 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import hashlib
 import json
 import math
 import os
 import secrets
 import shutil
+import stat
 import sys
 import threading
 from pathlib import Path
@@ -53,7 +59,9 @@ from .config import ConfigError
 
 MANIFEST_NAME = ".vtoladapt-manifest.json"
 MANIFEST_FORMAT = "vtoladapt.outputs"
-MANIFEST_VERSION = 1
+MANIFEST_VERSION = 2
+"""2: each file is ``{"bytes": size, "sha256": hex digest}`` (1 recorded size and time only, which
+prove nothing: files a version-1 manifest lists are never deleted)."""
 PARTIAL_MARK = ".partial-"
 """Temporary files (and staging folders) are named ``.partial-<random><suffix>`` beside their target."""
 
@@ -80,9 +88,12 @@ _LOCK = threading.RLock()
 
 
 def _signature(path: Path) -> Optional[list[int]]:
+    """``[size, mtime]`` of a regular file (not through a final link), to see what changed during a run."""
     try:
-        st = path.stat()
+        st = path.lstat()
     except OSError:
+        return None
+    if not stat.S_ISREG(st.st_mode):
         return None
     return [st.st_size, st.st_mtime_ns]
 
@@ -132,6 +143,150 @@ def _check_parents(path: Path, flag: str) -> None:
         if p == p.parent:
             return
         p = p.parent
+
+
+_HASH_BLOCK = 1 << 20
+
+
+def _open_parent(root: Path, rel: str) -> Optional[tuple[int, str]]:
+    """``(folder descriptor, name)`` of ``root / rel``, reached one folder at a time without
+    following a symbolic link, or None if a component is a link, not a folder, or missing.
+    The caller closes the descriptor."""
+    parts = Path(rel).parts
+    if not parts or not _safe_relative(rel):
+        return None
+    flags = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0)
+    try:
+        fd = os.open(root, flags)
+    except OSError:
+        return None
+    for part in parts[:-1]:
+        try:
+            nxt = os.open(part, flags | getattr(os, "O_NOFOLLOW", 0), dir_fd=fd)
+        except OSError:  # a link (ELOOP/ENOTDIR), a file, or gone
+            os.close(fd)
+            return None
+        os.close(fd)
+        fd = nxt
+    return fd, parts[-1]
+
+
+def _content_entry_at(dir_fd: int, name: str) -> Optional[dict]:
+    """``{"bytes", "sha256"}`` of the regular file ``name`` in folder ``dir_fd`` (not through a
+    link), else None."""
+    try:
+        fd = os.open(name, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0), dir_fd=dir_fd)
+    except OSError:
+        return None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            return None
+        digest = hashlib.sha256()
+        while True:
+            block = os.read(fd, _HASH_BLOCK)
+            if not block:
+                break
+            digest.update(block)
+        return {"bytes": st.st_size, "sha256": digest.hexdigest()}
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+
+
+def _content_entry(root: Path, rel: str) -> Optional[dict]:
+    """The manifest entry of ``root / rel`` as it is now (see :func:`_content_entry_at`)."""
+    opened = _open_parent(root, rel)
+    if opened is None:
+        return None
+    fd, name = opened
+    try:
+        return _content_entry_at(fd, name)
+    finally:
+        os.close(fd)
+
+
+def _inspect(root: Path, rel: str, entry: Any) -> str:
+    """What ``root / rel`` is against its manifest ``entry``: "missing", "ours" (a regular file,
+    reached without a link, whose size and SHA-256 are the entry's), "changed" (a regular file
+    with other content), "unproven" (a version-1 entry: size and time only) or "unsafe" (reached
+    only through a symbolic link, or not a regular file)."""
+    opened = _open_parent(root, rel)
+    if opened is None:
+        return "unsafe" if os.path.lexists(root / rel) else "missing"
+    fd, name = opened
+    try:
+        try:
+            st = os.stat(name, dir_fd=fd, follow_symlinks=False)
+        except FileNotFoundError:
+            return "missing"
+        except OSError:
+            return "unsafe"
+        if not stat.S_ISREG(st.st_mode):
+            return "unsafe"
+        if not (isinstance(entry, dict) and isinstance(entry.get("sha256"), str)):
+            return "unproven"
+        if st.st_size != entry.get("bytes"):
+            return "changed"
+        now = _content_entry_at(fd, name)
+        return "ours" if now is not None and now["sha256"] == entry["sha256"] else "changed"
+    finally:
+        os.close(fd)
+
+
+def _remove_if_ours(root: Path, rel: str, entry: dict) -> bool:
+    """Delete ``root / rel`` if it is still the file ``entry`` describes (:func:`_inspect`'s "ours"),
+    through the folder descriptors the check used, so a link swapped in meanwhile is not followed.
+    Then remove the folders it leaves empty, up to ``root``. True if deleted."""
+    opened = _open_parent(root, rel)
+    if opened is None:
+        return False
+    fd, name = opened
+    try:
+        now = _content_entry_at(fd, name)
+        if now is None or now != {"bytes": entry.get("bytes"), "sha256": entry.get("sha256")}:
+            return False
+        os.unlink(name, dir_fd=fd)
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+    _remove_empty_folders(root, rel)
+    return True
+
+
+def _unlink_new(root: Path, rel: str) -> None:
+    """Delete the regular file ``root / rel`` this run left unfinished (never through a link)."""
+    opened = _open_parent(root, rel)
+    if opened is None:
+        return
+    fd, name = opened
+    try:
+        if stat.S_ISREG(os.stat(name, dir_fd=fd, follow_symlinks=False).st_mode):
+            os.unlink(name, dir_fd=fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+    _remove_empty_folders(root, rel)
+
+
+def _remove_empty_folders(root: Path, rel: str) -> None:
+    """Remove the folders of ``rel`` that are now empty, innermost first, up to ``root`` (not
+    through a link; rmdir removes only an empty folder)."""
+    parts = Path(rel).parts[:-1]
+    for i in range(len(parts), 0, -1):
+        opened = _open_parent(root, "/".join(parts[:i]))
+        if opened is None:
+            return
+        fd, name = opened
+        try:
+            os.rmdir(name, dir_fd=fd)
+        except OSError:
+            return
+        finally:
+            os.close(fd)
 
 
 def read_manifest(folder: Path) -> Optional[dict]:
@@ -189,11 +344,11 @@ class OutputDir:
         self.force = force
         self.flag = flag
         self._root = Path(os.path.abspath(self.path))
-        self._files: dict[str, list[int]] = {}
+        self._files: dict[str, dict] = {}
         self._before: dict[str, list[int]] = {}
         self._created: Optional[Path] = None
         self._entered = False
-        self._stale: list[str] = []
+        self._stale: list[tuple[str, dict]] = []
         self._was_ours = False
         self.check()
 
@@ -229,17 +384,21 @@ class OutputDir:
                     "folder, or add --force")
             return
         self._was_ours = True
-        for rel, sig in manifest["files"].items():
+        for rel, entry in manifest["files"].items():
             if not _safe_relative(rel):
                 continue
-            now = _signature(path / rel)
-            if now is not None and now != sig and not self.force:
+            state = _inspect(self._root, rel, entry)
+            if state == "ours":
+                self._stale.append((rel, entry))
+            elif state != "missing" and not self.force:
+                why = {"changed": f"was changed after vtoladapt {self.command} wrote it",
+                       "unproven": "is listed by a manifest of an earlier vtoladapt that recorded no content hash, "
+                                   "so it cannot be proven to be that run's output",
+                       "unsafe": "is reached through a symbolic link or is not a regular file, and vtoladapt "
+                                 "never deletes through a link"}[state]
                 raise OutputError(
-                    f"{flag} {str(path)!r}: {rel} was changed after vtoladapt {self.command} wrote "
-                    "it; move it away, or add --force (it is then kept, or replaced if the new run "
-                    "writes a file of that name)")
-            if now is not None and now == sig:
-                self._stale.append(rel)
+                    f"{flag} {str(path)!r}: {rel} {why}; move it away, or add --force (it is then kept, "
+                    "or replaced if the new run writes a file of that name)")
 
     # --- claim ------------------------------------------------------------------------------------
     def __enter__(self) -> "OutputDir":
@@ -253,10 +412,8 @@ class OutputDir:
                 top = top.parent
             self._root.mkdir(parents=True)
             self._created = top
-        for rel in self._stale:  # an earlier run of this command: its outputs go first
-            target = self._root / rel
-            target.unlink(missing_ok=True)
-            _remove_empty_parents(target.parent, self._root)
+        for rel, entry in self._stale:  # an earlier run of this command: its outputs go first
+            _remove_if_ours(self._root, rel, entry)
         self._before = _walk_files(self._root)
         with _LOCK:
             _ACTIVE.append(self)
@@ -267,10 +424,10 @@ class OutputDir:
         """Note ``path`` (inside the folder) as a complete output of this run."""
         full = Path(os.path.abspath(path))
         rel = full.relative_to(self._root).as_posix()
-        sig = _signature(full)
-        if sig is not None:
+        entry = _content_entry(self._root, rel)
+        if entry is not None:
             with _LOCK:
-                self._files[rel] = sig
+                self._files[rel] = entry
             self._write_manifest("running")
 
     def is_foreign(self, path) -> bool:
@@ -290,21 +447,20 @@ class OutputDir:
         new = {rel: sig for rel, sig in now.items() if self._before.get(rel) != sig}
         for rel in list(new):
             if Path(rel).name.startswith(PARTIAL_MARK):  # a writer's temporary file: never an output
-                (self._root / rel).unlink(missing_ok=True)
+                _unlink_new(self._root, rel)
                 new.pop(rel)
         if exc_type is None:
             for rel in new:
                 if rel.endswith(".json"):
                     _repair_json(self._root / rel)
-            self._files.update(_walk_files_subset(self._root, new))
+            self._files.update(_entries(self._root, (rel for rel in new if rel not in self._files)))
             self._write_manifest("complete")
             return False
         # failed or interrupted: keep the files written completely (through this module); remove
         # the rest, which may be truncated, unless they overwrote a file that was here before
         for rel in new:
             if rel not in self._files and rel not in self._before:
-                (self._root / rel).unlink(missing_ok=True)
-                _remove_empty_parents((self._root / rel).parent, self._root)
+                _unlink_new(self._root, rel)
         self._files = {rel: sig for rel, sig in self._files.items() if (self._root / rel).exists()}
         status = "interrupted" if issubclass(exc_type, KeyboardInterrupt) else "failed"
         if self._files or self._was_ours:
@@ -331,28 +487,19 @@ class OutputDir:
                             (json.dumps(doc, indent=1) + "\n").encode(), register=False)
 
 
-def _walk_files_subset(root: Path, rels: Iterable[str]) -> dict[str, list[int]]:
+def _entries(root: Path, rels: Iterable[str]) -> dict[str, dict]:
+    """Manifest entries (:func:`_content_entry`) of the regular files ``rels`` under ``root``."""
     out = {}
     for rel in rels:
-        sig = _signature(root / rel)
-        if sig is not None:
-            out[rel] = sig
+        entry = _content_entry(root, rel)
+        if entry is not None:
+            out[rel] = entry
     return out
 
 
 def _safe_relative(rel: str) -> bool:
     p = Path(rel)
     return not p.is_absolute() and ".." not in p.parts
-
-
-def _remove_empty_parents(folder: Path, root: Path) -> None:
-    folder = Path(os.path.abspath(folder))
-    while folder != root and root in folder.parents:
-        try:
-            folder.rmdir()
-        except OSError:
-            return
-        folder = folder.parent
 
 
 def _remove_empty_tree(top: Path) -> None:
@@ -437,7 +584,17 @@ def _register(path: Path) -> None:
 
 def _refuse_foreign(path: Path) -> None:
     owner = _owner_of(path)
-    if owner is not None and not owner.force and owner.is_foreign(path):
+    if owner is None:
+        return
+    # outputs go into real folders of the claimed one: a planted link (runs -> /elsewhere) would
+    # put them, and their replacement of a file of the same name, outside it
+    inner = owner._root
+    for part in Path(os.path.abspath(path)).relative_to(owner._root).parts:
+        inner = inner / part
+        if inner.is_symlink():
+            raise OutputError(f"{path}: {inner} is a symbolic link; vtoladapt writes its outputs only into "
+                              f"the folders of {owner.flag} themselves; remove the link or choose another folder")
+    if not owner.force and owner.is_foreign(path):
         raise OutputError(f"{path}: exists and was not written by 'vtoladapt {owner.command}'; "
                           "move it away, or add --force to replace it")
 
@@ -450,8 +607,8 @@ def atomic_path(path) -> Iterator[Path]:
     Inside a claimed :class:`OutputDir` the file is recorded in its manifest.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     _refuse_foreign(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = _temporary_name(path)
     try:
         yield tmp

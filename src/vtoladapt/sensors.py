@@ -93,7 +93,7 @@ import numpy as np
 from numba import njit
 
 from . import layout
-from .config import PATH_PATTERN, build, setting
+from .config import PATH_PATTERN, Validated, build, setting
 from .frames import GRAVITY_MPS2
 from .probe import (ProbeTip, SDP33Sensor, calibrate_tip, incident_velocity_from_pressures,
                     load_calibration, probe_differential_pressures, sdp33_sensor_step)
@@ -221,8 +221,10 @@ SENSORS_STATE_SIZE = SENSOR_STATE.size
 # ==================================================================================================
 
 @dataclass(frozen=True)
-class ImuConfig:
+class ImuConfig(Validated):
     """Gyroscope and accelerometer, sampled at the control rate (``[sensors.imu]``)."""
+
+    config_section = "sensors.imu"
 
     ideal: bool = setting("-", "perfect IMU (true rate and specific force)", default=False)
     gyro_noise_density_dps_rtHz: float = setting(
@@ -247,8 +249,10 @@ class ImuConfig:
 
 
 @dataclass(frozen=True)
-class MocapConfig:
+class MocapConfig(Validated):
     """Motion-capture position and velocity (``[sensors.mocap]``)."""
+
+    config_section = "sensors.mocap"
 
     ideal: bool = setting("-", "perfect, undelayed position and velocity", default=False)
     position_noise_std_m: float = setting("m", "position noise per axis (Vicon/OptiTrack ~0.5 mm)",
@@ -267,8 +271,10 @@ class MocapConfig:
 
 
 @dataclass(frozen=True)
-class AttitudeConfig:
+class AttitudeConfig(Validated):
     """Attitude estimate ``q_WB`` (``[sensors.attitude]``)."""
+
+    config_section = "sensors.attitude"
 
     ideal: bool = setting("-", "perfect attitude", default=False)
     noise_std_deg: float = setting("deg", "small-rotation noise per body axis, each tick",
@@ -276,7 +282,7 @@ class AttitudeConfig:
 
 
 @dataclass(frozen=True)
-class ProbeConfig:
+class ProbeConfig(Validated):
     """Airflow probe: incident velocity in body axes (``[sensors.probe]``).
 
     ``model = "ideal_noise"``: lagged truth plus white noise. ``model = "pressure"``: the paper's
@@ -288,6 +294,8 @@ class ProbeConfig:
     to the simulated tip, or loaded from ``calibration_file`` (a ``vtoladapt probe calibrate``
     output; ``calibration`` picks the model in it).
     """
+
+    config_section = "sensors.probe"
 
     ideal: bool = setting("-", "perfect, always valid incident velocity", default=False)
     model: str = setting("-", "'ideal_noise': truth, lag and noise; 'pressure': tip, SDP33 sensors and "
@@ -355,8 +363,10 @@ def _tip_calibration(tip: ProbeTip) -> dict:
 
 
 @dataclass(frozen=True)
-class SensorsConfig:
+class SensorsConfig(Validated):
     """All the sensors of a scenario (``[sensors]``)."""
+
+    config_section = "sensors"
 
     imu: ImuConfig = setting("-", "IMU", default=ImuConfig())
     mocap: MocapConfig = setting("-", "motion capture", default=MocapConfig())

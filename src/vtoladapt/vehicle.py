@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import ConfigError, build, read_toml, refuse_internal_keys, setting
+from .config import ConfigError, Validated, build, read_toml, refuse_internal_keys, setting
 from .scaling import model_kernel_params, theta_to_scaled
 
 VEHICLE_DIR = Path(__file__).with_name("vehicles")
@@ -27,8 +27,10 @@ PARAMETER_NAMES = ("CTx", "CTz", "CS", "CD0", "CD1", "CD2", "CL0", "CL1")
 
 
 @dataclass(frozen=True)
-class MassProperties:
+class MassProperties(Validated):
     """Mass and inertia about the centre of mass, body FRD axes."""
+
+    config_section = "mass"
 
     mass_kg: float = setting("kg", "take-off mass (small UAS: <= 150 kg)", gt=0.0, le=150.0)
     inertia_kgm2: tuple[float, ...] = setting(
@@ -52,8 +54,10 @@ class MassProperties:
 
 
 @dataclass(frozen=True)
-class Geometry:
+class Geometry(Validated):
     """Where things are on the airframe (body FRD, metres from the centre of mass)."""
+
+    config_section = "geometry"
 
     wing_area_m2: float = setting("m^2", "reference wing area S_ref", gt=0.0, le=50.0)
     wingspan_m: float = setting("m", "wingspan", gt=0.0, le=40.0)
@@ -83,13 +87,15 @@ class Geometry:
 
 
 @dataclass(frozen=True)
-class ForceModelCoefficients:
+class ForceModelCoefficients(Validated):
     """The paper's force model (Table I units): throttle in percent, forces per unit mass.
 
     ``T_x = CTx u_x^2``, ``T_z = CTz u_z^2`` (m/s^2, u in %), ``F_S = CS G(alpha, V, u_z)``
     with ``G = u_z^k1 V^(2-k1) ((pi/2)^2 - alpha^2)(alpha + k2)``, wing
     ``CL = CL0 + CL1 alpha``, ``CD = CD0 + CD1 alpha + CD2 alpha^2`` (alpha in rad).
     """
+
+    config_section = "force_model"
 
     CTx: float = setting("m/s^2 per %^2", "pusher thrust coefficient (0.01: 10 g at full throttle)", gt=0.0, le=0.01)
     CTz: float = setting("m/s^2 per %^2", "total lift-rotor thrust coefficient (0.01: 10 g at full throttle)", gt=0.0, le=0.01)
@@ -108,8 +114,10 @@ class ForceModelCoefficients:
 
 
 @dataclass(frozen=True)
-class ForceModelStd:
+class ForceModelStd(Validated):
     """Posterior standard deviations of the force model (Table I), same units as the means."""
+
+    config_section = "force_model_std"
 
     CTx: float = setting("m/s^2 per %^2", "std of CTx", gt=0.0, le=0.01)
     CTz: float = setting("m/s^2 per %^2", "std of CTz", gt=0.0, le=0.01)
@@ -128,8 +136,10 @@ class ForceModelStd:
 
 
 @dataclass(frozen=True)
-class Adaptation:
+class Adaptation(Validated):
     """Initial adaptation gains (Table III): the diagonal of P0 in the adaptation scaling."""
+
+    config_section = "adaptation"
 
     P0_diag: tuple[float, ...] = setting(
         "adaptation units (see vtoladapt.models.scaling)",
@@ -142,8 +152,10 @@ class Adaptation:
 
 
 @dataclass(frozen=True)
-class Actuators:
+class Actuators(Validated):
     """Motor dynamics and limits."""
+
+    config_section = "actuators"
 
     throttle_max_pct: float = setting("%", "maximum throttle of every motor", gt=0.0, le=100.0)
     lift_motor_time_constant_s: float = setting("s", "first-order lag of a lift motor", gt=0.0, le=1.0)
@@ -153,8 +165,10 @@ class Actuators:
 
 
 @dataclass(frozen=True)
-class Envelope:
+class Envelope(Validated):
     """Flight-envelope limits the controller respects."""
+
+    config_section = "envelope"
 
     alpha_max_deg: float = setting("deg", "largest desired angle of attack (eq:alphad)", gt=0.0, le=45.0)
     hover_blend_airspeed_mps: tuple[float, ...] = setting(
@@ -186,7 +200,7 @@ class Envelope:
 
 
 @dataclass(frozen=True)
-class Vehicle:
+class Vehicle(Validated):
     """A validated vehicle configuration (see the module docstring)."""
 
     name: str = setting("-", "short identifier")

@@ -40,7 +40,8 @@ from typing import Optional
 import numpy as np
 
 from .cluster import LOOPBACK, check_listen, check_scheduler, connect_scheduler, local_cluster
-from ..config import PATH_PATTERN, ConfigError, build, check_flag, read_toml, refuse_internal_keys, setting
+from ..config import (PATH_PATTERN, ConfigError, Validated, build, check_flag, read_toml, refuse_internal_keys,
+                     setting)
 from ..control.registry import CONTROLLER_IDS
 from ..outputs import OutputDir, add_force_argument, output_path, write_json, write_parquet
 
@@ -182,8 +183,10 @@ LABEL_PATTERN = r"[^\x00\n]{0,64}"
 
 
 @dataclass(frozen=True)
-class VaryEntry:
+class VaryEntry(Validated):
     """A ``[[campaign.vary]]`` entry: scenario keys drawn in ``[low, high]`` for every draw."""
+
+    config_section = "campaign.vary"
 
     keys: tuple[str, ...] = setting("-", "dotted scenario keys (e.g. plant.stall_angle_deg), each drawn on its own",
                                     pattern=DOTTED_KEY_PATTERN)
@@ -246,9 +249,11 @@ class VaryEntry:
 
 
 @dataclass(frozen=True)
-class CampaignConfig:
+class CampaignConfig(Validated):
     """A campaign file's ``[campaign]`` table; its ``set`` and ``choices`` sub-tables are free-form
     (dotted scenario keys) and read by :func:`load_campaign_file`."""
+
+    config_section = "campaign"
 
     base: str = setting("-", "scenario every draw starts from (path relative to the campaign file)",
                         pattern=PATH_PATTERN)

@@ -26,7 +26,7 @@ from typing import Callable
 import numpy as np
 
 from .. import forces
-from ..config import build, setting
+from ..config import Validated, build, setting
 from ..models import THROTTLE_FULL_PCT, model_kernel_params, theta_to_scaled
 from ..vehicle import PARAMETER_NAMES, ForceModelCoefficients, Vehicle
 from .data import ForceBalanceData, FitDataError, incident_velocity_from_angles, write_force_balance_csv
@@ -41,7 +41,7 @@ rho (N,) kg/m^3) -> f_B (N,3)``: body FRD force per unit flight mass, m/s^2."""
 
 
 @dataclass(frozen=True)
-class TunnelDesign:
+class TunnelDesign(Validated):
     """The tunnel points of a virtual force-balance campaign."""
 
     wing_airspeeds_mps: tuple[float, ...] = setting(
@@ -78,7 +78,7 @@ class TunnelDesign:
 
 
 @dataclass(frozen=True)
-class BalanceNoise:
+class BalanceNoise(Validated):
     """Force-balance noise: per axis, std ``sigma_abs_N + sigma_rel * |reading|``."""
 
     sigma_abs_N: float = setting("N", "absolute noise of each force axis", default=0.02, ge=0.0)

@@ -19,7 +19,7 @@ from typing import Any, Mapping, Optional
 
 import numpy as np
 
-from ..config import ConfigError, build, setting
+from ..config import ConfigError, Validated, build, setting
 from ..sim.plant import PlantCoefficients
 from ..sim.scenario import Scenario, load_scenario, scenario_from_mapping
 from ..vehicle import PARAMETER_NAMES
@@ -39,7 +39,7 @@ _COEFFICIENT_CEIL = {"k1": 1.95}
 
 
 @dataclass(frozen=True)
-class HoldEnvConfig:
+class HoldEnvConfig(Validated):
     """Keyword arguments of ``vtoladapt/Hold-v0`` (and its vector version)."""
 
     scenario: Any = setting(

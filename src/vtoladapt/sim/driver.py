@@ -156,7 +156,9 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
     """
     from .loop import LOG_COLUMNS, N_LOG
     from ..control.kernel import information_sum
+    from .limits import check_in_memory_runs
 
+    check_in_memory_runs([scenario], scenario.source_path or f"scenario {scenario.name!r}")
     run = prepare(scenario)
     n = scenario.n_ticks
     log = np.empty((n, N_LOG))
@@ -176,7 +178,8 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
     diverged_at_s = None
     why = None
     if reason != 0:
-        log = log[:n_done].copy()
+        # a view, not a copy: the rows never written were never touched, so they hold no memory
+        log = log[:n_done]
         diverged_at_s = n_done * scenario.dt_control_s
         # the row the failed check read: the tick's own, or the chunk's last for the check after it
         why = scenario.envelope.describe_violation(reason, x, diverged_at_s,
@@ -211,7 +214,10 @@ def simulate_many(scenarios: Sequence[Scenario], workers: Optional[int] = None,
     """
     from concurrent.futures import ThreadPoolExecutor
 
+    from .limits import check_in_memory_runs
+
     scenarios = list(scenarios)
+    check_in_memory_runs(scenarios, "simulate_many")  # every result is held until all are returned
     if workers is None:
         workers = os.cpu_count() or 1
     if workers < 1:

@@ -42,9 +42,9 @@ from typing import Optional
 import numpy as np
 from numba import njit
 
-from ..config import ApplicableKeys, ConfigError, setting
+from ..config import ApplicableKeys, ConfigError, Validated, setting
 from ..layout import (MEAS_ACCEL_B, MEAS_OMEGA_B, MEAS_P_W, MEAS_V_I_B, MEAS_V_I_VALID, MEAS_V_W, MOTOR_PUSHER,
-                     BlockLayout, Field)
+                     N_MOTORS, BlockLayout, Field)
 
 FAULT_KINDS: tuple[str, ...] = (
     "probe_dropout", "probe_stuck", "probe_nan", "probe_blocked_port", "imu_spike", "imu_nan",
@@ -87,8 +87,10 @@ _HOLD_STRIDE = 5
 
 
 @dataclass(frozen=True)
-class FaultConfig:
+class FaultConfig(Validated):
     """One entry of the ``[[faults]]`` schedule (see the module docstring for the kinds)."""
+
+    config_section = "faults"
 
     kind: str = setting("-", "what fails", choices=FAULT_KINDS)
     start_s: float = setting("s", "fault active from this time", ge=0.0, le=3600.0)
@@ -123,6 +125,8 @@ class FaultConfig:
 
     def to_row(self, dt_s: float) -> np.ndarray:
         """This entry as one kernel row (:data:`FAULT_ROW`)."""
+        if not (isinstance(self.motor, int) and 1 <= self.motor <= N_MOTORS):  # the kernel indexes with it
+            raise ConfigError(f"[faults] {self.kind}: motor = {self.motor!r}: allowed: 1 to {N_MOTORS}")
         if self.kind == "mocap_latency" and round(self.extra_latency_s / dt_s) >= LATENCY_RING_TICKS:
             raise ConfigError(f"[faults] mocap_latency: extra_latency_s = {self.extra_latency_s:g}: at most "
                               f"{(LATENCY_RING_TICKS - 1) * dt_s:g} s at this controller rate")
@@ -161,7 +165,7 @@ def active_mask(faults, t) -> float:
 @njit(cache=True, nogil=True, _nrt=False)
 def apply_measurement_faults(faults, fstate, t, dt, meas) -> None:
     """Apply the active sensor faults of the schedule to ``meas`` in place (sensors -> controller)."""
-    n = faults.shape[0]
+    n = min(faults.shape[0], MAX_FAULTS)  # the hold state has room for MAX_FAULTS entries
     if n == 0:
         return
     # the latency ring holds what the motion capture delivered, before any fault of this tick
@@ -227,7 +231,7 @@ def apply_measurement_faults(faults, fstate, t, dt, meas) -> None:
 @njit(cache=True, nogil=True, _nrt=False)
 def apply_actuator_faults(faults, fstate, t, u_max, motor_cmd) -> None:
     """Apply the active actuator faults to the five motor commands in place (mixer -> plant)."""
-    for i in range(faults.shape[0]):
+    for i in range(min(faults.shape[0], MAX_FAULTS)):
         kind = int(faults[i, _F_KIND])
         if kind < K_LIFT_LOSS:
             continue
@@ -238,6 +242,8 @@ def apply_actuator_faults(faults, fstate, t, u_max, motor_cmd) -> None:
         if not on:
             continue
         m = int(faults[i, _F_MOTOR])
+        if m < 0 or m >= N_MOTORS:  # a schedule not made by faults_to_kernel: never write outside the commands
+            continue
         if kind == K_LIFT_LOSS:
             motor_cmd[m] *= np.sqrt(1.0 - faults[i, _F_LOSS])
         elif kind == K_PUSHER_SAT:

@@ -55,6 +55,26 @@ def check_run_size(scenario, where: str, n_runs: int | None = None) -> None:
                  "shorten duration_s, lengthen dt_control_s or fly fewer runs at once")
 
 
+def in_memory_run_bytes(scenario) -> float:
+    """Bytes :func:`vtoladapt.simulate.simulate` holds for one run: the log, the reference table and
+    the tick times, one float64 each per control tick (``log_columns() + REF_SIZE + 1`` per tick)."""
+    from ..layout import REF_SIZE
+
+    return float(scenario.n_ticks) * (log_columns() + REF_SIZE + 1) * FLOAT_BYTES
+
+
+def check_in_memory_runs(scenarios, where: str) -> None:
+    """Refuse runs whose in-memory logs (:func:`in_memory_run_bytes`, summed: ``simulate_many``
+    returns them all) exceed the budget, before any array is allocated."""
+    from ..layout import REF_SIZE
+
+    scenarios = list(scenarios)
+    ticks = sum(sc.n_ticks for sc in scenarios)
+    check_memory(f"{len(scenarios)} run(s), {ticks} ticks in all x ({log_columns()} log + {REF_SIZE} reference "
+                 f"+ 1 time) columns x {FLOAT_BYTES} bytes", sum(in_memory_run_bytes(sc) for sc in scenarios),
+                 where, "shorten duration_s, lengthen dt_control_s or fly fewer runs at once")
+
+
 def max_duration_s(scenario, n_runs: int = 1) -> float:
     """The longest duration whose logs fit the budget at the scenario's control period."""
     return MEMORY_BUDGET_BYTES / (n_runs * log_columns() * FLOAT_BYTES) * scenario.dt_control_s

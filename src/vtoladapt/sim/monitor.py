@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..config import setting
+from ..config import Validated, setting
 from ..errors import RunFailed
 from ..layout import REF_P_W, X_OMEGA_B, X_P_W, X_SIZE, X_V_W, BlockLayout, Field
 
@@ -47,9 +47,11 @@ _E_ON, _E_MAX_SPEED, _E_MAX_RATE, _E_MIN_H, _E_MAX_H, _E_MAX_POS_ERR = ENVELOPE_
 
 
 @dataclass(frozen=True)
-class EnvelopeConfig:
+class EnvelopeConfig(Validated):
     """Where a run stops as diverged (``[envelope]``); defaults are far outside any flight the
     controllers fly, so only a run that has lost the vehicle trips them."""
+
+    config_section = "envelope"
 
     enabled: bool = setting("-", "stop the run when the state leaves the envelope", default=True)
     max_speed_mps: float = setting("m/s", "largest ground speed |v_W|", default=50.0, gt=0.0, le=1000.0)

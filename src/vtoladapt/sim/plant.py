@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit
 
 from .. import forces
-from ..config import ConfigError, build, setting
+from ..config import ConfigError, Validated, build, setting
 from ..frames import GRAVITY_MPS2
 from ..layout import (MOTOR_PUSHER, N_LIFT, N_MOTORS, X_MOTOR, X_OMEGA_B, X_P_W, X_Q_WB, X_SIZE, X_V_W,
                      BlockLayout, Field)
@@ -55,8 +55,10 @@ UIUC_7X4_CT_RATIO_COEFFS = (-0.84419, -1.10227)
 
 
 @dataclass(frozen=True)
-class PlantCoefficients:
+class PlantCoefficients(Validated):
     """Optional overrides of the plant's true force-model coefficients (Table I units)."""
+
+    config_section = "plant.coefficients"
 
     CTx: Optional[float] = setting("m/s^2 per %^2", "true pusher thrust coefficient", default=None, gt=0.0, le=0.01)
     CTz: Optional[float] = setting("m/s^2 per %^2", "true lift thrust coefficient", default=None, gt=0.0, le=0.01)
@@ -72,8 +74,10 @@ class PlantCoefficients:
 
 
 @dataclass(frozen=True)
-class PlantConfig:
+class PlantConfig(Validated):
     """The simulated aircraft's own parameters and which unmodelled effects are on."""
+
+    config_section = "plant"
 
     coefficients: PlantCoefficients = setting("-", "true coefficients (default: vehicle's Table I)",
                                               default=PlantCoefficients())

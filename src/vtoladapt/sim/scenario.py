@@ -15,7 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from ..config import NAME_PATTERN, PATH_PATTERN, ConfigError, build, read_toml, refuse_internal_keys, setting
+from ..config import (NAME_PATTERN, PATH_PATTERN, ConfigError, Validated, build, read_toml, refuse_internal_keys,
+                     setting)
 from ..control.config import (SCENARIO_DT_DEFAULT_S, SCENARIO_DT_RANGE_S, ControllerConfig, check_rate_matches_dt,
                              rate_from_dt)
 from ..control.registry import CONTROLLER_IDS, THETA_ADAPTIVE_IDS
@@ -26,12 +27,14 @@ from ..sensors import SensorsConfig
 from ..vehicle import Vehicle, load_vehicle
 from ..wind import WindConfig
 
-SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
+SCENARIO_DIR = Path(__file__).with_name("scenarios")
 
 
 @dataclass(frozen=True)
-class InitialCondition:
+class InitialCondition(Validated):
     """Where the run starts; motors start at the plant's hover trim unless ``trimmed_motors`` is false."""
+
+    config_section = "initial"
 
     position_m: tuple[float, ...] = setting("m", "initial position, NED", default=(0.0, 0.0, -1.5), ge=-1e4, le=1e4,
                                           length=3)
@@ -44,8 +47,10 @@ class InitialCondition:
 
 
 @dataclass(frozen=True)
-class ReferenceConfig:
+class ReferenceConfig(Validated):
     """The position reference the controller tracks."""
+
+    config_section = "reference"
 
     kind: str = setting("-", "hold a point, or fly through timed waypoints", default="hold",
                         choices=("hold", "waypoints"))
@@ -73,8 +78,10 @@ class ReferenceConfig:
 
 
 @dataclass(frozen=True)
-class ControllerPrior:
+class ControllerPrior(Validated):
     """Where the controller's model starts: theta_0, P0, and the initial theta-hat."""
+
+    config_section = "controller_prior"
 
     posterior: Optional[str] = setting(
         "-", "posterior.json from `vtoladapt fit` (path relative to the scenario); default: the "
@@ -88,8 +95,10 @@ class ControllerPrior:
 
 
 @dataclass(frozen=True)
-class ExperimentConfig:
+class ExperimentConfig(Validated):
     """What ``vtoladapt run`` does with the scenario: one run, or one of the paper's experiments."""
+
+    config_section = "experiment"
 
     kind: str = setting("-", "'single' run; 'convergence': repeated runs from random theta-hat(0) "
                         "(Fig. parameter_convergence); 'comparison': the same run per controller "
@@ -112,7 +121,7 @@ class ExperimentConfig:
 
 
 @dataclass(frozen=True)
-class Scenario:
+class Scenario(Validated):
     """A validated scenario (see the module docstring)."""
 
     name: str = setting("-", "short identifier, used in output file names", pattern=NAME_PATTERN)
@@ -148,6 +157,27 @@ class Scenario:
         if self.experiment.kind == "comparison":  # each compared law flies these shared settings
             for kind in self.experiment.controllers:
                 self.controller.check_law(kind, source)
+        self._check_delays(source)
+
+    def _check_delays(self, source: str) -> None:
+        """Delays kept in ring buffers of whole ticks must fit them at this run's ``dt_control_s``
+        (checked here, naming the file, rather than by the kernel when the run has started)."""
+        from .faults import LATENCY_RING_TICKS, MAX_FAULTS
+        from ..sensors import MOCAP_RING_SIZE, latency_ticks
+
+        dt = self.dt_control_s
+        latency = self.sensors.mocap.latency_s
+        if not self.sensors.mocap.ideal and latency_ticks(latency, dt) >= MOCAP_RING_SIZE:
+            raise ConfigError(f"{source}: [sensors.mocap] latency_s = {latency:g}: {latency_ticks(latency, dt)} "
+                              f"ticks at dt_control_s = {dt:g} s; allowed: at most {MOCAP_RING_SIZE - 1} ticks "
+                              f"(< {(MOCAP_RING_SIZE - 0.5) * dt:.4g} s)")
+        if len(self.faults) > MAX_FAULTS:
+            raise ConfigError(f"{source}: [[faults]]: {len(self.faults)} entries; allowed: at most {MAX_FAULTS}")
+        for i, f in enumerate(self.faults):
+            if f.kind == "mocap_latency" and round(f.extra_latency_s / dt) >= LATENCY_RING_TICKS:
+                raise ConfigError(f"{source}: [faults][{i}] mocap_latency: extra_latency_s = {f.extra_latency_s:g}: "
+                                  f"allowed: at most {(LATENCY_RING_TICKS - 1) * dt:.4g} s "
+                                  f"({LATENCY_RING_TICKS - 1} ticks) at dt_control_s = {dt:g} s")
 
     def check_loop_rate(self, source: str) -> None:
         """A :class:`ConfigError` unless the controller's ``loop_rate_hz`` is ``1 / dt_control_s``: the

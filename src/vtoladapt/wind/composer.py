@@ -15,7 +15,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 from numba import njit
 
-from ..config import ConfigError, build, setting
+from ..config import ConfigError, Validated, build, setting
 from ..layout import BlockLayout, Field
 from . import dryden, fan_array, gusts
 from .dryden import TURBULENCE_PARAMS, TURBULENCE_STATE, TurbulenceConfig, pack_turbulence
@@ -46,8 +46,10 @@ WIND_DRAWS_FIRST_STEP = dryden.TURBULENCE_DRAWS_FIRST_STEP + dryden.TURBULENCE_D
 
 
 @dataclass(frozen=True)
-class WindConfig:
+class WindConfig(Validated):
     """All the wind of a scenario; the parts add up. Load with :meth:`from_mapping`."""
+
+    config_section = "wind"
 
     constant_mps: tuple[float, ...] = setting("m/s", "constant wind vector, NED",
                                               default=(0.0, 0.0, 0.0), ge=-60.0, le=60.0, length=3)

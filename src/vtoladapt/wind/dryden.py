@@ -59,7 +59,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..config import ConfigError, setting
+from ..config import ConfigError, Validated, setting
 from ..layout import BlockLayout, Field
 
 FT_M = 0.3048
@@ -115,7 +115,7 @@ _SERIES_X = 0.1
 
 
 @dataclass(frozen=True)
-class TurbulenceConfig:
+class TurbulenceConfig(Validated):
     """Dryden turbulence (MIL-F-8785C); give exactly one intensity and at most one length source.
 
     Intensity: ``w20_mps`` (low-altitude model with ``altitude_m``), ``sigma_mps`` directly, or
@@ -123,6 +123,8 @@ class TurbulenceConfig:
     intensity). Length scales: ``length_scale_m`` directly, else the low-altitude model at
     ``altitude_m``.
     """
+
+    config_section = "wind.turbulence"
 
     enabled: bool = setting("-", "add Dryden turbulence", default=False)
     w20_mps: float | None = setting(

@@ -20,7 +20,7 @@ from typing import Sequence
 import numpy as np
 from numba import njit
 
-from ..config import ConfigError, setting
+from ..config import ConfigError, Validated, setting
 from ..layout import BlockLayout, Field
 
 FAN_MAX_SPEED_MPS = 12.9
@@ -45,7 +45,7 @@ _N, _MAX_SPEED, _DIR, _TAU, _T, _U, _Y = FAN_PARAMS.offsets("N", "MAX_SPEED", "D
 
 
 @dataclass(frozen=True)
-class FanArrayConfig:
+class FanArrayConfig(Validated):
     """The fan array: a throttle schedule and the wind it makes.
 
     ``schedule`` is a list of breakpoints ``[t_s, throttle_pct]``. With ``interpolation =
@@ -56,6 +56,8 @@ class FanArrayConfig:
     Instead of a schedule, ``profile`` names one of the paper's two experiments
     (:func:`convergence_schedule`, :func:`comparison_schedule` with their default lengths).
     """
+
+    config_section = "wind.fan_array"
 
     schedule: tuple[tuple[float, ...], ...] = setting(
         "[s, %]", "breakpoints [t_s, throttle_pct]; times non-decreasing, throttle 0-100",

@@ -16,7 +16,7 @@ from typing import Sequence
 import numpy as np
 from numba import njit
 
-from ..config import setting
+from ..config import Validated, setting
 from ..layout import BlockLayout, Field
 
 GUST_SHAPES = ("one_minus_cosine", "step")
@@ -41,8 +41,10 @@ _STRIDE = GUST_PARAMS.size
 
 
 @dataclass(frozen=True)
-class GustConfig:
+class GustConfig(Validated):
     """One discrete gust (an entry of ``[[wind.gusts]]``)."""
+
+    config_section = "wind.gusts"
 
     shape: str = setting("-", "'one_minus_cosine' (up to A and back to zero) or 'step'",
                          choices=GUST_SHAPES)
