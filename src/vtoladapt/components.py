@@ -168,6 +168,8 @@ class Registry(Mapping):
 
 KIND_HOMES: dict[str, str] = {
     "law": "vtoladapt.control.registry",
+    "wind": "vtoladapt.wind.registry",
+    "sensor": "vtoladapt.sensors.registry",
 }
 """The module that declares each kind (imported by :func:`registry` on first use of the kind)."""
 

@@ -273,6 +273,12 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
         raise ConfigError(f"{source}: [{section}] must be a table, got {data!r}")
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
     hints = _type_hints(cls)
+    # a class that holds components registered from outside (a user's wind part in [wind.<id>]) takes
+    # their tables out first and builds them itself: {field: value} joins what is built below
+    components: Mapping[str, Any] = {}
+    take = getattr(cls, "component_tables", None)
+    if take is not None:
+        data, components = take(data, source=source, section=section)
     # a class whose keys depend on the table (a fault's on its kind) says which apply to this one
     keys_for = getattr(cls, "keys_for", None)
     applicable = keys_for(data) if keys_for is not None else None
@@ -302,6 +308,9 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
     kwargs = {}
     for name, f in fields.items():
         where = _where(source, section, name)
+        if name in components:
+            kwargs[name] = components[name]
+            continue
         if name not in data:
             if f.default is _MISSING and f.default_factory is _MISSING:  # type: ignore[misc]
                 unit = f.metadata.get("unit", "")
