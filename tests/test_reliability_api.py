@@ -103,7 +103,7 @@ def test_a_mocap_latency_beyond_its_ring_is_refused_at_load_naming_the_file(tmp_
 def _settings_objects():
     """One instance of every settings class reachable from the shipped configurations."""
     from vtoladapt.campaign.runner import load_campaign_file
-    from vtoladapt.gym.config import HoldEnvConfig
+    from vtoladapt.gym.settings import HoldEnvConfig
     from vtoladapt.sim.scenario import SCENARIO_DIR
 
     sc = scenario_from_mapping({

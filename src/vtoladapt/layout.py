@@ -129,6 +129,12 @@ class BlockLayout:
         """``(name, offset, size, unit, doc)`` per field, for documentation and tests."""
         return [(f.name, self._offset[f.name], f.size, f.unit, f.doc) for f in self.fields]
 
+    def bounds(self) -> np.ndarray:
+        """The first slot of every field, in order, then :attr:`size` (int64, ``len(fields) + 1``):
+        field ``i`` spans ``bounds[i]:bounds[i + 1]``, for a kernel whose layout is known only at run
+        time (sizes chosen per run) while the order of its fields is fixed."""
+        return np.array([self._offset[f.name] for f in self.fields] + [self.size], dtype=np.int64)
+
     def pack(self, **values) -> np.ndarray:
         """A zero array of :attr:`size` with the named fields filled (scalars or sequences)."""
         out = np.zeros(self.size)

@@ -2,7 +2,7 @@
 
 Episode
     One scenario (default: the shipped ``gym_hold``; any scenario via ``scenario=``). ``reset``
-    draws the episode's scenario from the environment's generator (:func:`~vtoladapt.gym.config.episode_scenario`:
+    draws the episode's scenario from the environment's generator (:func:`~vtoladapt.gym.settings.episode_scenario`:
     plant coefficients from the vehicle's Table I posterior, fan throttle factor and array bearing,
     then the run's seed) and prepares it exactly as ``vtoladapt run`` would; ``episode_scenario``
     holds it, so any episode can be replayed with :func:`vtoladapt.sim.driver.simulate`.
@@ -32,8 +32,8 @@ import numpy as np
 from ..config import ConfigError
 from ..sim.scenario import Scenario
 from .batch import RunBatch
-from .config import ENV_ID, HoldEnvConfig, episode_scenario, make_config
-from .kernel import OP_SKIP, OP_STEP
+from .settings import ENV_ID, HoldEnvConfig, episode_scenario, make_config
+from .batch_kernel import OP_SKIP, OP_STEP
 from .spaces import ACTION_SIZE, action_space, observation_space
 
 

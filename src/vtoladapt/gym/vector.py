@@ -24,7 +24,7 @@ from gymnasium.vector.utils import batch_space
 
 from ..config import ConfigError
 from .batch import RunBatch
-from .config import ENV_ID, HoldEnvConfig, episode_scenario, make_config
+from .settings import ENV_ID, HoldEnvConfig, episode_scenario, make_config
 from .env import check_options, check_render_mode
 from .spaces import ACTION_SIZE, action_space, observation_space
 
@@ -43,7 +43,7 @@ class HoldVectorEnv(VectorEnv):
     """``num_envs`` copies of :class:`~vtoladapt.gym.env.HoldEnv` in one batch (see the module docstring).
 
     Keyword arguments: ``num_envs``, ``workers`` (threads; default one per core) and those of
-    :class:`~vtoladapt.gym.config.HoldEnvConfig`. ``step`` returns an empty info dict (per-step
+    :class:`~vtoladapt.gym.settings.HoldEnvConfig`. ``step`` returns an empty info dict (per-step
     dicts of arrays would cost more than the step); ``episode_scenarios`` lists each environment's
     current episode scenario.
     """

@@ -31,6 +31,13 @@ ProgressCallback = Callable[[float, float], None]
 CHUNK_S = 5.0
 
 
+def chunk_ticks(dt_s: float) -> int:
+    """Ticks per chunk of :func:`simulate` (about :data:`CHUNK_S` of flight): the loop returns to Python
+    between chunks (progress, Ctrl-C), and chunk ``c`` times its ticks from ``c chunk dt``
+    (:func:`vtoladapt.sim.loop.tick_time`)."""
+    return max(1, int(round(CHUNK_S / dt_s)))
+
+
 @dataclass
 class PreparedRun:
     """Everything the compiled loop needs for one scenario, as plain arrays (built once).
@@ -201,7 +208,7 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
     n = scenario.n_ticks
     log = np.empty((n, run.log_layout.size))
     x = run.x0.copy()
-    chunk = max(1, int(round(CHUNK_S / scenario.dt_control_s)))
+    chunk = chunk_ticks(scenario.dt_control_s)
     wall0 = time.perf_counter()
     n_done, reason = n, 0
     for k0 in range(0, n, chunk):

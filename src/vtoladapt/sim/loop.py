@@ -140,6 +140,16 @@ N_LOG = len(LOG_COLUMNS)
 N_DIAG = len(CONTROLLER_DIAG_COLUMNS)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def tick_time(k, dt, chunk_ticks) -> float:
+    """The time of tick ``k`` exactly as :func:`vtoladapt.sim.driver.simulate` computes it: the run goes
+    in chunks of ``chunk_ticks`` ticks, chunk ``c`` starting at ``t0 = k0 dt`` (``k0 = c chunk_ticks``)
+    and its ticks at ``t0 + (k - k0) dt``, which may differ from ``k dt`` in the last bit. A caller that
+    steps tick by tick (the Gymnasium environment) uses it to stay the simulator's run, bit for bit."""
+    k0 = (k // chunk_ticks) * chunk_ticks
+    return k0 * dt + (k - k0) * dt
+
+
 @njit(cache=True, nogil=True, _nrt=False)
 def tick_sense(x, truth, meas, work, plant_p, wind, sensors, faults, envelope, controller, ref, t, dt, rng,
                run_controller, cmd, diag) -> int:
