@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from numba import njit
 from scipy.integrate import solve_ivp
-from scipy.optimize import minimize
+from scipy.optimize import lsq_linear, minimize
 
 from vtoladapt import forces
 from vtoladapt.control import adaptation as ad
@@ -358,3 +358,57 @@ def test_lyapunov_function_matches_its_definition(rng):
     gamma = 2.5
     expected = 0.5 * v @ v + (2 - 2 * q0) / gamma + 0.5 * (th - tt) @ Pinv @ (th - tt)
     assert ad.lyapunov_function(v, q0, th, Pinv, tt, gamma) == pytest.approx(expected, rel=1e-13)
+
+
+# --- the tracking mode's gain k P0 under the projection (issue #25) --------------------------------
+
+def _tracking_step(P0, theta, lo, hi, Phi, v_tilde, k, dt=DT):
+    """One tick of the tracking mode (gain ``k P0``, sigma 0): ``(theta' = step / dt, bounds held)``."""
+    x = np.zeros(ad.MEM_SIZE + ad.WORK_SIZE)
+    prior = np.zeros(ad.PRIOR_SIZE)
+    x[ad.MEM_THETA:ad.MEM_THETA + N] = theta
+    prior[ad.PRIOR_THETA0:ad.PRIOR_THETA0 + N] = theta
+    prior[ad.PRIOR_LOWER:ad.PRIOR_LOWER + N] = lo
+    prior[ad.PRIOR_UPPER:ad.PRIOR_UPPER + N] = hi
+    prior[ad.PRIOR_GAMMA0:ad.PRIOR_GAMMA0 + N * N] = np.linalg.inv(P0).ravel()
+    prior[ad.PRIOR_P0:ad.PRIOR_P0 + N * N] = P0.ravel()
+    R = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    n_act, _, _ = ad.weighted_adaptation_step(ad.ADAPT_TRACKING, x, 0, ad.MEM_SIZE, prior, 0,
+                                              tuple(tuple(r) for r in Phi), R, tuple(v_tilde), dt, 1.0, dt, 0.0,
+                                              np.inf, 0, 1.0, 1.0, False, k)
+    return (x[ad.MEM_THETA:ad.MEM_THETA + N] - theta) / dt, n_act
+
+
+def test_tracking_gain_scale_survives_the_projection_with_any_number_of_bounds_held(rng):
+    """The tracking law's gain is ``k P0``: its projected step is ``k`` times P0's, whatever the bounds held.
+
+    Reference: the projection of ``k P0 tau`` onto the box's tangent cone in the metric
+    ``(k P0)^-1``, from SciPy's SLSQP. Before the fix the free step of a projection holding five
+    or more bounds was P0's whatever ``k`` (ratio 1.0 instead of 0.1).
+    """
+    lo, hi = -np.ones(N), np.ones(N)
+    held_counts = set()
+    for trial in range(80):
+        P0 = _random_spd(rng)
+        Phi = rng.normal(size=(3, N))
+        v_tilde = rng.normal(size=3)
+        d_unit = P0 @ (Phi.T @ v_tilde)
+        theta = rng.uniform(-0.5, 0.5, N)
+        at = rng.choice(N, size=rng.integers(0, N + 1), replace=False)
+        theta[at] = np.where(d_unit[at] > 0, hi[at], lo[at])           # parked where the law points out
+        step_1, n1 = _tracking_step(P0, theta, lo, hi, Phi, v_tilde, 1.0)
+        for k in (0.1, 0.37):
+            step_k, nk = _tracking_step(P0, theta, lo, hi, Phi, v_tilde, k)
+            assert nk == n1 >= 0
+            np.testing.assert_allclose(step_k, k * step_1, rtol=1e-9, atol=1e-12 * np.abs(step_1).max())
+        held_counts.add(n1)
+        K = 0.1 * P0
+        d0 = K @ (Phi.T @ v_tilde)
+        C = np.linalg.cholesky(np.linalg.inv(K))            # metric K^-1 = C C^T: min |C^T (d - d0)|^2
+        upper = np.where(theta >= hi, 0.0, np.inf)
+        lower = np.where(theta <= lo, 0.0, -np.inf)
+        sol = lsq_linear(C.T, C.T @ d0, bounds=(lower, upper), method="bvls", tol=1e-14)
+        assert sol.success
+        step_k, _ = _tracking_step(P0, theta, lo, hi, Phi, v_tilde, 0.1)
+        np.testing.assert_allclose(step_k, sol.x, rtol=1e-7, atol=1e-9 * np.abs(d0).max())
+    assert {0, 1, 2, 3, 4, 5, 6} <= held_counts                # both of the projection's systems exercised

@@ -686,18 +686,23 @@ def weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, for
     n_active = 0
     active = 0
     if mode == ADAPT_TRACKING:
-        # K = P0
+        # K = gain_scale P0. The direction P0 tau is projected with P0 and its inverse, then scaled:
+        # the projection of k P0 tau in the metric (k P0)^-1 is k times that of P0 tau in the metric
+        # P0^-1. (Projecting k P0 tau with P0's matrices mixed the two: the free-set system
+        # K^-1[F, F], solved when five or more bounds are held, gave P0's free step whatever k.)
         p0 = p + PRIOR_P0
         for i in range(n):
             x[p_diag + i] = gain_scale * prior[p0 + n * i + i]
             t = 0.0
             for j in range(n):
                 t += prior[p0 + n * i + j] * x[tau + j]
-            x[d0 + i] = gain_scale * t
+            x[d0 + i] = t
         if bounded:
-            # the projection in the P0 metric is the same for any positive multiple of P0
             n_active, active = project_direction(prior, p0, prior, p + PRIOR_GAMMA0, x, tau, d0, w + WK_D,
                                                  w + WK_PROJECTION, at_upper, at_lower, active_set)
+        scaled = w + WK_D if bounded else d0
+        for i in range(n):
+            x[scaled + i] *= gain_scale
     else:
         G = w + WK_WTW
         gram(x, wf, x, G)
