@@ -72,6 +72,9 @@ def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
     (dt, new_dt, faults, may_adapt, probe_ok, R, v_W, v_i, p_tilde, v_r, v_r_dot, v_tilde_raw, v_tilde, a_d, yaw_d,
      Phi, flow) = front_end(params, state, meas, ref, dt)
     default_law_diagnostics(params, diag)
+    # the front end's fault bits of this tick, readable by the law (e.g. a velocity held by the
+    # sanitiser); the back end overwrites the column with these and the law's own bits
+    diag[DIAG_FAULTS] = faults
     # the flow the laws' model-validity measures read (the controller's own v_i, never the plant's)
     state[S_V_I_LAW] = v_i[0]
     state[S_V_I_LAW + 1] = v_i[1]
