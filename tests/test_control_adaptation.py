@@ -5,6 +5,8 @@ The adaptation kernel is driven directly with synthetic regressors and a known t
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from numba import njit
@@ -412,3 +414,51 @@ def test_tracking_gain_scale_survives_the_projection_with_any_number_of_bounds_h
         step_k, _ = _tracking_step(P0, theta, lo, hi, Phi, v_tilde, 0.1)
         np.testing.assert_allclose(step_k, sol.x, rtol=1e-7, atol=1e-9 * np.abs(d0).max())
     assert {0, 1, 2, 3, 4, 5, 6} <= held_counts                # both of the projection's systems exercised
+
+
+# --- bounds that respect the signs physics gives (issue #25) ---------------------------------------
+
+KNOWN_SIGNS = {"CTx": 1, "CTz": 1, "CS": 1, "CD0": 1, "CD1": 0, "CD2": 1, "CL0": 0, "CL1": 1}
+"""From physics, not from the code: thrust is along the rotor axis (C_T > 0); the rotor's in-plane
+force opposes the flow (C_S >= 0); drag at zero alpha and its quadratic growth are >= 0; the lift
+slope is > 0; the linear drag term and the zero-alpha lift of a cambered or symmetric wing have
+either sign."""
+
+
+def test_theta_bounds_respect_the_signs_physics_gives(any_vehicle):
+    """No bound lets a coefficient of known sign change it (before: C_S's lower bound was -0.5 theta_0,
+    a rotor side force along the flow, with the caltech_vtol's bound_fraction 1.5)."""
+    from vtoladapt.vehicle import PARAMETER_NAMES, parameter_signs
+
+    assert dict(zip(PARAMETER_NAMES, parameter_signs())) == KNOWN_SIGNS
+    th0 = any_vehicle.theta_scaled
+    lo, hi = default_theta_bounds(any_vehicle, th0)
+    for i, name in enumerate(PARAMETER_NAMES):
+        if KNOWN_SIGNS[name] > 0:
+            assert lo[i] >= 0.0, name
+        assert lo[i] <= th0[i] <= hi[i]
+    # the rule is general: with every bound at 5 |theta_0| each known-positive coefficient stops
+    # at 0 and the others keep their symmetric room
+    wide = any_vehicle.replace(adaptation=replace(any_vehicle.adaptation, bound_fraction=(5.0,) * N))
+    lo, hi = default_theta_bounds(wide, th0)
+    for i, name in enumerate(PARAMETER_NAMES):
+        half = max(5.0 * abs(th0[i]), 3.0 * any_vehicle.theta_std_scaled[i])
+        assert hi[i] == pytest.approx(th0[i] + half, rel=1e-12)
+        expected_lo = 0.0 if KNOWN_SIGNS[name] > 0 else th0[i] - half
+        assert lo[i] == pytest.approx(expected_lo, rel=1e-12, abs=0.0)
+
+
+def test_posterior_bounds_respect_the_signs_physics_gives(caltech):
+    """A fitted posterior's bounds follow the same rule (one place for it)."""
+    from vtoladapt.fitting.posterior import Posterior, controller_prior
+
+    theta = caltech.force_model.as_table_theta()
+    std = caltech.force_model_std.as_table_theta() * 4.0       # a wide posterior: 3 std reach past zero
+    post = Posterior(theta_table=theta, std_table=std, k1=caltech.force_model.k1, k2=caltech.force_model.k2,
+                     k1_std=0.01, k2_std=0.05, ci95={}, covariance=None, diagnostics={}, reference={}, raw={},
+                     source="test")
+    lower = controller_prior(post, caltech).lower_bounds_scaled
+    for i, name in enumerate(KNOWN_SIGNS):
+        if KNOWN_SIGNS[name] > 0:
+            assert lower[i] >= 0.0, name
+    assert lower[4] < 0.0                                       # CD1 (either sign) may still cross zero
