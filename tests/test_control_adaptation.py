@@ -11,10 +11,12 @@ import numpy as np
 import pytest
 from numba import njit
 from scipy.integrate import solve_ivp
+from scipy.linalg import expm
 from scipy.optimize import lsq_linear, minimize
 
 from vtoladapt import forces
 from vtoladapt.control import adaptation as ad
+from vtoladapt.control import exact_step
 from vtoladapt.control.kernel import default_theta_bounds
 
 DT = 0.004
@@ -462,3 +464,105 @@ def test_posterior_bounds_respect_the_signs_physics_gives(caltech):
         if KNOWN_SIGNS[name] > 0:
             assert lower[i] >= 0.0, name
     assert lower[4] < 0.0                                       # CD1 (either sign) may still cross zero
+
+
+# --- the constant-P law holds P at P0 (issue #25) ---------------------------------------------------
+
+def _pconst_steps(P0, theta, W, a_m, Phi, v_tilde, sigma, w_pred, dt, n):
+    """``n`` ticks of the constant-P mode with everything held; theta-hat after them (bounds far away)."""
+    x = np.zeros(ad.MEM_SIZE + ad.WORK_SIZE)
+    prior = np.zeros(ad.PRIOR_SIZE)
+    x[ad.MEM_THETA:ad.MEM_THETA + N] = theta
+    x[ad.MEM_W:ad.MEM_W + 3 * N] = W.ravel()
+    x[ad.MEM_A_M:ad.MEM_A_M + 3] = a_m
+    x[ad.MEM_GAMMA:ad.MEM_GAMMA + N * N] = np.linalg.inv(P0).ravel()
+    prior[ad.PRIOR_THETA0:ad.PRIOR_THETA0 + N] = 0.0
+    prior[ad.PRIOR_LOWER:ad.PRIOR_LOWER + N] = -1e9
+    prior[ad.PRIOR_UPPER:ad.PRIOR_UPPER + N] = 1e9
+    prior[ad.PRIOR_GAMMA0:ad.PRIOR_GAMMA0 + N * N] = np.linalg.inv(P0).ravel()
+    prior[ad.PRIOR_P0:ad.PRIOR_P0 + N * N] = P0.ravel()
+    R = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    for _ in range(n):
+        ad.weighted_adaptation_step(ad.ADAPT_PCONST, x, 0, ad.MEM_SIZE, prior, 0, tuple(tuple(r) for r in Phi), R,
+                                    tuple(v_tilde), dt, 1.0, dt, sigma, np.inf, 0, 1.0, w_pred, False, 1.0)
+    return x[ad.MEM_THETA:ad.MEM_THETA + N].copy()
+
+
+def _pconst_exact(P0, theta, W, a_m, Phi, v_tilde, sigma, w_pred, dt):
+    """The continuous law with P = P0 over one tick, inputs held, sigma's term frozen at its start:
+    ``theta' = P0 (Phi^T v~ - w W^T (W theta - a_m) - sigma theta_k)``, from scipy's expm."""
+    A = w_pred * W.T @ W
+    c = Phi.T @ v_tilde + w_pred * W.T @ a_m - sigma * theta
+    M = np.zeros((N + 1, N + 1))
+    M[:N, :N] = -P0 @ A
+    M[:N, N] = P0 @ c
+    return (expm(M * dt) @ np.append(theta, 1.0))[:N]
+
+
+def test_constant_p_step_is_the_exact_solution_of_the_law_with_p0(rng, caltech):
+    """One tick of composite_pconst is the continuous law ``theta' = P0 tau`` solved exactly over the
+    tick. Before, the backward-Euler step had the gain ``(P0^-1 + dt W^T W)^-1``: 183 instead of 200
+    along C_Tz in hover, and its step 4 % short of the exact one there."""
+    for trial in range(20):
+        P0 = _random_spd(rng) * 10.0 ** rng.uniform(-1, 2)
+        W = rng.normal(size=(3, N)) * 10.0 ** rng.uniform(-2, 1)
+        theta = rng.normal(size=N)
+        a_m, Phi, v_t = rng.normal(size=3), rng.normal(size=(3, N)), rng.normal(size=3)
+        sigma, w_pred = rng.uniform(0, 1e-3), rng.uniform(0.2, 1.0)
+        exact = _pconst_exact(P0, theta, W, a_m, Phi, v_t, sigma, w_pred, DT)
+        got = _pconst_steps(P0, theta, W, a_m, Phi, v_t, sigma, w_pred, DT, 1)
+        np.testing.assert_allclose(got - theta, exact - theta, rtol=1e-8, atol=1e-12 * np.abs(exact - theta).max())
+    # hover: C_Tz alone is excited; P stays 200 along it, the tick's step is 200's exact one
+    W = np.empty((3, N))
+    forces.regressor(np.zeros(3), 0.0, 0.585, caltech.model_kernel, W)
+    P0 = np.diag(caltech.adaptation.P0_diag)
+    theta = caltech.theta_scaled.copy()
+    a_m = W @ theta + np.array([0.0, 0.0, -0.5])       # 0.5 m/s^2 more lift than the model's
+    zero = np.zeros((3, N))
+    got = _pconst_steps(P0, theta, W, a_m, zero, np.zeros(3), 0.0, 1.0, DT, 1)
+    exact = _pconst_exact(P0, theta, W, a_m, zero, np.zeros(3), 0.0, 1.0, DT)
+    np.testing.assert_allclose(got, exact, rtol=1e-12, atol=1e-14)
+    euler_gain = 1.0 / (1.0 / 200.0 + DT * W[2, 1] ** 2)
+    assert euler_gain == pytest.approx(183.0, abs=0.5)               # the reviewer's number
+    gain = (got[1] - theta[1]) / (DT * -W[2, 1] * 0.5)               # step / (dt tau_CTz), tau = -W^T e
+    x = DT * 200.0 * W[2, 1] ** 2
+    assert gain == pytest.approx(200.0 * -np.expm1(-x) / x, rel=1e-10)   # P0 phi(dt P0 W^T W): 191
+
+
+def test_constant_p_law_does_not_depend_on_the_tick(rng, caltech):
+    """With P = P0 and the inputs held, one second of the law is the same at 250 Hz and at 2 kHz
+    (the exact step); the backward-Euler step's gain fell with dt P0 W^T W (1 % apart here)."""
+    W = np.empty((3, N))
+    forces.regressor(np.array([9.0, 0.0, 1.5]), 0.4, 0.4, caltech.model_kernel, W)
+    P0 = np.diag(caltech.adaptation.P0_diag)
+    theta = caltech.theta_scaled.copy()
+    a_m = W @ (theta * 1.1)
+    zero = np.zeros((3, N))
+    slow = _pconst_steps(P0, theta, W, a_m, zero, np.zeros(3), 0.0, 1.0, 0.004, 25)
+    fast = _pconst_steps(P0, theta, W, a_m, zero, np.zeros(3), 0.0, 1.0, 0.0005, 200)
+    assert np.abs(slow - theta).max() > 1e-3
+    np.testing.assert_allclose(slow, fast, rtol=1e-10, atol=1e-13)
+
+
+def test_symmetric_eigen3_and_phi_psi_against_numpy(rng):
+    for A in [np.diag([3.0, 1.0, 2.0]), np.zeros((3, 3)), np.ones((3, 3)), np.eye(3) * 5.0]\
+            + [(lambda B: B @ B.T)(rng.normal(size=(3, 3)) * 10.0 ** rng.uniform(-8, 8)) for _ in range(30)]:
+        a = A.ravel().copy()
+        Q = np.empty(9)
+        exact_step.symmetric_eigen3(a, 0, Q, 0)
+        Q = Q.reshape(3, 3)
+        lam = np.diag(a.reshape(3, 3))
+        np.testing.assert_allclose(np.sort(lam), np.linalg.eigvalsh(A), rtol=1e-12, atol=1e-13 * np.abs(A).max())
+        np.testing.assert_allclose(Q @ Q.T, np.eye(3), atol=1e-14)
+        np.testing.assert_allclose(Q @ np.diag(lam) @ Q.T, A, rtol=1e-12, atol=1e-13 * np.abs(A).max())
+    for x in np.concatenate([[0.0], np.logspace(-12, 3, 200)]):
+        phi, psi = exact_step.phi_psi(x)
+        ref_phi = 1.0 if x == 0 else float(-np.expm1(-x) / x)
+        # psi = sum_k (-x)^k / (k+2)!, summed in extended precision where the closed form cancels
+        if x < 2.0:
+            xl = np.longdouble(x)
+            ref_psi = float(sum((-xl) ** k / np.prod(np.arange(1, k + 3, dtype=np.longdouble)) for k in range(60)))
+        else:
+            ref_psi = (x + np.expm1(-x)) / x ** 2
+        assert phi == pytest.approx(ref_phi, rel=1e-14)
+        assert psi == pytest.approx(ref_psi, rel=1e-12)
