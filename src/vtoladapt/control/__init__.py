@@ -71,7 +71,9 @@ A law is a module with these six names (:func:`.laws.check_law` checks them):
     ``FAULT_*`` bits (int). An adaptive law updates theta-hat and ``P^-1`` in the shared
     estimate block (:data:`.adaptation.MEMORY` at ``S_ESTIMATE``). It may write the law-owned
     diagnostics ``P_diag_*``, ``projection_active_bounds`` and ``integrator_*``, which hold
-    diag(P0), 0 and 0 otherwise.
+    diag(P0), 0 and 0 otherwise. When ``update`` runs, ``diag``'s ``fault_flags`` column holds the
+    front end's ``FAULT_*`` bits of this tick (e.g. ``FAULT_VELOCITY``: the velocity is the last
+    good one, held because this tick's was not plausible); the back end then writes the column.
 
 Adding a law is this module in :mod:`.laws` and one :class:`.registry.ControllerInfo` entry in
 :data:`.registry.CONTROLLERS`: validation, scenarios, experiments, the API, the CLI and the

@@ -27,7 +27,7 @@ from ..sensors import SensorsConfig
 from ..vehicle import Vehicle, load_vehicle
 from ..wind import WindConfig
 
-SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
+SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
 
 @dataclass(frozen=True)
