@@ -65,8 +65,9 @@ class Registry(Mapping):
         The package's own members. Their modules are imported on first use, not here (importing a
         kind must stay cheap).
     package : str
-        Where a relative ``module`` name (no dot) of a member is looked up, e.g.
-        ``"vtoladapt.control.laws"``.
+        Where a relative ``module`` name (no dot) of one of the package's own members is looked up,
+        e.g. ``"vtoladapt.control.laws"``. A member added by a call or an entry point names its module
+        in full (a top-level module of the user's, ``"my_wind"``, has no dot and is not in the package).
     """
 
     def __init__(self, kind: str, check: Callable[[ModuleType], None], builtins, package: str = ""):
@@ -78,8 +79,10 @@ class Registry(Mapping):
         self._members: dict[str, Any] = {}
         self._checked: set[str] = set()
         self._entry_points_read = False
+        self._own: set[str] = set()
         for info in builtins:
             self._add(info, replace=False, check_now=False)
+            self._own.add(info.id)
         with _LOCK:
             _KINDS[kind] = self
 
@@ -132,7 +135,8 @@ class Registry(Mapping):
     def module_name(self, info) -> str:
         """The absolute dotted name of a member's module."""
         name = info.module
-        return name if "." in name or not self.package else f"{self.package}.{name}"
+        own = info.id in self._own and self._members.get(info.id) is info
+        return f"{self.package}.{name}" if own and self.package and "." not in name else name
 
     # --- registration ----------------------------------------------------------------------------
     def _add(self, info, *, replace: bool, check_now: bool) -> None:

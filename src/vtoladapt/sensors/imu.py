@@ -68,7 +68,7 @@ DRAWS = BlockLayout("IMU draws per step (standard normals)", [
     Field("GYRO_WALK", 3, "-", "gyro bias random-walk increment, xyz"),
     Field("ACCEL_WALK", 3, "-", "accelerometer bias random-walk increment, xyz"),
 ])
-_D_GYRO, _D_ACCEL, _D_GYRO_WALK, _D_ACCEL_WALK = DRAWS.offsets("GYRO_NOISE", "ACCEL_NOISE", "GYRO_WALK", "ACCEL_WALK")
+_D_GYRO_NOISE, _D_ACCEL_NOISE, _D_GYRO_WALK, _D_ACCEL_WALK = DRAWS.offsets(*(f.name for f in DRAWS.fields))
 NORMALS_PER_STEP = DRAWS.size
 UNIFORMS_PER_STEP = 0
 DRAWS_INITIAL = 6
@@ -109,7 +109,8 @@ def pack(settings: ImuConfig, context) -> np.ndarray:
     d2r = math.pi / 180.0
     return PARAMS.pack(
         IDEAL=float(settings.ideal), GYRO_DENSITY=settings.gyro_noise_density_dps_rtHz * d2r,
-        ACCEL_DENSITY=settings.accel_noise_density_ug_rtHz * MICRO_G_MPS2, GYRO_BIAS_STD=settings.gyro_bias_std_dps * d2r,
+        ACCEL_DENSITY=settings.accel_noise_density_ug_rtHz * MICRO_G_MPS2,
+        GYRO_BIAS_STD=settings.gyro_bias_std_dps * d2r,
         ACCEL_BIAS_STD=settings.accel_bias_std_mps2, GYRO_WALK=settings.gyro_bias_random_walk_dps_rts * d2r,
         ACCEL_WALK=settings.accel_bias_random_walk_mps2_rts, GYRO_RANGE=settings.gyro_range_dps * d2r,
         ACCEL_RANGE=settings.accel_range_mps2)
@@ -163,12 +164,14 @@ def step(params, state, t, dt, x_true, truth, draws, meas):
     for j in range(3):
         w = x_true[_X_OMEGA + j]
         if not ideal:
-            w = _clip(w + state[_S_GYRO_BIAS + j] + params[_GYRO_DENSITY] * sq * draws[_D_GYRO + j], params[_GYRO_RANGE])
+            w = _clip(w + state[_S_GYRO_BIAS + j] + params[_GYRO_DENSITY] * sq * draws[_D_GYRO_NOISE + j],
+                      params[_GYRO_RANGE])
         meas[_OMEGA + j] = w
     for j in range(3):
         f = truth[_F_B + j]
         if not ideal:
-            f = _clip(f + state[_S_ACCEL_BIAS + j] + params[_ACCEL_DENSITY] * sq * draws[_D_ACCEL + j], params[_ACCEL_RANGE])
+            f = _clip(f + state[_S_ACCEL_BIAS + j] + params[_ACCEL_DENSITY] * sq * draws[_D_ACCEL_NOISE + j],
+                      params[_ACCEL_RANGE])
         meas[_ACCEL + j] = f
     # biases walk after this tick's reading: b_{k+1} = b_k + q sqrt(dt) n
     sdt = state[_S_SQRT_DT]

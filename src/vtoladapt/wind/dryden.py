@@ -380,6 +380,6 @@ def pack(settings: TurbulenceConfig, wind) -> np.ndarray:
 
 @njit(WIND_STEP_SIGNATURE, cache=True, nogil=True, _nrt=False)
 def step(params, state, t, dt, p_W, draws, wind):
-    """Add the turbulence to the tick's wind, convected by and scaled with the mean wind of the parts before it."""
+    """Add the turbulence to the tick's wind, convected by and scaled with the parts' mean wind before it."""
     turbulence_step(params, 0, state, 0, wind[W_MEAN_W], wind[W_MEAN_W + 1], wind[W_MEAN_W + 2], dt, draws,
                     wind[W_V_W:W_V_W + 3])
