@@ -22,7 +22,7 @@ from vtoladapt import components, layout, sensors
 from vtoladapt.config import ConfigError, build
 from vtoladapt.frames import quat_from_euler
 from vtoladapt.gym import HoldEnv
-from vtoladapt.gym.spaces import OBS_P_ERR
+from vtoladapt.gym.spaces import OBS_P_ERR, OBS_SIZE
 from vtoladapt.parts import Assembly, PartInfo
 from vtoladapt.sim.driver import simulate
 from vtoladapt.sim.loop import run_closed_loop
@@ -194,8 +194,8 @@ def test_a_registered_channel_is_flown_by_the_gym_as_by_simulate():
 
 def _readme_section(title: str) -> str:
     text = README.read_text()
-    start = text.index(f"### {title}")
-    end = text.index("\n#", start + 4)
+    start = text.index(f"### {title}\n")
+    end = re.search(r"\n##+ ", text[start + 4:]).start() + start + 4
     return text[start:end]
 
 
@@ -215,7 +215,7 @@ def test_readme_recipe_is_the_example_channel_and_runs(tmp_path, monkeypatch):
         exec(compile(usage[0], "README.md", "exec"), namespace)
         result = namespace["result"]
         assert "gnss" in SENSOR_CHANNELS and not result.diverged
-        assert namespace["obs"].shape == (20,)
+        assert namespace["obs"].shape == (OBS_SIZE,) and np.isfinite(namespace["obs"]).all()
     finally:
         if "gnss" not in SENSOR_CHANNELS:
             components.register("sensor", PartInfo("gnss", "example_sensor", "a GNSS receiver"))

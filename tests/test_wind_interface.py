@@ -184,8 +184,8 @@ def test_a_registered_part_is_flown_by_the_gym_as_by_simulate():
 
 def _readme_section(title: str) -> str:
     text = README.read_text()
-    start = text.index(f"### {title}")
-    end = text.index("\n#", start + 4)
+    start = text.index(f"### {title}\n")
+    end = re.search(r"\n##+ ", text[start + 4:]).start() + start + 4
     return text[start:end]
 
 
@@ -205,7 +205,8 @@ def test_readme_recipe_is_the_example_part_and_runs(tmp_path, monkeypatch):
         exec(compile(usage[0], "README.md", "exec"), namespace)
         result = namespace["result"]
         wind_E = result["wind_E_mps"]
-        assert "shear" in WIND_PARTS and not result.diverged and wind_E.max() < -3.0  # from the east
+        # from the east, 3 m/s + 0.4 /s x 1.5 m at the held height, gusting 0.2 m/s averaged over 1250 ticks
+        assert "shear" in WIND_PARTS and not result.diverged and abs(wind_E.mean() + 3.6) < 0.05
     finally:
         if "shear" not in WIND_PARTS:
             components.register("wind", PartInfo("shear", "example_wind_part", "a wind shear"))
