@@ -10,7 +10,7 @@ ensure_fresh_kernel_cache()
 from .config import ConfigError  # noqa: E402
 from .vehicle import PARAMETER_NAMES, Vehicle, available_vehicles, load_vehicle  # noqa: E402
 
-__version__ = "0.1.0"
+from ._version import __version__  # noqa: E402
 _SIM_EXPORTS = ("Scenario", "SimulationResult", "load_scenario", "simulate", "simulate_many")
 __all__ = ["ConfigError", "PARAMETER_NAMES", "Vehicle", "available_vehicles", "load_vehicle", *_SIM_EXPORTS]
 

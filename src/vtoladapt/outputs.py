@@ -477,7 +477,7 @@ class OutputDir:
         return sorted(self._files)
 
     def _write_manifest(self, status: str) -> None:
-        from . import __version__ as version
+        from ._version import __version__ as version
 
         doc = {"format": MANIFEST_FORMAT, "version": MANIFEST_VERSION, "command": self.command,
                "status": status, "argv": list(sys.argv[1:]), "vtoladapt": version,

@@ -138,7 +138,8 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
     """
     from ..config import check_value
     from ..control.config import ControllerConfig
-    from ..sim.limits import check_campaign_runs, check_run_size
+    from ..ceilings import check_campaign_runs
+    from ..sim.limits import check_run_size
     from ..sim.scenario import Scenario, scenario_from_mapping
 
     runs = check_runs_flag(runs)
@@ -411,7 +412,8 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
     first, then the ``[campaign.choices]`` (an option is the stratum ``floor(u n_options)``).
     """
     from ..config import check_value
-    from ..sim.limits import check_campaign_runs, check_run_size
+    from ..ceilings import check_campaign_runs
+    from ..sim.limits import check_run_size
     from ..sim.scenario import scenario_from_mapping
 
     cf = load_campaign_file(path)

@@ -169,7 +169,7 @@ def controller_prior(scenario: Scenario, vehicle: Vehicle):
         lower, upper = default_theta_bounds(vehicle, theta0)
         return vehicle, theta0, np.array(vehicle.adaptation.P0_diag), lower, upper, \
             f"Table I of {vehicle.name} (published means)"
-    from ..fitting import apply_posterior
+    from ..fitting.posterior import apply_posterior
 
     ctrl_vehicle, (theta0, P0, lower, upper) = apply_posterior(vehicle, path)
     return ctrl_vehicle, theta0, P0, lower, upper, f"posterior {path}"

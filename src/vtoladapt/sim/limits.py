@@ -1,34 +1,25 @@
-"""Size ceilings, each derived from the memory its arrays need against one budget.
+"""The simulator's size ceilings (its logs), derived from the memory they need against one budget.
 
-Every size a user chooses (simulated duration over the control period, runs of an experiment or
-a campaign, tunnel repeats, MCMC walkers and steps) is checked here before anything runs or is
-written, against :data:`vtoladapt.config.MEMORY_BUDGET_BYTES` (6 GiB unless
-``VTOLADAPT_MEMORY_BUDGET_GB`` says otherwise). The message says how the bytes were counted.
-README "When things go wrong" lists the resulting ceilings.
+The simulated duration over the control period and the runs held together are checked here before
+anything runs or is written, against :data:`vtoladapt.config.MEMORY_BUDGET_BYTES` (6 GiB unless
+``VTOLADAPT_MEMORY_BUDGET_GB`` says otherwise); the ceilings that have nothing to do with the
+simulator (a campaign's plan, a tunnel design, a fit) are :mod:`vtoladapt.ceilings`'. The message
+says how the bytes were counted. README "When things go wrong" lists the resulting ceilings. Also
+here: the README's table of every numeric key's range.
 """
 from __future__ import annotations
 
-import math
-import pickle
-
 from ..config import MEMORY_BUDGET_BYTES, ConfigError, check_memory
 
-FLOAT_BYTES = 8
-FORCE_BALANCE_COLUMNS = 16
-"""Float columns of a force-balance table in memory (inputs, forces, moments, derived values)."""
-FIT_PARAMETERS_MAX = 8
-"""Most dimensions the MCMC samples (k1, k2 and the noise model), an upper count for its chain."""
-FIT_WORK_COPIES = 4
-"""Residual arrays (walkers x rows x 3 axes) alive at once in one vectorised likelihood call."""
-CAMPAIGN_ROW_BYTES = 4096
-"""A campaign row (about forty metrics in a dict) and its Dask task record, generously."""
+from ..ceilings import FLOAT_BYTES
 
 
 def log_columns() -> int:
-    """Columns of a simulation log (one float64 each per control tick)."""
-    from .loop import N_LOG
+    """Columns of a simulation log (one float64 each per control tick): :func:`vtoladapt.sim.loop.log_layout`
+    with the controller's diagnostics."""
+    from .loop import log_layout
 
-    return N_LOG
+    return log_layout().size
 
 
 def experiment_runs(scenario) -> int:
@@ -78,34 +69,6 @@ def check_in_memory_runs(scenarios, where: str) -> None:
 def max_duration_s(scenario, n_runs: int = 1) -> float:
     """The longest duration whose logs fit the budget at the scenario's control period."""
     return MEMORY_BUDGET_BYTES / (n_runs * log_columns() * FLOAT_BYTES) * scenario.dt_control_s
-
-
-def check_campaign_runs(runs: int, base_mapping: dict, where: str = "--runs") -> None:
-    """Refuse a campaign whose planned runs (each a scenario copy and a result row) exceed the budget."""
-    per_run = len(pickle.dumps(base_mapping)) * 3 + CAMPAIGN_ROW_BYTES  # dict overhead ~3x pickle
-    check_memory(f"{runs} runs x {per_run} bytes (scenario copy and result row)",
-                 float(runs) * per_run, where, "split the campaign into several")
-
-
-def check_tunnel_rows(points_per_repeat: int, repeats: int, where: str = "--repeats") -> None:
-    """Refuse a tunnel design whose table (rows x columns x 8 bytes) exceeds the budget."""
-    rows = float(points_per_repeat) * repeats
-    check_memory(f"{points_per_repeat} points x {repeats} repeats x {FORCE_BALANCE_COLUMNS} "
-                 f"columns x {FLOAT_BYTES} bytes", rows * FORCE_BALANCE_COLUMNS * FLOAT_BYTES, where)
-
-
-def check_fit_size(walkers: int, max_steps: int, n_rows: int, where: str) -> None:
-    """Refuse MCMC settings whose chain and vectorised residuals exceed the budget."""
-    chain = float(walkers) * max_steps * FIT_PARAMETERS_MAX * FLOAT_BYTES
-    work = float(walkers) * n_rows * 3 * FLOAT_BYTES * FIT_WORK_COPIES
-    check_memory(f"chain {walkers} walkers x {max_steps} steps x {FIT_PARAMETERS_MAX} parameters "
-                 f"x {FLOAT_BYTES} bytes + residuals {walkers} walkers x {n_rows} rows x 3 axes x "
-                 f"{FLOAT_BYTES} bytes x {FIT_WORK_COPIES}", chain + work, where)
-
-
-def ceiling(n_bytes_per_unit: float) -> int:
-    """How many units of ``n_bytes_per_unit`` the budget holds."""
-    return int(math.floor(MEMORY_BUDGET_BYTES / n_bytes_per_unit))
 
 
 ROW_CHECKS = {
