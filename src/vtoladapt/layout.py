@@ -146,9 +146,17 @@ class BlockLayout:
         return f"BlockLayout({self.title!r}, {len(self.fields)} fields, size {self.size})"
 
 # --- plant state x ---------------------------------------------------------------------------
-N_MOTORS = 5
-N_LIFT = 4
-MOTOR_PUSHER = 4
+ACTUATORS = BlockLayout("actuator commands", [
+    Field("LIFT", 4, "-", "the four lift rotors' throttles, fractions (rotor order of the vehicle file)",
+          columns=("motor1_cmd_frac", "motor2_cmd_frac", "motor3_cmd_frac", "motor4_cmd_frac")),
+    Field("PUSHER", 1, "-", "the pusher's throttle, fraction", columns=("pusher_cmd_frac",)),
+])
+"""What the mixer writes and the plant's motors follow (after the actuator faults): the actuator
+command vector. The plant state's ``MOTOR`` block holds the same actuators' outputs after their lags.
+An actuator added to the airframe (a control surface) is a field here and one in the state."""
+N_LIFT = ACTUATORS.field("LIFT").size
+N_MOTORS = ACTUATORS.size
+(MOTOR_PUSHER,) = ACTUATORS.offsets("PUSHER")
 
 STATE = BlockLayout("plant state", [
     Field("P_W", 3, "m", "position, NED", columns=("p_N_m", "p_E_m", "p_D_m")),

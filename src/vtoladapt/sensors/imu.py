@@ -71,8 +71,6 @@ DRAWS = BlockLayout("IMU draws per step (standard normals)", [
 _D_GYRO_NOISE, _D_ACCEL_NOISE, _D_GYRO_WALK, _D_ACCEL_WALK = DRAWS.offsets(*(f.name for f in DRAWS.fields))
 NORMALS_PER_STEP = DRAWS.size
 UNIFORMS_PER_STEP = 0
-DRAWS_INITIAL = 6
-"""Standard normals :func:`initial_state` draws: the gyro then the accelerometer bias, xyz."""
 
 PARAMS = BlockLayout("IMU parameters", [
     Field("IDEAL", 1, "-", "1.0: perfect IMU"),
@@ -97,6 +95,8 @@ STATE = BlockLayout("IMU state", [
 ])
 _S_GYRO_BIAS, _S_ACCEL_BIAS, _S_DT_KEY, _S_INV_SQRT_DT, _S_SQRT_DT = STATE.offsets(
     "GYRO_BIAS", "ACCEL_BIAS", "DT_KEY", "INV_SQRT_DT", "SQRT_DT")
+DRAWS_INITIAL = STATE.field("GYRO_BIAS").size + STATE.field("ACCEL_BIAS").size
+"""Standard normals :func:`initial_state` draws: the gyro then the accelerometer bias, xyz."""
 
 _OMEGA = layout.MEAS_OMEGA_B
 _ACCEL = layout.MEAS_ACCEL_B

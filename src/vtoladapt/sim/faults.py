@@ -50,7 +50,11 @@ FAULT_KINDS: tuple[str, ...] = (
     "probe_dropout", "probe_stuck", "probe_nan", "probe_blocked_port", "imu_spike", "imu_nan",
     "mocap_dropout", "mocap_latency", "lift_motor_loss", "pusher_saturated", "stuck_throttle")
 (K_PROBE_DROPOUT, K_PROBE_STUCK, K_PROBE_NAN, K_PROBE_BLOCKED, K_IMU_SPIKE, K_IMU_NAN, K_MOCAP_DROPOUT,
- K_MOCAP_LATENCY, K_LIFT_LOSS, K_PUSHER_SAT, K_STUCK_THROTTLE) = range(len(FAULT_KINDS))
+ K_MOCAP_LATENCY, K_LIFT_LOSS, K_PUSHER_SAT, K_STUCK_THROTTLE) = (FAULT_KINDS.index(k) for k in (
+    "probe_dropout", "probe_stuck", "probe_nan", "probe_blocked_port", "imu_spike", "imu_nan", "mocap_dropout",
+    "mocap_latency", "lift_motor_loss", "pusher_saturated", "stuck_throttle"))
+"""The kinds' codes in a schedule row (what :meth:`FaultConfig.to_row` packs); the actuator kinds come
+last, from ``K_LIFT_LOSS`` on."""
 ACTUATOR_KINDS = ("lift_motor_loss", "pusher_saturated", "stuck_throttle")
 _KIND_KEYS: dict[str, tuple[str, ...]] = {
     "probe_blocked_port": ("port",), "imu_spike": ("spike_gyro_radps", "spike_accel_mps2"),

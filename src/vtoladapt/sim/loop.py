@@ -63,6 +63,7 @@ from ..layout import (
     COMMAND_COLUMNS,
     MEAS_SIZE,
     MEASUREMENT_COLUMNS,
+    ACTUATORS,
     MOTOR_PUSHER,
     N_MOTORS,
     REF_SIZE,
@@ -101,8 +102,8 @@ LOG_HEAD = BlockLayout("log row, before the controller's diagnostics", [
           columns=MEASUREMENT_COLUMNS),
     Field("REF", REF_SIZE, "-", "the reference (vtoladapt.layout.REFERENCE)", columns=REFERENCE_COLUMNS),
     Field("CMD", CMD_SIZE, "-", "the controller's command (vtoladapt.layout.COMMAND)", columns=COMMAND_COLUMNS),
-    Field("MOTOR_CMD", N_MOTORS, "-", "motor commands after the mixer and the actuator faults, fractions",
-          columns=("motor1_cmd_frac", "motor2_cmd_frac", "motor3_cmd_frac", "motor4_cmd_frac", "pusher_cmd_frac")),
+    Field("MOTOR_CMD", N_MOTORS, "-", "actuator commands after the mixer and the actuator faults (ACTUATORS)",
+          columns=ACTUATORS.columns),
     Field("SATURATED", 1, "-", "1.0 if the mixer hit a limit", columns=("mixer_saturated",)),
 ])
 LOG_TAIL = BlockLayout("log row, after the controller's diagnostics", [
@@ -113,7 +114,6 @@ LOG_TAIL = BlockLayout("log row, after the controller's diagnostics", [
     *(f.name for f in LOG_HEAD.fields))
 _L_DIAG = LOG_HEAD.size
 _LT_LYAP, _LT_FAULTS = LOG_TAIL.offsets("LYAPUNOV", "FAULTS")
-_LOG_FIXED = LOG_HEAD.size + LOG_TAIL.size
 
 
 def diagnostics_columns(controller_params=None) -> tuple[str, ...]:

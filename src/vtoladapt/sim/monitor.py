@@ -21,18 +21,18 @@ from ..config import Validated, setting
 from ..errors import RunFailed
 from ..layout import REF_P_W, X_OMEGA_B, X_P_W, X_SIZE, X_V_W, BlockLayout, Field
 
-REASON_OK = 0
-REASON_NON_FINITE = 1
-REASON_SPEED = 2
-REASON_BODY_RATE = 3
-REASON_HEIGHT_LOW = 4
-REASON_HEIGHT_HIGH = 5
-REASON_POSITION_ERROR = 6
 DIVERGENCE_REASONS: tuple[str, ...] = (
     "", "non-finite state", "speed above envelope.max_speed_mps",
     "body rate above envelope.max_body_rate_radps", "height below envelope.min_height_m",
     "height above envelope.max_height_m", "distance from the reference above envelope.max_position_error_m")
 """Reason code (what :func:`check_envelope` returns) -> words; code 0 is "inside the envelope"."""
+REASON_OK = DIVERGENCE_REASONS.index("")
+REASON_NON_FINITE = DIVERGENCE_REASONS.index("non-finite state")
+REASON_SPEED = DIVERGENCE_REASONS.index("speed above envelope.max_speed_mps")
+REASON_BODY_RATE = DIVERGENCE_REASONS.index("body rate above envelope.max_body_rate_radps")
+REASON_HEIGHT_LOW = DIVERGENCE_REASONS.index("height below envelope.min_height_m")
+REASON_HEIGHT_HIGH = DIVERGENCE_REASONS.index("height above envelope.max_height_m")
+REASON_POSITION_ERROR = DIVERGENCE_REASONS.index("distance from the reference above envelope.max_position_error_m")
 
 ENVELOPE_PARAMS = BlockLayout("envelope parameters", [
     Field("ON", 1, "-", "1.0: check the envelope"),

@@ -76,8 +76,9 @@ TURBULENCE_DRAWS = BlockLayout("Dryden draws per step (standard normals)", [
 _D_U, _D_V, _D_W = TURBULENCE_DRAWS.offsets("U", "V", "W")
 TURBULENCE_DRAWS_PER_STEP = TURBULENCE_DRAWS.size
 """Standard normals every step consumes."""
-TURBULENCE_DRAWS_INITIAL = 5
-"""Standard normals :func:`initial_state` draws (the stationary initial state)."""
+TURBULENCE_DRAWS_INITIAL = TURBULENCE_DRAWS.size
+"""Standard normals :func:`initial_state` draws (the stationary initial state: one per filter state,
+as many as a step's)."""
 
 TURBULENCE_PARAMS = BlockLayout("Dryden parameters", [
     Field("ON", 1, "-", "1.0 if turbulence is on"),
