@@ -50,7 +50,6 @@ from .composer import (
     fan_mean_wind_speed,
     fan_throttle_pct,
     gust_wind_W,
-    mean_wind_W,
     run_wind_model,
     wind_at,
     wind_series,
@@ -74,6 +73,6 @@ __all__ = [
     "MAX_BREAKPOINTS", "MAX_GUSTS", "PAPER_PROFILES", "TurbulenceConfig", "WIND_DRAWS_INITIAL",
     "WIND_DRAWS_PER_STEP", "WIND_KERNEL_SIZE", "WIND_PARAMS", "WIND_PARTS", "WIND_STEP_SIGNATURE",
     "WindConfig", "comparison_schedule", "convergence_schedule", "dryden_low_altitude", "dryden_psd",
-    "fan_mean_wind_speed", "fan_throttle_pct", "gust_wind_W", "mean_wind_W", "paper_fan_array",
+    "fan_mean_wind_speed", "fan_throttle_pct", "gust_wind_W", "paper_fan_array",
     "paper_schedule", "run_wind_model", "wind_at", "wind_series",
 ]

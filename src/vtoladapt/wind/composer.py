@@ -34,7 +34,7 @@ WIND_PARAMS = BlockLayout("wind parameters (the package's parts, which lead ever
 ])
 """The package's parts' blocks, in the order they are called; a part registered from outside
 follows them."""
-_FAN, _CONST, _GUSTS = WIND_PARAMS.offsets("FAN_ARRAY", "CONSTANT", "GUSTS")
+_FAN, _GUSTS = WIND_PARAMS.offsets("FAN_ARRAY", "GUSTS")
 WIND_KERNEL_SIZE = WIND_PARAMS.size
 
 WIND_DRAWS_PER_STEP = dryden.TURBULENCE_DRAWS_PER_STEP
@@ -229,16 +229,6 @@ def fan_mean_wind_speed(params: np.ndarray, t: float) -> float:
     ``params``: a wind parameter array (:meth:`WindConfig.to_kernel`).
     """
     return fan_array.mean_speed_mps(params, _FAN, t)
-
-
-@njit(cache=True)
-def mean_wind_W(params: np.ndarray, t: float, out_v_W: np.ndarray) -> None:
-    """Mean wind (fan array plus constant wind, NED, m/s) at ``t``: no gusts, no turbulence."""
-    v_fan = fan_array.mean_speed_mps(params, _FAN, t)
-    dN, dE = fan_array.direction_NE(params, _FAN)
-    out_v_W[0] = v_fan * dN + params[_CONST]
-    out_v_W[1] = v_fan * dE + params[_CONST + 1]
-    out_v_W[2] = params[_CONST + 2]
 
 
 @njit(cache=True)

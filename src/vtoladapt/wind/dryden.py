@@ -40,8 +40,8 @@ With ``x = V dt / L``:
   ``x``, where these cancel), drawn through its Cholesky factor.
 
 The sampled sequence therefore has exactly the Dryden autocorrelation at multiples of ``dt``; its
-spectrum is the continuous Dryden spectrum folded at the Nyquist frequency. The first call of
-:func:`wind_step` draws the filter states from their stationary distribution, so the turbulence
+spectrum is the continuous Dryden spectrum folded at the Nyquist frequency. :func:`initial_state`
+draws the filter states from their stationary distribution, so the turbulence
 is statistically stationary from t = 0. The step coefficients are kept in the state and
 recomputed only when ``V dt`` changes (while the fan spins up, or when ``dt`` changes).
 
