@@ -232,6 +232,8 @@ class Assembly:
             row[T_P0], row[T_P1] = p.start, p.stop
             row[T_S0], row[T_S1] = s.start, s.stop
             row[T_D0], row[T_N1], row[T_D1] = d.start, d.start + module.NORMALS_PER_STEP, d.stop
+            if row[T_JIT] <= 0 or row[T_C] <= 0:  # the kernels would call address 0
+                raise TypeError(f"{kind.name} part {part_id!r}: its step has no compiled code for {kind.signature}")
 
     def initial_state(self, rng: np.random.Generator) -> np.ndarray:
         """A fresh state array: each part's ``initial_state`` in order (their draws from ``rng``)."""
