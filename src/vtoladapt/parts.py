@@ -43,6 +43,7 @@ itself.
 """
 from __future__ import annotations
 
+import functools
 import warnings
 from dataclasses import dataclass
 from types import ModuleType
@@ -163,7 +164,21 @@ def function_loader(signature) -> Callable:
     return load
 
 
-@njit(cache=True, nogil=True, _nrt=False)
+_ADDRESSES: dict[tuple[int, Any], tuple[Any, int, int]] = {}
+
+
+def _addresses(step, signature) -> tuple[int, int]:
+    """``(jit address, C wrapper address)`` of ``step``'s compiled code for ``signature``, looked up once
+    per process (the look-up goes through LLVM's symbol table: 0.2 ms a part, too slow for every
+    episode of the Gymnasium environment). The cache holds ``step`` itself, so its code stays alive."""
+    key = (id(step), signature)
+    hit = _ADDRESSES.get(key)
+    if hit is None or hit[0] is not step:
+        hit = _ADDRESSES[key] = (step, _get_jit_address(step, signature), _get_wrapper_address(step, signature))
+    return hit[1], hit[2]
+
+
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
 def draw(rng, table, draws) -> None:
     """Fill each part's slots of ``draws`` from ``rng``: part by part in table order, its normals
     then its uniforms (what each step would have drawn itself, in the same order)."""
@@ -172,6 +187,31 @@ def draw(rng, table, draws) -> None:
             draws[i] = rng.standard_normal()
         for i in range(table[j, T_N1], table[j, T_D1]):
             draws[i] = rng.random()
+
+
+@functools.lru_cache(maxsize=64)
+def _layouts(kind: PartKind, modules: tuple, ids: tuple, params_sizes: tuple) -> tuple:
+    """The layouts and the part table of an assembly: the same for every run of a
+    configuration, so made once (the Gymnasium environment assembles its parts at every reset)."""
+    params_layout = BlockLayout(f"{kind.name} parameters", [
+        Field(i.upper(), n, "-", f"{m.__name__}.PARAMS") for i, m, n in zip(ids, modules, params_sizes)])
+    state_layout = BlockLayout(f"{kind.name} state", [
+        Field(i.upper(), m.STATE.size, "-", f"{m.__name__}.STATE") for i, m in zip(ids, modules)])
+    draws_layout = BlockLayout(f"{kind.name} draws per step", [
+        Field(i.upper(), m.NORMALS_PER_STEP + m.UNIFORMS_PER_STEP, "-", "normals, then uniforms")
+        for i, m in zip(ids, modules)])
+    table = np.zeros((len(ids), PART_ROW.size), dtype=np.int64)
+    for j, (part_id, module) in enumerate(zip(ids, modules)):
+        name = part_id.upper()
+        p, s, d = params_layout.slice(name), state_layout.slice(name), draws_layout.slice(name)
+        row = table[j]
+        row[T_JIT], row[T_C] = _addresses(module.step, kind.signature)
+        row[T_P0], row[T_P1] = p.start, p.stop
+        row[T_S0], row[T_S1] = s.start, s.stop
+        row[T_D0], row[T_N1], row[T_D1] = d.start, d.start + module.NORMALS_PER_STEP, d.stop
+        if row[T_JIT] <= 0 or row[T_C] <= 0:  # the kernels would call address 0
+            raise TypeError(f"{kind.name} part {part_id!r}: its step has no compiled code for {kind.signature}")
+    return params_layout, state_layout, draws_layout, table
 
 
 class Assembly:
@@ -212,28 +252,11 @@ class Assembly:
                 raise ValueError(f"{kind.name} part {part_id!r}: pack() gave shape {p.shape}, its PARAMS "
                                  f"need ({module.PARAMS.size},)")
             blocks.append(p)
-        self.params_layout = BlockLayout(f"{kind.name} parameters", [
-            Field(i.upper(), b.size, "-", f"{m.__name__}.PARAMS") for i, m, b in zip(self.ids, self.modules, blocks)])
-        self.state_layout = BlockLayout(f"{kind.name} state", [
-            Field(i.upper(), m.STATE.size, "-", f"{m.__name__}.STATE") for i, m in zip(self.ids, self.modules)])
-        self.draws_layout = BlockLayout(f"{kind.name} draws per step", [
-            Field(i.upper(), m.NORMALS_PER_STEP + m.UNIFORMS_PER_STEP, "-", "normals, then uniforms")
-            for i, m in zip(self.ids, self.modules)])
         self.params = np.concatenate(blocks) if blocks else np.zeros(0)
+        self.params_layout, self.state_layout, self.draws_layout, table = _layouts(
+            kind, self.modules, self.ids, tuple(b.size for b in blocks))
+        self.table = table.copy()  # the cached one is shared
         self.draws_size = self.draws_layout.size
-        self.table = np.zeros((len(self.ids), PART_ROW.size), dtype=np.int64)
-        for j, (part_id, module) in enumerate(zip(self.ids, self.modules)):
-            name = part_id.upper()
-            p, s, d = (self.params_layout.slice(name), self.state_layout.slice(name),
-                       self.draws_layout.slice(name))
-            row = self.table[j]
-            row[T_JIT] = _get_jit_address(module.step, kind.signature)
-            row[T_C] = _get_wrapper_address(module.step, kind.signature)
-            row[T_P0], row[T_P1] = p.start, p.stop
-            row[T_S0], row[T_S1] = s.start, s.stop
-            row[T_D0], row[T_N1], row[T_D1] = d.start, d.start + module.NORMALS_PER_STEP, d.stop
-            if row[T_JIT] <= 0 or row[T_C] <= 0:  # the kernels would call address 0
-                raise TypeError(f"{kind.name} part {part_id!r}: its step has no compiled code for {kind.signature}")
 
     def initial_state(self, rng: np.random.Generator) -> np.ndarray:
         """A fresh state array: each part's ``initial_state`` in order (their draws from ``rng``)."""

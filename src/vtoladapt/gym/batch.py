@@ -65,17 +65,30 @@ def row_layouts(template: PreparedRun) -> tuple[BlockLayout, BlockLayout]:
              "DIAG": len(diagnostics_columns(template.controller_params)), "MOTOR": N_MOTORS, "WORK": RK4_WORK_SIZE,
              "WIND_DRAWS": template.wind_parts.draws_size, "SENSOR_DRAWS": template.sensor_parts.draws_size}
     sizes.update({name: getattr(template, name.lower()).size for name in _PER_RUN})
-    shared = {f.name: getattr(template, f.name.lower()).size for f in SHARED_BLOCKS}
+    shared = {f.name: _shared_value(template, f.name).size for f in SHARED_BLOCKS}
     return (BlockLayout("environment row", _sized(ROW_BLOCKS, sizes)),
             BlockLayout("shared table row", _sized(SHARED_BLOCKS, shared)))
 
 
+def _shared_value(run: PreparedRun, name: str) -> np.ndarray:
+    """Shared block ``name`` of a run (the fault schedule flattened, row after row)."""
+    return run.fault_schedule.ravel() if name == "FAULT_SCHEDULE" else getattr(run, name.lower())
+
+
+def _tables(template: PreparedRun) -> list[tuple[str, np.ndarray]]:
+    """The function tables of :data:`~vtoladapt.gym.batch_kernel.TABLES`, in order."""
+    return [("WIND_TABLE", template.wind_parts.table), ("SENSOR_TABLE", template.sensor_parts.table),
+            ("CONTROLLER_FNS", template.controller_fns)]
+
+
 def block_offsets(template: PreparedRun) -> np.ndarray:
     """The kernel's ``off`` array (laid out as :data:`~vtoladapt.gym.batch_kernel.BOUNDS`): where each
-    block of a row starts and the row's width, then the same for the shared table."""
+    block of a row starts and the row's width, the same for the shared table, then the rows of the
+    function tables."""
     row, shared = row_layouts(template)
+    tables = BlockLayout("function tables", [Field(name, t.shape[0], "rows", name) for name, t in _tables(template)])
     off = np.zeros(BOUNDS.size, dtype=np.int64)
-    for lay, end in ((row, "ROW_END"), (shared, "SHARED_END")):
+    for lay, end in ((row, "ROW_END"), (shared, "SHARED_END"), (tables, "TABLES_END")):
         for f in lay.fields:
             off[BOUNDS.offset(f.name)] = lay.offset(f.name)
         off[BOUNDS.offset(end)] = lay.size
@@ -126,23 +139,24 @@ class _Chunk:
         self.settings = batch.settings.copy()
         (self.settings[SET_PREFETCH_END], self.settings[SET_PREFETCH_RESUME],
          self.settings[SET_PREFETCH_STOP]) = prefetch_range(template, self.off)
-        # what every environment of the batch has in common (its parts keep their functions alive)
+        # the function tables every environment of the batch calls through (the template's parts keep
+        # the functions alive)
         self.template = template
-        self.fault_schedule = template.fault_schedule
-        self.common = (template.wind_parts.table, template.sensor_parts.table, template.fault_schedule,
-                       template.envelope, template.controller_fns)
+        self.tables = np.ascontiguousarray(np.vstack([t for _, t in _tables(template)]), dtype=np.int64)
         # every array is updated in place, so the arguments are bound once
         self.args = (self.rngs, self.op, self.actions, self.settings, batch.tau_max.copy(), batch.ref_table.copy(),
                      self.S, self.off, self.P, self.pidx, self.K, self.obs, self.reward, self.terminated,
-                     self.truncated, self.common, np.empty(0))
+                     self.truncated, self.tables, np.empty(0))
+        self._slices = {}
+        for lay, shared in ((self.row_layout, False), (self.shared_layout, True)):
+            for f in lay.fields:
+                self._slices[f.name] = self._slices[f.name.lower()] = (shared, lay.slice(f.name))
 
     def block(self, j: int, name: str) -> np.ndarray:
         """Row ``j``'s block ``name`` (a view; a shared block's is the table row it uses); ``name`` is a
         block of :data:`~vtoladapt.gym.batch_kernel.ROW_BLOCKS` or ``SHARED_BLOCKS``, in either case."""
-        name = name.upper()
-        if name in self.shared_layout:
-            return self.P[self.pidx[j], self.shared_layout.slice(name)]
-        return self.S[j, self.row_layout.slice(name)]
+        shared, columns = self._slices[name] if name in self._slices else self._slices[name.upper()]
+        return self.P[self.pidx[j], columns] if shared else self.S[j, columns]
 
     def _check_size(self, key: str, value: np.ndarray, name: str) -> None:
         lay = self.shared_layout if key in self.shared_layout else self.row_layout
@@ -170,12 +184,9 @@ class _Chunk:
         self.pidx[j] = entry[0]
 
     def load(self, j: int, run: PreparedRun, name: str) -> None:
-        if not np.array_equal(run.fault_schedule, self.fault_schedule) or \
-                not np.array_equal(run.envelope, self.template.envelope) or \
-                run.wind_parts.ids != self.template.wind_parts.ids or \
-                run.sensor_parts.ids != self.template.sensor_parts.ids:
-            raise ValueError(f"episode scenario {name!r}: its faults, envelope, wind parts or sensor channels differ "
-                             "from the base scenario's; the randomisation must not change them")
+        if run.wind_parts.ids != self.template.wind_parts.ids or run.sensor_parts.ids != self.template.sensor_parts.ids:
+            raise ValueError(f"episode scenario {name!r}: its wind parts or sensor channels differ from the base "
+                             "scenario's; the randomisation must not change them")
         row = self.S[j]
         row[:] = 0.0
         shared = np.zeros(self.P.shape[1])
@@ -184,7 +195,7 @@ class _Chunk:
             self._check_size(key, value, name)
             row[self.row_layout.slice(key)] = value
         for f in SHARED_BLOCKS:
-            value = getattr(run, f.name.lower())
+            value = _shared_value(run, f.name)
             self._check_size(f.name, value, name)
             shared[self.shared_layout.slice(f.name)] = value
         self._share(j, shared)

@@ -15,8 +15,8 @@ layout is built per batch, as the blocks' sizes depend on the scenario, and hand
 its bounds), so an environment's state is one contiguous stretch of memory, taken apart by slicing
 inside the compiled code (no per-step copies, and one array to unbox per call instead of twenty);
 the read-only blocks most environments share (:data:`SHARED_BLOCKS`) are rows of a second, small
-table instead. What every environment of a batch has in common (the wind and sensor part tables,
-the fault schedule, the envelope, the controller's function table) is passed once per call. It
+table instead, the envelope and the fault schedule among them. The wind parts', sensor channels' and
+controller's function tables, the same for every environment of a batch, are one int64 array. It
 releases the GIL, so chunks step in parallel threads. While it steps environment ``i`` it
 prefetches the hot part of row ``i + 1``: 256 environments hold about 4 MB, more than a core's
 L2 cache, and without the prefetch each step waits for some 150 cache lines from L3 one miss at a
@@ -40,6 +40,7 @@ from ..control.kernel import set_last_command
 from ..layout import (CMD_SIZE, CMD_TAU_B, CMD_U_X, CMD_U_Z, MEAS_OMEGA_B, MEAS_P_W, MEAS_Q_WB, MEAS_V_I_B,
                       MEAS_V_I_VALID, MEAS_V_W, REF_P_W, X_P_W, X_Q_WB, X_SIZE, BlockLayout, Field)
 from ..sim.loop import tick_actuate, tick_sense, tick_time
+from ..sim.faults import FAULT_ROW_SIZE
 from ..sim.monitor import REASON_OK
 from .spaces import OBS_CMD, OBS_HIGH, OBS_LOW, OBS_OMEGA, OBS_P_ERR, OBS_Q, OBS_V, OBS_V_I, OBS_V_I_VALID
 
@@ -80,23 +81,33 @@ every step), then the parameters and states of :class:`vtoladapt.sim.driver.Prep
 SHARED_BLOCKS: tuple[Field, ...] = (
     Field("MIXER_PARAMS", 0, "-", "the mixer's parameters"),
     Field("CONTROLLER_PARAMS", 0, "-", "the controller's parameters"),
+    Field("ENVELOPE", 0, "-", "the scenario's envelope (vtoladapt.sim.monitor.ENVELOPE_PARAMS)"),
+    Field("FAULT_SCHEDULE", 0, "-", "the fault schedule, rows of vtoladapt.sim.faults.FAULT_ROW one after another"),
 )
 """Read-only blocks that environments of a chunk usually have in common (the episode draw changes
 the plant and the wind, not the controller or the mixer): each distinct value is stored once per
 chunk, in a table row that environment ``i`` finds at ``pidx[i]`` (2 of an environment's 12 kB
 that a step reads, so fewer cache misses at many environments)."""
 
+TABLES: tuple[str, ...] = ("WIND_TABLE", "SENSOR_TABLE", "CONTROLLER_FNS")
+"""The function tables every environment of a batch shares (:class:`vtoladapt.parts.Assembly`'s part
+tables and the controller's), one after another in the ``tables`` argument."""
+
 BOUNDS = BlockLayout("bounds of a row's and a shared row's blocks", [
     *(Field(f.name, 1, "-", f"first column of the row's {f.name} block") for f in ROW_BLOCKS),
     Field("ROW_END", 1, "-", "the row's width"),
     *(Field(f.name, 1, "-", f"first column of the shared table's {f.name} block") for f in SHARED_BLOCKS),
     Field("SHARED_END", 1, "-", "the shared table's width"),
+    *(Field(name, 1, "-", f"first row of the {name.lower().replace('_', ' ')} in the function tables")
+      for name in TABLES),
+    Field("TABLES_END", 1, "-", "the function tables' rows"),
 ])
 """The kernel's ``off`` array: block ``B`` of a row spans columns ``off[B] .. off[B + 1] - 1`` (each
-block's end is the next one's start), the row's :data:`ROW_BLOCKS` then the shared table's."""
+block's end is the next one's start), the row's :data:`ROW_BLOCKS` then the shared table's, then the
+rows of each of :data:`TABLES` in the ``tables`` argument."""
 (B_X, B_TRUTH, B_MEAS, B_CMD, B_BASE, B_DIAG, B_MOTOR, B_WORK, B_WIND_D, B_SENS_D, B_PLANT, B_CTRL_S, B_WIND_P,
- B_WIND_S, B_SENS_P, B_SENS_S, B_FAULT_S, B_ROW_END, B_MIXER, B_CTRL_P, B_SHARED_END) = BOUNDS.offsets(
-    *(f.name for f in BOUNDS.fields))
+ B_WIND_S, B_SENS_P, B_SENS_S, B_FAULT_S, B_ROW_END, B_MIXER, B_CTRL_P, B_ENVELOPE, B_FAULTS, B_SHARED_END,
+ B_WIND_TABLE, B_SENSOR_TABLE, B_CTRL_FNS, B_TABLES_END) = BOUNDS.offsets(*(f.name for f in BOUNDS.fields))
 
 SETTINGS = BlockLayout("settings of step_batch", [
     Field("MODE", 1, "-", "index into MODES"),
@@ -199,11 +210,13 @@ def _observe(meas, ref, base, u_max, tau_max, obs) -> None:
 
 @njit(cache=True, nogil=True, _nrt=False)
 def _step_env(rng, i, o, actions, settings, tau_max, ref_table, S, off, P, pidx, K, obs, reward, terminated,
-              truncated, common, empty) -> None:
+              truncated, tables, empty) -> None:
     """Environment ``i`` of :func:`step_batch`, operation ``o`` (not :data:`OP_SKIP`), its generator
     ``rng``. Allocates nothing (compiled without reference counting)."""
     no_log = (empty, empty, 0.0)  # no log row, no theta_true: the environment logs nothing
-    wind_table, sensor_table, fault_schedule, envelope, ctrl_fns = common
+    wind_table = tables[off[B_WIND_TABLE]:off[B_WIND_TABLE + 1]]
+    sensor_table = tables[off[B_SENSOR_TABLE]:off[B_SENSOR_TABLE + 1]]
+    ctrl_fns = tables[off[B_CTRL_FNS]:off[B_CTRL_FNS + 1]]
     mode = int(settings[SET_MODE])
     residual = mode == MODE_RESIDUAL
     residual_scale = settings[SET_RESIDUAL_SCALE]
@@ -228,6 +241,9 @@ def _step_env(rng, i, o, actions, settings, tau_max, ref_table, S, off, P, pidx,
     shared = P[pidx[i]]
     mixer_p = shared[off[B_MIXER]:off[B_MIXER + 1]]
     ctrl_p = shared[off[B_CTRL_P]:off[B_CTRL_P + 1]]
+    envelope = shared[off[B_ENVELOPE]:off[B_ENVELOPE + 1]]
+    schedule = shared[off[B_FAULTS]:off[B_FAULTS + 1]]
+    fault_schedule = schedule.reshape((schedule.shape[0] // FAULT_ROW_SIZE, FAULT_ROW_SIZE))
     x = row[off[B_X]:off[B_X + 1]]
     truth = row[off[B_TRUTH]:off[B_TRUTH + 1]]
     meas = row[off[B_MEAS]:off[B_MEAS + 1]]
@@ -301,7 +317,7 @@ def _step_env(rng, i, o, actions, settings, tau_max, ref_table, S, off, P, pidx,
 
 @njit(cache=True, nogil=True)
 def step_batch(rngs, op, actions, settings, tau_max, ref_table, S, off, P, pidx, K, obs, reward, terminated,
-               truncated, common, empty) -> None:
+               truncated, tables, empty) -> None:
     """Advance every environment ``i`` of a chunk by ``op[i]`` (:data:`OP_STEP`, :data:`OP_BEGIN`, :data:`OP_SKIP`).
 
     ``S`` holds one row per environment, block ``B`` of :data:`ROW_BLOCKS` in columns
@@ -309,8 +325,9 @@ def step_batch(rngs, op, actions, settings, tau_max, ref_table, S, off, P, pidx,
     ``pidx[i]`` of ``P`` holds environment ``i``'s :data:`SHARED_BLOCKS` (read only); ``rngs[i]`` is
     environment ``i``'s generator, ``K[i]`` the tick it senses next, ``actions[i]`` its action.
     ``settings`` is laid out as :data:`SETTINGS` (mode, scales, limits, ``dt``, substeps, ticks per
-    episode, what to prefetch of a row); ``ref_table`` (``n_ticks + 1`` rows) is shared, and so is
-    ``common = (wind_table, sensor_table, fault_schedule, envelope, controller_fns)``. Outputs per
+    episode, what to prefetch of a row); ``ref_table`` (``n_ticks + 1`` rows) is shared, and so are the
+    function tables, ``tables``, whose rows ``off`` bounds as :data:`TABLES` (the wind parts', the
+    sensor channels', the controller's: :class:`vtoladapt.parts.Assembly`). Outputs per
     environment: ``obs`` (float32 rows), ``reward``, ``terminated`` (true position outside
     ``max_err_m`` of the reference on any NED axis, tilt beyond ``acos(cos_tilt_max)``, a non-finite
     state, or the state outside the scenario's envelope), ``truncated`` (the scenario's last tick
@@ -327,4 +344,4 @@ def step_batch(rngs, op, actions, settings, tau_max, ref_table, S, off, P, pidx,
         if op[i] == OP_SKIP:
             continue
         _step_env(rngs[i], i, op[i], actions, settings, tau_max, ref_table, S, off, P, pidx, K, obs, reward,
-                  terminated, truncated, common, empty)
+                  terminated, truncated, tables, empty)

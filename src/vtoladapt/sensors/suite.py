@@ -153,7 +153,6 @@ class SensorsConfig(Validated):
 
     def assemble(self, context: SensorContext = SensorContext()) -> Assembly:
         """The suite laid out for the compiled loop (:class:`vtoladapt.parts.Assembly`)."""
-        self._check("SensorsConfig")
         modules = [SENSOR_CHANNELS.module(c) for c in self.channels]
         blocks = [m.pack(self.settings_of(c), context) for c, m in zip(self.channels, modules)]
         return Assembly(SENSOR_KIND, modules, blocks, self.channels)
@@ -164,7 +163,7 @@ class SensorsConfig(Validated):
         return self.assemble(SensorContext(air_density_true_kgpm3, air_density_assumed_kgpm3, base_dir)).params
 
 
-@njit(cache=True, nogil=True, _nrt=False)
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
 def sensors_at(table, params, state, t, dt, x_true, truth, draws, meas) -> None:
     """One tick's measurement (``meas``, :data:`vtoladapt.layout.MEASUREMENT`) from every channel of
     ``table``, each writing its fields from the truth (``x_true``, ``truth``) with its ``draws``."""

@@ -216,7 +216,7 @@ def tick_actuate(x, truth, meas, work, plant_p, mixer_p, faults, ctrl_state, ref
     plant_advance(x, motor_cmd, truth[TRUTH_V_WIND_W:TRUTH_V_WIND_W + 3], plant_p, dt / n_sub, n_sub, True, work)
 
 
-@njit(cache=True, nogil=True, _nrt=False)
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
 def write_log_row(row, x, truth, meas, ref, cmd, diag, motor_cmd, saturated, faults_active, ctrl_state, theta_true,
                   gamma, t) -> None:
     """One log row (:func:`log_layout` with ``diag.shape[0]`` diagnostics)."""

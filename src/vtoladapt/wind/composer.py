@@ -198,7 +198,7 @@ def _check_user_part(part_id: str, source: str) -> None:
 
 # --- kernels ------------------------------------------------------------------------------------
 
-@njit(cache=True, nogil=True, _nrt=False)
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
 def wind_at(table, params, state, t, dt, p_W, draws, wind) -> None:
     """The tick's wind (a :data:`vtoladapt.layout.WIND` array, written) from every part of ``table``.
 
