@@ -21,6 +21,7 @@ import sys
 from pathlib import Path
 
 from ..control.registry import CONTROLLERS
+from .ranking_report import comparison_pair_tables
 from .report import (Cell, Table, ablation_table, claims_table, convergence_distribution_table,
                      distribution_claims_table, distribution_controllers_table, table_markdown,
                      wind_table_table)
@@ -82,6 +83,7 @@ def readme_tables(metrics: dict) -> str:
     if "comparison" in dist:
         parts += [distribution_claims_table(dist["comparison"]),
                   distribution_controllers_table(dist["comparison"])]
+        parts += comparison_pair_tables(metrics)
     if "convergence" in dist:
         parts += [distribution_claims_table(dist["convergence"]),
                   convergence_distribution_table(dist["convergence"])]

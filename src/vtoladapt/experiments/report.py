@@ -314,6 +314,11 @@ def distribution_sections(metrics: dict) -> list[Section]:
         sections.append(Section("Controller comparison over seeded variants",
                                 tables=(distribution_claims_table(dist["comparison"]),
                                         distribution_controllers_table(dist["comparison"]))))
+        from .ranking_report import comparison_pair_tables
+
+        pair_tables = comparison_pair_tables(metrics)
+        if pair_tables:
+            sections.append(Section("Ranking and paired differences", tables=tuple(pair_tables)))
     if "convergence" in dist:
         sections.append(Section("Parameter convergence over seeded variants",
                                 tables=(distribution_claims_table(dist["convergence"]),
