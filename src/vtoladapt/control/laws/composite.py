@@ -68,6 +68,9 @@ class CompositeSettings(Validated):
 Settings = CompositeSettings
 """The law interface's name for the settings class."""
 
+TUNABLE = (("forgetting_lambda", 0.05, 20.0, True), ("sigma", 1e-6, 1.0, True))
+"""The gains ``vtoladapt tune`` searches (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale)."""
+
 
 PARAMS = BlockLayout("composite parameters", [
     Field("LAMBDA", 1, "1/s", "forgetting factor"),
