@@ -200,3 +200,30 @@ def test_tuned_comparison_pairs_tuned_with_default(monkeypatch, tmp_path):
     assert np.isfinite(tuned["controllers"]["pd"]["vel_err_rms_mps"]["median"])
     assert replace(scenario.controller, kind="pd") != tuning.tuned_controller(scenario.controller,
                                                                             tmp_path / "short_pd.toml")
+
+
+def test_readme_lists_every_declared_gain_with_its_box():
+    """README "Tuning a law's gains": one row per law naming each declared gain and its box."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    start = text.index("## Tuning a law's gains")
+    section = text[start:text.index("\n## ", start + 1)]
+    rows = {line.strip().split("|")[1].strip().strip("`"): line for line in section.splitlines()
+            if line.strip().startswith("| `")}
+    for cid in CONTROLLER_IDS:
+        row = rows[cid]
+        for t in tuning.tunables(cid):
+            low, high = (f"{x:g}".replace("e-0", "e-") for x in (t.low, t.high))
+            assert f"`{t.name}` {low}-{high}" in row, (cid, t.name)
+            assert ("(linear)" in row.split(f"`{t.name}`")[1].split(",")[0]) != t.log_scale, (cid, t.name)
+
+
+def test_a_tuned_file_is_not_a_scenario():
+    """The shipped tuned files sit beside the scenarios: not listed as scenarios, refused as one with a hint."""
+    from vtoladapt.config import ConfigError
+    from vtoladapt.sim.scenario import shipped_scenario_names
+
+    assert not any(n.startswith("tuned/") for n in shipped_scenario_names())
+    with pytest.raises(ConfigError, match=r"a tuned settings file .* vtoladapt run SCENARIO --tuned"):
+        load_scenario(tuning.shipped_tuned_file("paper_comparison", "l1"))

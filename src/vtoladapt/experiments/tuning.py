@@ -311,6 +311,7 @@ def tuned_file_text(record: dict, scenario: Scenario) -> str:
 
 
 def tuned_file_name(scenario_name: str, cid: str) -> str:
+    """The tuned settings file's name for law ``cid`` on a scenario: ``<scenario>_<id>.toml``."""
     return f"{scenario_name}_{cid}.toml"
 
 
@@ -384,7 +385,6 @@ def _cmd_tune(args) -> int:
     from ..sim.limits import check_run_size
     from ..outputs import OutputDir, write_json, write_text
     from ..sim.scenario import load_scenario
-    from .running import _Progress
 
     ids = list(CONTROLLER_IDS) if "all" in args.controller else list(dict.fromkeys(args.controller))
     for cid in ids:
@@ -400,11 +400,12 @@ def _cmd_tune(args) -> int:
     target = OutputDir(args.out, "tune", force=args.force)
     with target:
         for cid in ids:
-            progress = _Progress(evaluations * draws * scenario.duration_s, not args.quiet, f"tune {cid}")
+            bar, add = _progress(evaluations * draws * scenario.duration_s, not args.quiet, f"tune {cid}")
             try:
-                record = tune(scenario, cid, evaluations, draws, progress.adder())
+                record = tune(scenario, cid, evaluations, draws, add)
             finally:
-                progress.close()
+                if bar is not None:
+                    bar.close()
             write_text(target.path / tuned_file_name(scenario.name, cid), tuned_file_text(record, scenario))
             write_json(target.path / f"{scenario.name}_{cid}.json", record)
             if not args.quiet:
@@ -412,6 +413,22 @@ def _cmd_tune(args) -> int:
                       f"on {draws} tuning draws ({record['budget']['evaluations']} evaluations): "
                       f"{record['tuned']['settings']}", file=sys.stderr)
     return ExitCode.OK
+
+
+def _progress(total_s: float, show: bool, desc: str):
+    """``(bar or None, add(sim_s))``: a progress bar over simulated seconds, ``add`` safe from threads."""
+    import threading
+
+    from ..progress import progress_bar
+
+    bar = progress_bar(total=round(total_s, 1), unit="sim s", desc=desc) if show else None
+    lock = threading.Lock()
+
+    def add(sim_s: float) -> None:
+        if bar is not None:
+            with lock:
+                bar.update(round(min(sim_s, bar.total - bar.n), 3))
+    return bar, add
 
 
 # --- default against tuned, on the evaluation variants ---------------------------------------------
