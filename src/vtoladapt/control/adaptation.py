@@ -363,11 +363,13 @@ def forgetting_weights(lam: float, dt: float) -> tuple:
 
 
 @njit(cache=True, error_model="numpy")
-def information_update(Gamma, g, Gamma0, g0, WtW, h, a, b) -> None:
+def information_update(Gamma, g, Gamma0, g0, WtW, h, a, b, toward_prior=1.0) -> None:
     """One exact step of ``Gamma' = W^T W - lambda (Gamma - Gamma_0)`` (eq:P_adapt, information form).
 
     ``Gamma <- a Gamma + (1 - a) Gamma_0 + b W^T W`` in place, with ``(a, b)`` from
     :func:`forgetting_weights` (8 x 8 matrices at ``Gamma[g:]``, ``Gamma0[g0:]``, ``WtW[h:]``).
+    ``toward_prior = 0``: the paper's pure forgetting ``Gamma' = W^T W - lambda Gamma`` (P winds up
+    where W does not excite; measured against the shipped law in the README, "Deviations").
     """
     n = N_THETA
     Gamma = Gamma[g:g + n * n]
@@ -375,7 +377,7 @@ def information_update(Gamma, g, Gamma0, g0, WtW, h, a, b) -> None:
     WtW = WtW[h:h + n * n]
     for i in range(n):
         for j in range(i, n):
-            v = flush_tiny(a * Gamma[n * i + j] + (1.0 - a) * Gamma0[n * i + j] + b * WtW[n * i + j])
+            v = flush_tiny(a * Gamma[n * i + j] + toward_prior * (1.0 - a) * Gamma0[n * i + j] + b * WtW[n * i + j])
             Gamma[n * i + j] = v
             Gamma[n * j + i] = v
 
@@ -633,7 +635,8 @@ def adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, fo
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, forget_b, sigma,
-                             trace_max, active_set, w_track, w_pred, directional, gain_scale) -> tuple:
+                             trace_max, active_set, w_track, w_pred, directional, gain_scale,
+                             toward_prior=1.0) -> tuple:
     """One tick of eq:th_adapt and eq:P_adapt (see the module notes), in place.
 
     The paper's law is ``w_track = w_pred = gain_scale = 1``, ``directional = False``
@@ -642,7 +645,7 @@ def weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, for
     information increment ``w_pred W^T W`` (weights in [0, 1] saying how far the linear model is
     trusted this tick); ``directional``: the composite mode forgets only along the excited
     directions (:func:`directional_information_update`); ``gain_scale``: the tracking mode's
-    gain is ``gain_scale P0``.
+    gain is ``gain_scale P0``; ``toward_prior`` 0: the paper's pure forgetting (:func:`information_update`).
 
     Parameters
     ----------
@@ -721,7 +724,7 @@ def weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, for
                 directional_information_update(x, gam, prior, p + PRIOR_GAMMA0, x, wf, x, G,
                                                1.0 - w_pred * (1.0 - forget_a), w_pred * forget_b, x, w + WK_M)
             else:
-                information_update(x, gam, prior, p + PRIOR_GAMMA0, x, G, forget_a, w_pred * forget_b)
+                information_update(x, gam, prior, p + PRIOR_GAMMA0, x, G, forget_a, w_pred * forget_b, toward_prior)
             G = gam
         else:
             # P = P0, solved exactly over the tick: K = phi(dt P0 W^T W) P0, formed as its inverse
