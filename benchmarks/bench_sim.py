@@ -104,13 +104,15 @@ def _part_rows() -> list[tuple[str, float, str]]:
         for _ in range(n):
             controller_step(p, s, meas, ref, 0.004, cmd, diag)
 
-    @njit
+    # without reference counting, as the tick that calls them (the slices the inlined part calls take
+    # would otherwise cost an atomic increment and decrement each)
+    @njit(_nrt=False)
     def sens(table, p, s, draws, x, truth, rng, meas, n):
         for k in range(n):
             draw(rng, table, draws)
             sensors_at(table, p, s, k * 0.004, 0.004, x, truth, draws, meas)
 
-    @njit
+    @njit(_nrt=False)
     def wind(table, p, s, draws, pos, rng, out, n):
         for k in range(n):
             draw(rng, table, draws)

@@ -24,11 +24,10 @@ from vtoladapt.wind import WindConfig, comparison_schedule, wind_at
 DT = 0.004
 
 
-# not cached: Numba's cache does not see edits to the kernels it calls in other files
-@njit(cache=False)
-def _loop_wind(table, params, state, draws, rng, n_calls):
-    out = np.empty(layout.WIND_SIZE)
-    p_W = np.zeros(3)
+# not cached: Numba's cache does not see edits to the kernels it calls in other files; without reference
+# counting, as the tick that calls the parts (their inlined slices would otherwise count references)
+@njit(cache=False, _nrt=False)
+def _loop_wind(table, params, state, draws, out, p_W, rng, n_calls):
     acc = 0.0
     for k in range(n_calls):
         t = (k % 12500) * 0.004
@@ -38,9 +37,8 @@ def _loop_wind(table, params, state, draws, rng, n_calls):
     return acc
 
 
-@njit(cache=False)
-def _loop_sensors(table, params, state, draws, x, truth, rng, n_calls):
-    meas = np.empty(layout.MEAS_SIZE)
+@njit(cache=False, _nrt=False)
+def _loop_sensors(table, params, state, draws, x, truth, meas, rng, n_calls):
     acc = 0.0
     for k in range(n_calls):
         s = 1e-4 * (k % 1000)
@@ -74,7 +72,7 @@ def run() -> list[tuple[str, float, str]]:
     wp = wind.assemble()
     rng = np.random.default_rng(0)
     wind_us = _median_us_per_call(_loop_wind, (wp.table, wp.params, wp.initial_state(rng), np.zeros(wp.draws_size),
-                                               rng), 200_000, 15)
+                                               np.zeros(layout.WIND_SIZE), np.zeros(3), rng), 200_000, 15)
 
     sens = SensorsConfig(mocap=MocapConfig(velocity_from="differentiate"),
                          probe=ProbeConfig(dropout_probability=0.01))
@@ -83,7 +81,8 @@ def run() -> list[tuple[str, float, str]]:
                           [0.0, 0.0, 0.0], [0.5] * 5)
     truth = layout.TRUTH.pack(F_B=[0.0, 0.0, -9.80665], V_I_B=[5.0, 0.0, 0.3])
     sensors_us = _median_us_per_call(
-        _loop_sensors, (sp.table, sp.params, sp.initial_state(rng), np.zeros(sp.draws_size), x, truth, rng),
+        _loop_sensors, (sp.table, sp.params, sp.initial_state(rng), np.zeros(sp.draws_size), x, truth,
+                        np.zeros(layout.MEAS_SIZE), rng),
         200_000, 15)
     return [("wind: four parts (fan + lag + gust + Dryden), draws included", wind_us, "us/call"),
             ("sensors: four channels (all on), draws included", sensors_us, "us/call")]
