@@ -33,7 +33,7 @@ import os
 import re
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Optional
 
@@ -139,6 +139,7 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
     from .config import check_value
     from .control.config import ControllerConfig
     from .limits import check_campaign_runs, check_run_size
+    from .preflight import check_flyable
     from .scenario import Scenario, scenario_from_mapping
 
     runs = check_runs_flag(runs)
@@ -171,7 +172,8 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
             drawn[v.key] = float(rng.uniform(v.low, v.high))
             _set_dotted(mapping, v.key, drawn[v.key], f"--vary {v.key}")
         mapping["experiment"] = {"kind": "single"}
-        scenario_from_mapping(mapping, f"{path} (campaign run {i}, {drawn})", source_path=path)
+        where = f"{path} (campaign run {i}, {drawn})"
+        check_flyable(scenario_from_mapping(mapping, where, source_path=path), where)  # before --out is claimed
         specs.append(RunSpec(i, mapping, str(path), drawn))
     return specs
 
@@ -412,6 +414,7 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
     """
     from .config import check_value
     from .limits import check_campaign_runs, check_run_size
+    from .preflight import check_all
     from .scenario import scenario_from_mapping
 
     cf = load_campaign_file(path)
@@ -487,7 +490,10 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
                 groups[v.name] = v.band(x, _setting_unit(key))
         mapping["controller"] = {**mapping.get("controller", {}), "kind": cfg.controllers[0]}
         shown = {k: (round(val, 4) if isinstance(val, float) else val) for k, val in drawn.items()}
-        scenario_from_mapping(mapping, f"{cf.path} (campaign draw {i}: {shown})", source_path=cf.base_path)
+        where = f"{cf.path} (campaign draw {i}: {shown})"
+        sc = scenario_from_mapping(mapping, where, source_path=cf.base_path)
+        check_all((replace(sc, controller=replace(sc.controller, kind=cid)), f"{where}, controller {cid!r}")
+                  for cid in cfg.controllers)  # every run's setup, before --out is claimed
         specs += [RunSpec(i, mapping, source, drawn, cid, groups) for cid in cfg.controllers]
     return cf, specs
 
@@ -544,6 +550,7 @@ def run_one(spec: RunSpec) -> dict:
     return row
 
 
+CAMPAIGN_OUTPUTS = ("campaign.parquet", "summary.json", "fig_campaign.png")
 MAX_WORKERS = 1024
 """Most local worker processes or threads (each holds one run's log)."""
 
@@ -733,15 +740,17 @@ def _cmd_campaign(args) -> int:
     _check_variations(variations)
     check_scheduler(args.scheduler)
     check_listen(args.listen)
-    target = OutputDir(args.out, "campaign", force=args.force)
+    target = OutputDir(args.out, "campaign", force=args.force, planned=CAMPAIGN_OUTPUTS)
     if args.workers is not None:
         check_flag("--workers", args.workers, ge=1, le=MAX_WORKERS, integer=True)
     specs = plan_campaign(args.scenario, args.runs, variations, args.seed, args.controller)
     with target:
         rows = run_campaign(specs, target.path, args.scheduler, args.workers, not args.quiet,
                             listen=args.listen)
-    v = np.array([r["vel_err_rms_mps"] for r in rows])
-    print(f"{len(rows)} runs: RMS velocity error mean {v.mean():.4f} m/s, max {v.max():.4f} m/s; "
+    v = np.array([r.get("vel_err_rms_mps", np.nan) for r in rows])  # a run diverged at once has none
+    n_div = int(sum(r.get("diverged", 0.0) for r in rows))
+    mean, top = (f"{np.nanmean(v):.4f}", f"{np.nanmax(v):.4f}") if np.isfinite(v).any() else ("-", "-")
+    print(f"{len(rows)} runs ({n_div} diverged): RMS velocity error mean {mean} m/s, max {top} m/s; "
           f"wrote {args.out}/campaign.parquet, summary.json, fig_campaign.png")
     return 0
 
@@ -757,7 +766,7 @@ def _cmd_campaign_file(args) -> int:
         check_runs_flag(args.runs)
     check_scheduler(args.scheduler)
     check_listen(args.listen)
-    target = OutputDir(args.out, "campaign", force=args.force)
+    target = OutputDir(args.out, "campaign", force=args.force, planned=CAMPAIGN_OUTPUTS)
     if args.workers is not None:
         check_flag("--workers", args.workers, ge=1, le=MAX_WORKERS, integer=True)
     cf, specs = plan_campaign_file(args.scenario, args.runs, args.seed)

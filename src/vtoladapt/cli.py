@@ -100,12 +100,17 @@ def load_run_scenario(path, duration_s=None, seed=None, controller=None):
 
 def _cmd_run(args) -> int:
     from .experiments import run_experiment
+    from .experiments.running import planned_outputs
 
     from .config import ConfigError
     from .outputs import OutputError
+    from .preflight import check_experiment
 
     scenario = load_run_scenario(args.scenario, args.duration, args.seed, args.controller)
-    target = OutputDir(args.out, "run", force=args.force)
+    target = OutputDir(args.out, "run", force=args.force, planned=planned_outputs(scenario))
+    # what needs the built vehicle and plant (hover, the law's prior, the envelope at the start),
+    # for every run the experiment flies: all before the folder is claimed
+    check_experiment(scenario, scenario.source_path or scenario.name)
     with target:
         try:
             run_experiment(scenario, target.path, show_progress=not args.quiet)

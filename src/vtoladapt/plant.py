@@ -600,7 +600,11 @@ def hover_trim_motor(vehicle: Vehicle, plant: PlantConfig) -> np.ndarray:
     m_true = plant.mass_kg if plant.mass_kg is not None else vehicle.mass.mass_kg
     u = math.sqrt(GRAVITY_MPS2 * m_true / (vehicle.mass.mass_kg * c["CTz"] * 100.0**2))
     if u > 1.0:
-        raise ConfigError(f"plant cannot hover: needs lift throttle {100 * u:.0f} % > 100 % with its true "
+        # three significant digits (a 1e75 % throttle is not 76 digits), more if it would round to the 100 %
+        # it exceeds ("needs 100 % > 100 %")
+        digits = next((d for d in range(3, 16) if float(f"{100 * u:.{d}g}") > 100.0), 16)
+        need = f"{100 * u:.{digits}g} % > 100 %"
+        raise ConfigError(f"[plant] cannot hover: needs lift throttle {need} with its true "
                           f"CTz = {c['CTz']:g} and mass {m_true:g} kg; allowed: [plant.coefficients] CTz and "
                           f"[plant] mass_kg that hover below 100 %")
     return np.array([u, u, u, u, 0.0])

@@ -235,9 +235,36 @@ class Vehicle(Validated):
         """The coefficients' standard deviations in the adaptation scaling."""
         return _read_only(theta_to_scaled(self.force_model_std.as_table_theta(), self.force_model.k1))
 
+    def _check(self, source: str) -> None:
+        # the mixer inverts this matrix every tick; a layout it cannot invert is the file's mistake
+        cond = np.linalg.cond(lift_allocation_matrix(self.geometry, self.actuators.yaw_torque_per_thrust_m))
+        if not cond < LIFT_ALLOCATION_COND_MAX:
+            positions = [list(p) for p in self.geometry.lift_rotor_positions_m]
+            raise ConfigError(
+                f"{source}: [geometry] lift_rotor_positions_m = {positions}, lift_rotor_spin = {list(self.geometry.lift_rotor_spin)}: the four lift rotors cannot produce "
+                f"independent thrust, roll, pitch and yaw moments (allocation condition number {cond:.3g}); "
+                "allowed: rotors on both sides of both body axes, two spinning each way")
+
     def replace(self, **changes) -> "Vehicle":
         """A copy with some top-level sections replaced (validated sections, not dicts)."""
         return dataclasses.replace(self, **changes)
+
+
+LIFT_ALLOCATION_COND_MAX = 1e6
+"""Largest condition number of the lift rotors' allocation matrix a vehicle may have: the mixer
+solves it every tick, and beyond this a rounding error in a command becomes a motor's full range."""
+
+
+def lift_allocation_matrix(geometry: Geometry, yaw_torque_per_thrust_m: float) -> np.ndarray:
+    """``A`` with ``[T, tau_x, tau_y, tau_z] = A [T_1 .. T_4]``: collective thrust and body moments
+    of the four lift-rotor thrusts (body FRD; rotor i at ``(x_i, y_i)``, spin ``s_i``)."""
+    A = np.zeros((4, 4))
+    for i, (x, y) in enumerate(geometry.lift_rotor_positions_m):
+        A[0, i] = 1.0
+        A[1, i] = -y
+        A[2, i] = x
+        A[3, i] = -geometry.lift_rotor_spin[i] * yaw_torque_per_thrust_m
+    return A
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:

@@ -145,6 +145,28 @@ def _experiment_title(scenario: Scenario) -> str:
     return f"vtoladapt: scenario {scenario.name}, {what}"
 
 
+FIGURES = {"single": ("fig_run.png",), "comparison": ("fig_tracking_comparison.png", "fig_tracking_axes.png"),
+           "convergence": ("fig_parameter_convergence.png",)}
+"""The figures :func:`run_experiment` writes, per experiment kind."""
+
+
+def log_names(scenario: Scenario) -> list[str]:
+    """The logs :func:`run_experiment` writes, relative to its folder, in the order of its runs."""
+    kind = scenario.experiment.kind
+    if kind == "single":
+        return ["log.parquet"]
+    if kind == "comparison":
+        return [f"runs/{scenario.name}_{cid}.parquet" for cid in scenario.experiment.controllers]
+    return [f"runs/{scenario.name}_run{i + 1}.parquet" for i in range(scenario.experiment.runs)]
+
+
+def planned_outputs(scenario: Scenario) -> list[str]:
+    """Every file :func:`run_experiment` writes for ``scenario`` (relative to its folder), so
+    ``--out`` is checked for a name taken by someone else's file before anything is written."""
+    return log_names(scenario) + list(FIGURES[scenario.experiment.kind]) + ["metrics.json", "report.md",
+                                                                             "report.html"]
+
+
 def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, warm: bool = True,
                    variants: Optional[int] = None) -> dict:
     """Run one scenario per its ``[experiment]`` kind; write logs, figures, metrics.json, report.
@@ -166,27 +188,26 @@ def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, wa
     try:
         if kind == "single":
             res = simulate(scenario, progress.callback())
-            res.to_parquet(out / "log.parquet")
+            res.to_parquet(out / log_names(scenario)[0])
             metrics["run"] = run_metrics(res, fan_throttle_series(scenario, res.time_s))
-            figures.append(figure_single_run(scenario, res, out / "fig_run.png"))
+            figures.append(figure_single_run(scenario, res, out / FIGURES[kind][0]))
             notes = _scenario_notes(scenario, res, out)
             notes.append("The full log is `log.parquet` (one column per signal, units in the names).")
         elif kind == "comparison":
             results = run_comparison(scenario, progress)
-            for cid, res in results.items():
-                res.to_parquet(out / "runs" / f"{scenario.name}_{cid}.parquet")
+            for res, name in zip(results.values(), log_names(scenario)):
+                res.to_parquet(out / name)
             metrics["comparison"] = comparison_metrics(scenario, results)
-            figures.append(figure_tracking_comparison(scenario, results, out / "fig_tracking_comparison.png"))
-            figures.append(figure_tracking_axes(scenario, results, out / "fig_tracking_axes.png"))
+            figures.append(figure_tracking_comparison(scenario, results, out / FIGURES[kind][0]))
+            figures.append(figure_tracking_axes(scenario, results, out / FIGURES[kind][1]))
             notes = _scenario_notes(scenario, next(iter(results.values())), out)
             notes.append("The log of each controller's run is in `runs/`.")
         else:
             results = run_convergence(scenario, progress)
-            for i, res in enumerate(results):
-                res.to_parquet(out / "runs" / f"{scenario.name}_run{i + 1}.parquet")
+            for res, name in zip(results, log_names(scenario)):
+                res.to_parquet(out / name)
             metrics["convergence"] = convergence_metrics(scenario, results)
-            figures.append(figure_parameter_convergence(scenario, results,
-                                                        out / "fig_parameter_convergence.png"))
+            figures.append(figure_parameter_convergence(scenario, results, out / FIGURES[kind][0]))
             notes = _scenario_notes(scenario, results[0], out)
             notes.append("The log of each run is in `runs/`.")
     finally:
