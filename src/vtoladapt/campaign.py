@@ -39,7 +39,7 @@ from typing import Optional
 
 import numpy as np
 
-from .campaign_cluster import LOOPBACK, check_listen, check_scheduler, connect_scheduler, local_cluster
+from .campaign_cluster import LOOPBACK, check_listen, check_scheduler, run_on_dask
 from .config import (PATH_PATTERN, ConfigError, Validated, build, check_flag, read_toml, refuse_internal_keys,
                      setting)
 from .control.registry import CONTROLLER_IDS
@@ -587,27 +587,19 @@ def run_campaign(specs: list[RunSpec], out: Path, scheduler: Optional[str] = "lo
             # on an error or Ctrl-C no queued run starts; running ones finish their chunk
             pool.shutdown(wait=False, cancel_futures=True)
     else:
-        from dask.distributed import Client, as_completed
+        bars = []
 
-        cluster = client = None
-        bar = _NoProgress()
-        try:  # a Ctrl-C at any point, the cluster's start included, still shuts every worker down
-            if scheduler == "local":
-                cluster = local_cluster(n_workers, listen)
-                client = Client(cluster)
-            else:
-                client = connect_scheduler(scheduler)
-            bar = _progress(len(specs), show_progress)
-            futures = client.map(run_one, specs, pure=False)
-            for fut in as_completed(futures):
-                rows.append(fut.result())
-                bar.update(1)
+        def started() -> None:  # the bar appears once the cluster is up
+            bars.append(_progress(len(specs), show_progress))
+
+        def done(row: dict) -> None:
+            rows.append(row)
+            bars[0].update(1)
+        try:
+            run_on_dask(run_one, specs, scheduler, n_workers, listen, started, done)
         finally:
-            bar.close()
-            if client is not None:
-                client.close()
-            if cluster is not None:
-                cluster.close()
+            for bar in bars:
+                bar.close()
     out.mkdir(parents=True, exist_ok=True)
     if specs and specs[0].controller is not None:
         order = {s.controller: i for i, s in enumerate(specs) if s.index == specs[0].index}
