@@ -108,6 +108,33 @@ def ceiling(n_bytes_per_unit: float) -> int:
     return int(math.floor(MEMORY_BUDGET_BYTES / n_bytes_per_unit))
 
 
+_LIGHTEST = ("0.1 kg: the lightest aircraft this model describes (a 100 g micro VTOL); the forces are "
+             "per unit mass, and 5e-324 kg divided by zero")
+_SMALLEST_INERTIA = "1e-5 kg m^2: the lightest aircraft (0.1 kg) with a 1 cm radius of gyration"
+_THINNEST_AIR = "0.3 kg/m^3: air at 12 km, above any small UAS's ceiling"
+_FASTEST_MOTOR = ("1 ms: the fastest small motor and propeller spin up in about 10 ms; the run also checks "
+                  "the plant's RK4 step against it")
+_SMALLEST_EDDY = ("1 m: the Dryden model treats the aircraft as a point in the turbulence, which scales "
+                  "shorter than its span break (MIL-F-8785C's low-altitude L_w at 1 m height is 1 m)")
+BOUND_REASONS = {
+    "mass.mass_kg": _LIGHTEST, "plant.mass_kg": _LIGHTEST,
+    "mass.inertia_kgm2": _SMALLEST_INERTIA, "plant.inertia_kgm2": _SMALLEST_INERTIA,
+    "geometry.wing_area_m2": "0.01 m^2: the wing of the lightest aircraft (10 cm x 10 cm)",
+    "geometry.wingspan_m": "0.1 m: the span of the lightest aircraft; 5e-324 m diverged instead of being refused",
+    "geometry.lift_prop_diameter_m": "25 mm: the one-inch propellers of the smallest drones",
+    "geometry.pusher_prop_diameter_m": "25 mm: the one-inch propellers of the smallest drones",
+    "geometry.pusher_prop_pitch_m": "10 mm: a flat one-inch propeller",
+    "actuators.lift_motor_time_constant_s": _FASTEST_MOTOR, "actuators.pusher_motor_time_constant_s": _FASTEST_MOTOR,
+    "plant.lift_motor_time_constant_s": _FASTEST_MOTOR, "plant.pusher_motor_time_constant_s": _FASTEST_MOTOR,
+    "actuators.yaw_torque_per_thrust_m": ("1 mm: rotor drag torque per thrust is 10-50 mm for real propellers; "
+                                          "below 1 mm the lift rotors have no yaw authority"),
+    "envelope.air_density_kgpm3": _THINNEST_AIR, "plant.air_density_kgpm3": _THINNEST_AIR,
+    "wind.turbulence.length_scale_m": _SMALLEST_EDDY,
+    "wind.turbulence.altitude_m": "1 m: below it the low-altitude length scales fall under a span (see length_scale_m)",
+}
+"""Why a key's lower bound is where it is (README's range table shows it): the physical reason, not
+the arithmetic one, for the keys whose lower bound is not simply 0."""
+
 ROW_CHECKS = {
     "wind.fan_array.schedule": "rows [t_s, throttle_pct]: t_s >= 0 and non-decreasing, "
                                "throttle_pct 0 to 100",
@@ -171,11 +198,12 @@ def ranges_markdown() -> str:
     from .scenario import Scenario
     from .vehicle import Vehicle
 
-    lines = ["| file | key | allowed (unit) |", "|---|---|---|"]
+    lines = ["| file | key | allowed (unit) | why the lower bound |", "|---|---|---|---|"]
     for name, cls in (("scenario", Scenario), ("vehicle", Vehicle)):
         for key, unit, text in _settings_rows(cls):
             if key == "source_path":
                 continue
             text = ROW_CHECKS.get(key, text)
-            lines.append(f"| {name} | `{key}` | {text.replace('|', '/')} |")
+            why = BOUND_REASONS.get(key, "")
+            lines.append(f"| {name} | `{key}` | {text.replace('|', '/')} | {why.replace('|', '/')} |")
     return "\n".join(lines)

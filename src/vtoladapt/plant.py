@@ -86,10 +86,10 @@ class PlantConfig(Validated):
         "vehicle's published means, the controller's theta_0) or 'table_i_draw' (one draw from Table "
         "I's mean +- std, seeded by the run seed; see draw_table_i_coefficients)",
         default="table_i_means", choices=("table_i_means", "table_i_draw"))
-    mass_kg: Optional[float] = setting("kg", "true mass (default: vehicle's)", default=None, gt=0.0, le=150.0)
+    mass_kg: Optional[float] = setting("kg", "true mass (default: vehicle's)", default=None, ge=0.1, le=150.0)
     inertia_kgm2: Optional[tuple[float, ...]] = setting(
-        "kg m^2", "true principal inertia (default: vehicle's)", default=None, gt=0.0, le=500.0, length=3)
-    air_density_kgpm3: Optional[float] = setting("kg/m^3", "true air density", default=None, gt=0.0, le=2.0)
+        "kg m^2", "true principal inertia (default: vehicle's)", default=None, ge=1e-5, le=500.0, length=3)
+    air_density_kgpm3: Optional[float] = setting("kg/m^3", "true air density", default=None, ge=0.3, le=2.0)
     stall: bool = setting("-", "blend to flat-plate aerodynamics past stall", default=True)
     stall_angle_deg: float = setting("deg", "angle of attack where the blend is half way", default=16.0,
                                      gt=0.0, lt=60.0)
@@ -105,9 +105,9 @@ class PlantConfig(Validated):
     motor_lag: bool = setting("-", "first-order motor lag (else motors follow commands instantly)",
                               default=True)
     lift_motor_time_constant_s: Optional[float] = setting("s", "true lift motor lag (default: vehicle's)",
-                                                          default=None, gt=0.0, le=1.0)
+                                                          default=None, ge=0.001, le=1.0)
     pusher_motor_time_constant_s: Optional[float] = setting("s", "true pusher lag (default: vehicle's)",
-                                                            default=None, gt=0.0, le=1.0)
+                                                            default=None, ge=0.001, le=1.0)
     rotor_reaction_torque: bool = setting(
         "-", "the pusher's drag torque rolls the airframe (unmodelled by the controller); the lift "
         "rotors' yaw torques are always on: they are how the aircraft yaws", default=True)

@@ -11,6 +11,7 @@ A short run costs about 2 ms once the kernels are loaded.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from typing import Iterable
 
@@ -34,12 +35,36 @@ def check_flyable(scenario: Scenario, where: str) -> None:
         run = prepare(short)
     except ConfigError as exc:
         raise _named(exc, where) from None
+    _check_plant_step(scenario, run.vehicle, where)
     ref = run.reference_table[0]
     code = check_envelope(run.x0, run.envelope, ref)
     if code:
         why = scenario.envelope.describe_violation(code, run.x0, 0.0, ref)
         raise ConfigError(f"{where}: [initial] the run starts outside its [envelope]: {why}; allowed: an "
                           "initial state (and reference) inside every [envelope] limit")
+
+
+RK4_STEP_PER_TIME_CONSTANT_MAX = 2.5
+"""Largest plant step over a motor's time constant: classical RK4 is stable for the lag's
+``-h / tau`` down to -2.785; beyond it a motor's speed oscillates and grows without bound."""
+
+
+def _check_plant_step(scenario: Scenario, vehicle, where: str) -> None:
+    plant = scenario.plant
+    if not plant.motor_lag:
+        return
+    h = scenario.dt_control_s / scenario.plant_substeps
+    for name in ("lift_motor_time_constant_s", "pusher_motor_time_constant_s"):
+        tau = getattr(plant, name)
+        source = f"[plant] {name}"
+        if tau is None:
+            tau, source = getattr(vehicle.actuators, name), f"the vehicle's [actuators] {name}"
+        if h > RK4_STEP_PER_TIME_CONSTANT_MAX * tau:
+            need = math.ceil(scenario.dt_control_s / (RK4_STEP_PER_TIME_CONSTANT_MAX * tau))
+            raise ConfigError(f"{where}: plant_substeps = {scenario.plant_substeps}: the plant's RK4 step "
+                              f"dt_control_s / plant_substeps = {h:g} s is unstable for {source} = {tau:g} s; "
+                              f"allowed: plant_substeps >= {need} (a step of at most "
+                              f"{RK4_STEP_PER_TIME_CONSTANT_MAX:g} time constants)")
 
 
 def experiment_runs(scenario: Scenario, variants: int | None = None) -> list[Scenario]:

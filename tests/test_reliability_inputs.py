@@ -1,0 +1,92 @@
+"""Issue #27, items 8-12: inputs that are refused for what they mean, not only for their type.
+
+Before the fix: in-range values that cannot be flown (a 5e-324 kg vehicle raised ZeroDivisionError, a
+1e-4 kg plant, a 1e-300 inertia or turbulence length scale, a 5e-324 m wingspan diverged with exit 1,
+``fit`` with a 1e300 N force raised LinAlgError), a 50 MB scenario of ignored waypoints took two minutes
+and 1.7 GB, an unusable replay column exited 0 with null metrics, and the gym took complex actions.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from vtoladapt.cli import main
+from vtoladapt.errors import ExitCode
+
+VEHICLE = (Path(__file__).resolve().parents[1] / "src/vtoladapt/vehicles/caltech_vtol.toml").read_text()
+BASE = 'name = "h"\nvehicle = "caltech_vtol"\nduration_s = 0.3\n'
+
+
+def _vehicle_with(key: str, value: str) -> str:
+    lines = VEHICLE.splitlines()
+    hits = [i for i, ln in enumerate(lines) if re.match(rf"{key}\s*=", ln)]
+    assert len(hits) == 1, key
+    lines[hits[0]] = f"{key} = {value}"
+    return "\n".join(lines) + "\n"
+
+
+def _run(tmp_path, capsys, scenario: str, vehicle: str | None = None) -> tuple[int, str]:
+    if vehicle is not None:
+        (tmp_path / "v.toml").write_text(vehicle)
+        scenario = scenario.replace('vehicle = "caltech_vtol"', 'vehicle = "v.toml"')
+    (tmp_path / "s.toml").write_text(scenario)
+    capsys.readouterr()
+    rc = main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o"), "--quiet"])
+    return rc, capsys.readouterr().err.strip()
+
+
+@pytest.mark.parametrize("key, value, needle", [
+    ("mass_kg", "5e-324", "[mass] mass_kg = 5e-324: out of range; allowed: >= 0.1 and <= 150 (kg)"),
+    ("wingspan_m", "5e-324", "[geometry] wingspan_m = 5e-324: out of range; allowed: >= 0.1"),
+    ("inertia_kgm2", "[1e-300, 1e-300, 1e-300]", "[mass] inertia_kgm2[0] = 1e-300: out of range; allowed: >= 1e-05"),
+    ("yaw_torque_per_thrust_m", "1e-9", "[actuators] yaw_torque_per_thrust_m = 1e-09: out of range"),
+])
+def test_a_vehicle_that_cannot_be_an_aircraft_is_refused(tmp_path, capsys, key, value, needle):
+    rc, err = _run(tmp_path, capsys, BASE, _vehicle_with(key, value))
+    assert rc == ExitCode.BAD_INPUT and "\n" not in err and needle in err and "v.toml" in err, err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("extra, needle", [
+    ("[plant]\nmass_kg = 1e-4\n", "[plant] mass_kg = 0.0001: out of range; allowed: >= 0.1"),
+    ("[plant]\ninertia_kgm2 = [1e-300, 1e-300, 1e-300]\n", "[plant] inertia_kgm2[0] = 1e-300: out of range"),
+    ("[wind.turbulence]\nenabled = true\nw20_mps = 3.0\nlength_scale_m = [1e-300, 1e-300, 1e-300]\n",
+     "[wind.turbulence] length_scale_m[0] = 1e-300: out of range; allowed: >= 1"),
+    ("[plant]\nlift_motor_time_constant_s = 0.002\n", None),  # in range, and the default 1 kHz step resolves it
+    ("dt_control_s = 0.02\nplant_substeps = 1\n[plant]\nlift_motor_time_constant_s = 0.005\n",
+     "plant_substeps = 1: the plant's RK4 step dt_control_s / plant_substeps = 0.02 s is unstable for "
+     "[plant] lift_motor_time_constant_s = 0.005 s; allowed: plant_substeps >= 2"),
+])
+def test_a_plant_or_wind_that_cannot_be_flown_is_refused_before_anything_is_written(tmp_path, capsys, extra, needle):
+    rc, err = _run(tmp_path, capsys, BASE + extra)
+    if needle is None:
+        assert rc == ExitCode.OK, err
+        return
+    assert rc == ExitCode.BAD_INPUT and "\n" not in err and needle in err and "s.toml" in err, err
+    assert not (tmp_path / "o").exists()
+
+
+def test_fit_refuses_a_force_no_aircraft_can_see(tmp_path, capsys):
+    """Before: force_z_N = 1e300 overflowed the fit into an internal LinAlgError (exit 1)."""
+    from vtoladapt.fitting.data import REQUIRED_COLUMNS
+
+    rows = [",".join(REQUIRED_COLUMNS)] + [f"{5 + i},2,0,40,50,0.5,0.1,{'1e300' if i == 3 else -12.0}"
+                                           for i in range(8)]
+    (tmp_path / "d.csv").write_text("\n".join(rows) + "\n")
+    capsys.readouterr()
+    rc = main(["fit", str(tmp_path / "d.csv"), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert rc == ExitCode.BAD_INPUT and "column 'force_z_N': value '1e300' out of range" in err, err
+    assert "force_z_N >= -10000 and force_z_N <= 10000 (N)" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_range_table_gives_a_reason_for_every_physical_lower_bound():
+    from vtoladapt.limits import BOUND_REASONS, ranges_markdown
+
+    table = ranges_markdown()
+    for key, why in BOUND_REASONS.items():
+        row = next(ln for ln in table.splitlines() if f"`{key}`" in ln)
+        assert row.endswith(f"| {why} |"), row
