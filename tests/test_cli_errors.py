@@ -243,7 +243,7 @@ def test_zero_density_and_bad_noise_are_refused(tmp_path, capsys, argv, needle):
 def test_fit_rho_ref_zero_is_refused(tmp_path, capsys):
     (tmp_path / "d.csv").write_text("x\n")
     _check(["fit", tmp_path / "d.csv", "--out", tmp_path / "f", "--rho-ref", "0"], capsys,
-           ExitCode.BAD_INPUT, "--rho-ref = 0.0", "> 0")
+           ExitCode.BAD_INPUT, "--rho-ref = 0.0", ">= 0.3")
 
 
 def test_binary_data_files_are_named(tmp_path, capsys):

@@ -90,3 +90,49 @@ def test_the_range_table_gives_a_reason_for_every_physical_lower_bound():
     for key, why in BOUND_REASONS.items():
         row = next(ln for ln in table.splitlines() if f"`{key}`" in ln)
         assert row.endswith(f"| {why} |"), row
+
+
+# --- item 9: sizes against the memory budget, unused tables refused --------------------------------------
+
+def test_waypoints_under_a_hold_reference_are_refused_not_ignored(tmp_path, capsys):
+    """Before: ragged rows of a hold reference passed unchecked (and 5 M of them took 118 s and 1.7 GB)."""
+    rc, err = _run(tmp_path, capsys, BASE + '[reference]\nkind = "hold"\nwaypoints = [[0, 1], [1, 2, 3]]\n')
+    assert rc == ExitCode.BAD_INPUT and "[reference] waypoints = [[0, 1], [1, 2, 3]]: does not apply here " \
+                                      "(kind = 'hold'); keys here: kind, position_m, yaw_deg" in err, err
+
+
+def test_waypoints_in_python_under_a_hold_reference_are_refused():
+    from vtoladapt.config import ConfigError
+    from vtoladapt.scenario import ReferenceConfig
+
+    with pytest.raises(ConfigError, match="waypoints: 2 rows with kind = 'hold', which ignores them"):
+        ReferenceConfig(kind="hold", waypoints=((0.0, 0, 0, -1), (5.0, 1, 0, -1)))
+
+
+def test_a_table_longer_than_its_ceiling_is_refused_before_its_rows_are_read():
+    """The row count is checked first: rows that are not even numbers are never looked at."""
+    from vtoladapt.config import ConfigError
+    from vtoladapt.scenario import MAX_WAYPOINTS, scenario_from_mapping
+
+    rows = ["not a row"] * (MAX_WAYPOINTS + 1)
+    with pytest.raises(ConfigError, match=rf"\[reference\] waypoints: {MAX_WAYPOINTS + 1} entries; allowed: at most "
+                                          rf"{MAX_WAYPOINTS}"):
+        scenario_from_mapping({"name": "w", "vehicle": "caltech_vtol", "duration_s": 1.0,
+                               "reference": {"kind": "waypoints", "waypoints": rows}}, "w.toml")
+    with pytest.raises(ConfigError, match=r"\[wind.fan_array\] schedule: 65 entries; allowed: at most 64"):
+        scenario_from_mapping({"name": "w", "vehicle": "caltech_vtol", "duration_s": 1.0,
+                               "wind": {"fan_array": {"schedule": ["x"] * 65}}}, "w.toml")
+    with pytest.raises(ConfigError, match=r"faults: 31 entries; allowed: at most 30"):
+        scenario_from_mapping({"name": "w", "vehicle": "caltech_vtol", "duration_s": 1.0,
+                               "faults": ["x"] * 31}, "w.toml")
+
+
+def test_a_configuration_file_beyond_its_ceiling_is_refused_unread(tmp_path, capsys):
+    """17 MiB of waypoint rows: refused from its size alone (16 MiB; about 40 bytes held per byte read)."""
+    from vtoladapt.config import MAX_TOML_FILE_BYTES, MEMORY_BUDGET_BYTES, TOML_BYTES_HELD_PER_BYTE
+
+    assert MAX_TOML_FILE_BYTES * TOML_BYTES_HELD_PER_BYTE <= MEMORY_BUDGET_BYTES
+    row = "[0.0, 1.2345, -2.3456, -1.5],\n"
+    text = BASE + '[reference]\nkind = "waypoints"\nwaypoints = [\n' + row * (17 * 2**20 // len(row)) + "]\n"
+    rc, err = _run(tmp_path, capsys, text)
+    assert rc == ExitCode.BAD_INPUT and "s.toml: 17 MiB; a TOML file may have at most 16 MiB" in err, err

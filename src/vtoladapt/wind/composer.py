@@ -81,6 +81,9 @@ class WindConfig(Validated):
         if not isinstance(raw_gusts, (list, tuple)):
             raise ConfigError(f"{source}: [{section}] gusts = {raw_gusts!r}: must be a list of "
                               "tables ([[wind.gusts]])")
+        if len(raw_gusts) > MAX_GUSTS:  # before building them: a million entries is not read
+            raise ConfigError(f"{source}: [wind] gusts: {len(raw_gusts)} entries; at most "
+                              f"{MAX_GUSTS} are allowed")
         gusts = tuple(build(GustConfig, g, source=source, section=f"{section}.gusts[{i}]")
                       for i, g in enumerate(raw_gusts))
         cfg = build(cls, rest, source=source, section=section)
