@@ -136,3 +136,63 @@ def test_a_configuration_file_beyond_its_ceiling_is_refused_unread(tmp_path, cap
     text = BASE + '[reference]\nkind = "waypoints"\nwaypoints = [\n' + row * (17 * 2**20 // len(row)) + "]\n"
     rc, err = _run(tmp_path, capsys, text)
     assert rc == ExitCode.BAD_INPUT and "s.toml: 17 MiB; a TOML file may have at most 16 MiB" in err, err
+
+
+# --- item 10: a replay of unusable data is bad input -------------------------------------------------------
+
+def _replay_log(tmp_path, px4, column: str | None, value: str | None):
+    """The synthetic log of test_replay with one column rewritten in every row (or none)."""
+    from test_replay import synthetic_log
+
+    folder = tmp_path / "log"
+    synthetic_log(folder, px4, duration_s=2.0)
+    if column is not None:
+        topic, field = column.split(".")
+        path = folder / f"synthetic_{topic}_0.csv"
+        lines = path.read_text().splitlines()
+        header = lines[0].split(",")
+        cols = [i for i, h in enumerate(header) if h.startswith(field)]
+        rows = []
+        for ln in lines[1:]:
+            cells = ln.split(",")
+            for i in cols:
+                cells[i] = value
+            rows.append(",".join(cells))
+        path.write_text("\n".join([lines[0]] + rows) + "\n")
+    return folder
+
+
+@pytest.mark.parametrize("column, value, needle", [
+    ("vehicle_attitude.q", "text", "vehicle_attitude.q[0..3] is never a unit quaternion"),
+    ("vehicle_attitude.q", "nan", "vehicle_attitude.q[0..3] is never a unit quaternion"),
+    ("vehicle_attitude.q", "inf", "vehicle_attitude.q[0..3] is never a unit quaternion"),
+    ("vehicle_attitude.q", "0", "vehicle_attitude.q[0..3] is never a unit quaternion"),
+    ("vehicle_local_position.v", "1e300", "vehicle_local_position.vx, vy, vz is never a finite velocity within 200"),
+    ("sensor_combined.accelerometer_m_s2", "nan", "sensor_combined.accelerometer_m_s2[0..2] is never a finite"),
+])
+def test_a_replay_with_no_usable_samples_exits_2_naming_the_column(tmp_path, capsys, px4, column, value, needle):
+    """Before: "0.0 s used", every metric null, exit 0 (and numpy's warnings for 1e300 m/s)."""
+    import warnings
+
+    folder = _replay_log(tmp_path, px4, column, value)
+    capsys.readouterr()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no stray numpy warning on the way to the one line
+        rc = main(["replay", str(folder), "--vehicle", "px4_standard_vtol", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert rc == ExitCode.BAD_INPUT and "\n" not in err and f"no usable samples: {needle}" in err, err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_replay_whose_every_sample_is_on_the_ground_says_so(tmp_path, capsys, px4):
+    from test_replay import _write_topic
+    import numpy as np
+
+    folder = _replay_log(tmp_path, px4, None, None)
+    _write_topic(folder, "vehicle_land_detected", np.array([10_000_000, 20_000_000]), {"landed": np.ones(2)})
+    capsys.readouterr()
+    rc = main(["replay", str(folder), "--vehicle", "px4_standard_vtol", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert rc == ExitCode.BAD_INPUT and "on the ground per vehicle_land_detected.landed; add --use-landed" in err, err
+    assert main(["replay", str(folder), "--vehicle", "px4_standard_vtol", "--out", str(tmp_path / "o"),
+                 "--use-landed"]) == ExitCode.OK
