@@ -196,3 +196,30 @@ def test_a_replay_whose_every_sample_is_on_the_ground_says_so(tmp_path, capsys, 
     assert rc == ExitCode.BAD_INPUT and "on the ground per vehicle_land_detected.landed; add --use-landed" in err, err
     assert main(["replay", str(folder), "--vehicle", "px4_standard_vtol", "--out", str(tmp_path / "o"),
                  "--use-landed"]) == ExitCode.OK
+
+
+# --- item 11: messages -------------------------------------------------------------------------------------
+
+def test_the_hover_message_has_a_readable_throttle_and_never_says_100_over_100(caltech):
+    from vtoladapt.config import ConfigError
+    from vtoladapt.plant import PlantCoefficients, PlantConfig, hover_trim_motor
+
+    with pytest.raises(ConfigError) as info:  # before: a 150-digit throttle
+        hover_trim_motor(caltech, PlantConfig(coefficients=PlantCoefficients(CTz=1e-300)))
+    need = 100 * (9.80665 / (1e-300 * 100.0**2)) ** 0.5  # u = sqrt(g m / (m CTz 100^2)), in %
+    assert f"needs lift throttle {need:.3g} % > 100 %" in str(info.value) and len(str(info.value)) < 250
+    # just above the limit: before, "100 % > 100 %"
+    u1 = caltech.mass.mass_kg * caltech.force_model.CTz * 1e4 / 9.80665  # mass that needs exactly 100 %
+    with pytest.raises(ConfigError, match=r"needs lift throttle 100\.0*[1-9]\d* % > 100 %"):
+        hover_trim_motor(caltech, PlantConfig(mass_kg=round(u1 * 1.00001, 6)))
+
+
+def test_a_campaign_draw_that_cannot_hover_is_named(tmp_path, capsys):
+    (tmp_path / "s.toml").write_text(BASE)
+    capsys.readouterr()
+    rc = main(["campaign", str(tmp_path / "s.toml"), "--runs", "4", "--vary", "plant.mass_kg=4.9:6", "--scheduler",
+               "none", "--out", str(tmp_path / "c"), "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert rc == ExitCode.BAD_INPUT and re.search(r"s\.toml \(campaign run \d, \{'seed': \d+, 'plant.mass_kg': "
+                                                  r"[\d.]+\}\): \[plant\] cannot hover", err), err
+    assert not (tmp_path / "c").exists()

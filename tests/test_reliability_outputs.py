@@ -188,3 +188,43 @@ def test_two_runs_started_together_never_mix_their_outputs(tmp_path):
     listed = sorted(read_manifest(out)["files"])
     assert files == sorted(listed + [MANIFEST_NAME])
     assert ("log.parquet" in listed) != any(f.startswith("runs/") for f in listed)  # one run's, not a mix
+
+
+# --- item 11: SIGTERM ends a command as Ctrl-C does -------------------------------------------------------
+
+TERMINATED_RUN = textwrap.dedent("""
+    import sys, time
+    import vtoladapt.experiments as experiments
+    from vtoladapt.outputs import write_text
+
+    def slow(scenario, out, show_progress=True, **kw):  # one output written, then a long run
+        write_text(out / "metrics.json", "{}")
+        print("written", flush=True)
+        time.sleep(300)
+
+    experiments.run_experiment = slow
+    from vtoladapt.cli import console
+    sys.argv = ["vtoladapt", "run", sys.argv[1], "--out", sys.argv[2], "--quiet"]
+    console()
+""")
+
+
+def test_sigterm_ends_a_run_in_one_line_with_the_manifest_saying_so(tmp_path):
+    """Before: SIGTERM killed the process and left the manifest at "running"."""
+    (tmp_path / "s.toml").write_text(BASE)
+    out = tmp_path / "o"
+    proc = subprocess.Popen([sys.executable, "-c", TERMINATED_RUN, str(tmp_path / "s.toml"), str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline().strip() == "written", proc.stderr.read()
+        assert read_manifest(out)["status"] == "running"
+        proc.terminate()
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 143, err
+    assert err.strip().splitlines() == ["vtoladapt run: terminated (SIGTERM); outputs completed so far are kept, "
+                                        "none is truncated"], err
+    assert read_manifest(out)["status"] == "terminated" and sorted(read_manifest(out)["files"]) == ["metrics.json"]
+    assert not (out / LOCK_NAME).exists()

@@ -11,7 +11,7 @@
 Every command validates its input before writing anything. Exit status (one convention for all,
 :class:`vtoladapt.errors.ExitCode`): 0 done, 1 the run failed, 2 bad input (a one-line message
 naming the file, key and value), 3 fit not converged (``--require-converged``), 130
-interrupted. ``--debug`` (anywhere on the line) adds the traceback. Outputs follow
+interrupted, 143 terminated (SIGTERM). ``--debug`` (anywhere on the line) adds the traceback. Outputs follow
 :mod:`vtoladapt.outputs`: no foreign file is overwritten, no file is left truncated.
 
 A sub-command registers itself with a function ``register(subparsers)`` in
@@ -28,7 +28,7 @@ import sys
 import traceback
 
 from .config import check_value
-from .errors import ExitCode, exit_code_for, interrupt_requested, one_line, sigint_handling
+from .errors import ExitCode, Terminated, exit_code_for, interrupt_requested, one_line, sigint_handling
 from .outputs import OutputDir, add_force_argument, output_path
 
 
@@ -241,7 +241,7 @@ def _command_name(args: argparse.Namespace) -> str:
 
 
 _LABELS = {ExitCode.BAD_INPUT: "error", ExitCode.RUN_FAILED: "run failed",
-           ExitCode.INTERRUPTED: "interrupted"}
+           ExitCode.INTERRUPTED: "interrupted", ExitCode.TERMINATED: "terminated"}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -268,9 +268,13 @@ def _main(argv: list[str] | None, ignore_sigint_after: bool) -> int:
                 print(f"{name}: {interrupted} (the interrupt came after the last output)", file=sys.stderr)
                 return ExitCode.INTERRUPTED
             return code
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         if debug:
             traceback.print_exc()
+        if isinstance(exc, Terminated):
+            print(f"{name}: terminated (SIGTERM); outputs completed so far are kept, none is truncated",
+                  file=sys.stderr)
+            return ExitCode.TERMINATED
         print(f"{name}: {interrupted}", file=sys.stderr)
         return ExitCode.INTERRUPTED
     except Exception as exc:  # every error becomes one line and an exit code

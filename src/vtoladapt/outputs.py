@@ -534,7 +534,10 @@ class OutputDir:
                 if rel not in self._files and rel not in self._before:
                     _unlink_new(self._root, rel)
             self._files = {rel: e for rel, e in self._files.items() if (self._root / rel).exists()}
-            status = "interrupted" if issubclass(exc_type, KeyboardInterrupt) else "failed"
+            from .errors import Terminated
+
+            status = ("terminated" if issubclass(exc_type, Terminated) else
+                      "interrupted" if issubclass(exc_type, KeyboardInterrupt) else "failed")
             if self._claimed:
                 self._write_manifest(status)
             elif self._created is not None:  # nothing of this run was written: leave the disk as it was
