@@ -223,3 +223,46 @@ def test_a_campaign_draw_that_cannot_hover_is_named(tmp_path, capsys):
     assert rc == ExitCode.BAD_INPUT and re.search(r"s\.toml \(campaign run \d, \{'seed': \d+, 'plant.mass_kg': "
                                                   r"[\d.]+\}\): \[plant\] cannot hover", err), err
     assert not (tmp_path / "c").exists()
+
+
+# --- item 12: gym inputs ---------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def envs():
+    from vtoladapt.gym.env import HoldEnv
+    from vtoladapt.gym.vector import HoldVectorEnv
+
+    single, vector = HoldEnv(), HoldVectorEnv(num_envs=2, workers=1)
+    yield single, vector
+    single.close()
+    vector.close()
+
+
+def test_complex_actions_are_refused_not_cast(envs):
+    """Before: the imaginary part was dropped and the real part flown."""
+    import numpy as np
+
+    single, vector = envs
+    single.reset(seed=1)
+    with pytest.raises(ValueError, match="must be 5 finite numbers"):
+        single.step(np.full(5, 0.1 + 0.5j))
+    with pytest.raises(ValueError, match="must be 5 finite numbers"):
+        single.step([0.1j] * 5)
+    vector.reset(seed=1)
+    with pytest.raises(ValueError, match=r"must be \(2, 5\) finite numbers"):
+        vector.step(np.full((2, 5), 0.1 + 0.5j))
+    single.step(np.zeros(5))  # a real action still flies
+    vector.step(np.zeros((2, 5)))
+
+
+@pytest.mark.parametrize("seed", [1.5, -1, True, "7", [1, 2.5]])
+def test_a_reset_seed_that_is_not_a_whole_number_is_refused_in_one_line(envs, seed):
+    """Before: vector reset(seed=1.5) raised a bare TypeError ('float' object is not iterable)."""
+    from vtoladapt.config import ConfigError
+
+    single, vector = envs
+    with pytest.raises(ConfigError, match="reset seed"):
+        vector.reset(seed=seed)
+    if not isinstance(seed, list):
+        with pytest.raises(ConfigError, match="must be None or a whole number >= 0"):
+            single.reset(seed=seed)
