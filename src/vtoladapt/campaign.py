@@ -138,7 +138,7 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
     """
     from .config import check_value
     from .control.config import ControllerConfig
-    from .limits import check_campaign_runs, check_run_size
+    from .limits import check_campaign_runs, check_worker_runs
     from .preflight import check_flyable
     from .scenario import Scenario, scenario_from_mapping
 
@@ -161,7 +161,7 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
             f"single runs of one controller and would fly only [controller] kind = "
             f"{base_scenario.controller.kind!r}; pass --controller ID to say which")
     check_campaign_runs(runs, base)
-    check_run_size(base_scenario, f"{path} (each campaign run)", n_runs=os.cpu_count() or 1)
+    check_worker_runs(base_scenario, f"{path} (each campaign run)", workers=os.cpu_count() or 1)
     rng = np.random.default_rng(base_scenario.seed if seed is None else seed)
     specs = []
     for i in range(runs):
@@ -413,7 +413,7 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
     first, then the ``[campaign.choices]`` (an option is the stratum ``floor(u n_options)``).
     """
     from .config import check_value
-    from .limits import check_campaign_runs, check_run_size
+    from .limits import check_campaign_runs, check_worker_runs
     from .preflight import check_all
     from .scenario import scenario_from_mapping
 
@@ -447,7 +447,7 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
     source = str(cf.base_path)
     where = f"{cf.path} ([campaign] base {cfg.base} with [campaign.set])"
     check_campaign_runs(runs * len(cfg.controllers), base)
-    check_run_size(base_scenario, f"{where} (each campaign run)", n_runs=os.cpu_count() or 1)
+    check_worker_runs(base_scenario, f"{where} (each campaign run)", workers=os.cpu_count() or 1)
 
     dims = [(v, k) for v in cfg.vary for k in v.keys]
     rng = np.random.default_rng(seed)

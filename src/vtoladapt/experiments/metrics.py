@@ -86,11 +86,11 @@ def _predicted_force_spread(scenario: Scenario, results: list[SimulationResult],
     from ..models import regressor
 
     vehicle = scenario.load_vehicle()
-    last = np.array([r.data[-1] for r in results])
-    idx = {n: i for i, n in enumerate(results[0].columns)}
-    v_i = last[:, [idx["ctrl_v_i_x_mps"], idx["ctrl_v_i_y_mps"], idx["ctrl_v_i_z_mps"]]].mean(axis=0)
-    u_x = 100.0 * last[:, idx["cmd_u_x_frac"]].mean()
-    u_z = 100.0 * last[:, idx["cmd_u_z_frac"]].mean()
+    names = ("ctrl_v_i_x_mps", "ctrl_v_i_y_mps", "ctrl_v_i_z_mps", "cmd_u_x_frac", "cmd_u_z_frac")
+    last = np.array([[r[n][-1] for n in names] for r in results])  # each run's last tick
+    v_i = last[:, :3].mean(axis=0)
+    u_x = 100.0 * last[:, 3].mean()
+    u_z = 100.0 * last[:, 4].mean()
     Phi = regressor(v_i, u_x, u_z, vehicle)
     f_start = theta[:, 0, :] @ Phi.T
     f_end = theta[:, -1, :] @ Phi.T
