@@ -112,6 +112,9 @@ def local_cluster(n_workers: Optional[int] = None, listen: str = LOOPBACK):
                                preload=[__name__])
         try:
             release()  # a Ctrl-C held back while the cluster started is raised here
+        except KeyboardInterrupt:
+            _abandon(None, cluster)  # workers still starting: a graceful close waited up to 10 s
+            raise
         except BaseException:
             cluster.close()
             raise
@@ -169,20 +172,34 @@ def _close(client, cluster) -> None:
 def _abandon(client, cluster) -> None:
     """After Ctrl-C: kill the local workers, give each a short close, never wait longer."""
     if cluster is not None:  # the runs are discarded: no need to wait for any of them
-        stop_local_workers()
+        stop_local_workers(cluster)
     for closing in (client, cluster):
         if closing is not None:
             try:
                 closing.close(timeout=INTERRUPT_CLOSE_TIMEOUT_S)
             except BaseException:  # a close that times out, or a second Ctrl-C: the process is ending
                 pass
+    if cluster is not None:
+        # Dask's exit handler closes every cluster it knows again, gracefully, for up to 10 s more:
+        # this one's workers are gone, and the command is ending
+        instances = getattr(type(cluster), "_instances", None)
+        if instances is not None:
+            instances.discard(cluster)
 
 
-def stop_local_workers() -> None:
+def stop_local_workers(cluster=None) -> None:
     """Kill this process's Dask worker processes at once: an interrupted campaign discards their
     runs, and a graceful close waited for the run (or the kernel loading) each was busy with, up to
-    10 s after Ctrl-C. Only children this process spawned through multiprocessing are touched."""
+    10 s after Ctrl-C. Only children this process spawned through multiprocessing are touched. The
+    cluster's nannies are told first that the cluster is closing, or each would start a new worker
+    in place of the one killed (and the close would wait for it)."""
+    import contextlib
+
     import psutil
+
+    for nanny in list(getattr(cluster, "workers", {}).values()):
+        with contextlib.suppress(Exception):
+            nanny.close_gracefully(reason="vtoladapt: interrupted")
 
     try:
         children = psutil.Process().children()

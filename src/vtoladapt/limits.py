@@ -91,13 +91,19 @@ def run_memory(scenario, variants: int | None = None, workers: int | None = None
     return values * FLOAT_BYTES, f"{what}, x {FLOAT_BYTES} bytes"
 
 
-def check_run_size(scenario, where: str, variants: int | None = None) -> None:
-    """Refuse a scenario whose run (:func:`run_memory`) exceeds the budget, or that is shorter than two ticks."""
+def check_ticks(scenario, where: str, at_least: int = 2) -> None:
+    """Refuse a scenario of fewer than ``at_least`` control ticks (a command's run needs two: the metrics
+    compare ticks; a run of the Python API one)."""
     ticks = scenario.n_ticks
-    if ticks < 2:
+    if ticks < at_least:
         raise ConfigError(f"{where}: duration_s = {scenario.duration_s:g} s at dt_control_s = "
                           f"{scenario.dt_control_s:g} s is {ticks} control ticks; a run needs at "
-                          "least 2")
+                          f"least {at_least}")
+
+
+def check_run_size(scenario, where: str, variants: int | None = None) -> None:
+    """Refuse a scenario whose run (:func:`run_memory`) exceeds the budget, or that is shorter than two ticks."""
+    check_ticks(scenario, where)
     n_bytes, what = run_memory(scenario, variants)
     check_memory(what, n_bytes, where, "shorten duration_s, lengthen dt_control_s or fly fewer runs at once")
 
@@ -107,9 +113,7 @@ def check_worker_runs(scenario, where: str, workers: int) -> None:
     one log while it computes the run's metrics), exceed the budget."""
     from .layout import REF_SIZE
 
-    if scenario.n_ticks < 2:
-        raise ConfigError(f"{where}: duration_s = {scenario.duration_s:g} s at dt_control_s = "
-                          f"{scenario.dt_control_s:g} s is {scenario.n_ticks} control ticks; a run needs at least 2")
+    check_ticks(scenario, where)
     per_tick = log_columns() + REF_SIZE + 1 + ANALYSIS_TRANSIENT_COLUMNS
     check_memory(f"{workers} run(s) at a time in memory x {scenario.n_ticks} ticks x ({log_columns()} log + "
                  f"{REF_SIZE + 1} reference and time + {ANALYSIS_TRANSIENT_COLUMNS} transient) x {FLOAT_BYTES} bytes",
@@ -131,6 +135,8 @@ def check_in_memory_runs(scenarios, where: str) -> None:
     from .layout import REF_SIZE
 
     scenarios = list(scenarios)
+    for sc in scenarios:
+        check_ticks(sc, sc.source_path or f"scenario {sc.name!r}", at_least=1)
     ticks = sum(sc.n_ticks for sc in scenarios)
     check_memory(f"{len(scenarios)} run(s), {ticks} ticks in all x ({log_columns()} log + {REF_SIZE} reference "
                  f"+ 1 time) columns x {FLOAT_BYTES} bytes", sum(in_memory_run_bytes(sc) for sc in scenarios),

@@ -94,6 +94,9 @@ def stream_to_parquet(scenario: Scenario, out: str | Path, progress=None, row_gr
     from .results import LoggedResult, log_metadata_entries
     from .simulate import CHUNK_S, prepare, run_chunk, run_metadata
 
+    from .limits import check_ticks
+
+    check_ticks(scenario, scenario.source_path or f"scenario {scenario.name!r}", at_least=1)
     run = prepare(scenario)
     dt = scenario.dt_control_s
     n = scenario.n_ticks
