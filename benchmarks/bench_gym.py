@@ -49,8 +49,8 @@ def _best_rate(step, n_steps: int, per_step: int, setup=None) -> tuple[float, fl
 
 
 def _loop_rows() -> list[tuple[str, float, str]]:
-    from vtoladapt.scenario import load_scenario
-    from vtoladapt.simulate import simulate
+    from vtoladapt.sim.scenario import load_scenario
+    from vtoladapt.sim.driver import simulate
 
     sc = load_scenario("gym_hold")
     simulate(sc.replace(duration_s=0.5))
@@ -83,7 +83,7 @@ def _single_rows() -> list[tuple[str, float, str]]:
 
 def _vector_rows() -> list[tuple[str, float, str]]:
     from vtoladapt.gym import HoldVectorEnv
-    from vtoladapt.scenario import load_scenario
+    from vtoladapt.sim.scenario import load_scenario
 
     cores = os.cpu_count() or 1
     rows = []

@@ -6,7 +6,7 @@
   real-time factor, with the plant at 1 kHz (the default) and at 250 Hz (one RK4 step per tick),
   best of five; and the same by process CPU time, which other jobs on a shared machine inflate
   far less than the wall time;
-* runs side by side (:func:`vtoladapt.simulate.simulate_many`, one thread per core): simulated
+* runs side by side (:func:`vtoladapt.sim.driver.simulate_many`, one thread per core): simulated
   seconds per wall-clock second over 8 runs;
 * the loop's parts in compiled loops (per controller tick);
 * ``vtoladapt run`` of a 1 s scenario as a new process: warm (kernels cached on disk) and cold
@@ -36,8 +36,8 @@ SCENARIO = {
 
 
 def _loop_rows() -> list[tuple[str, float, str]]:
-    from vtoladapt.scenario import scenario_from_mapping
-    from vtoladapt.simulate import simulate
+    from vtoladapt.sim.scenario import scenario_from_mapping
+    from vtoladapt.sim.driver import simulate
 
     scenario = scenario_from_mapping(SCENARIO, "bench_sim")
     rows = []
@@ -63,8 +63,8 @@ def _loop_rows() -> list[tuple[str, float, str]]:
 
 def _many_rows() -> list[tuple[str, float, str]]:
     """Throughput of simulate_many: 8 seeds of the 60 s run on one thread per core."""
-    from vtoladapt.scenario import scenario_from_mapping
-    from vtoladapt.simulate import simulate_many
+    from vtoladapt.sim.scenario import scenario_from_mapping
+    from vtoladapt.sim.driver import simulate_many
 
     scenario = scenario_from_mapping(SCENARIO, "bench_sim")
     runs = [replace(scenario, seed=s) for s in range(8)]
@@ -81,10 +81,10 @@ def _part_rows() -> list[tuple[str, float, str]]:
 
     from vtoladapt import layout
     from vtoladapt.control.kernel import DIAG_SIZE, controller_step
-    from vtoladapt.plant import RK4_WORK_SIZE, plant_advance, plant_first_stage
-    from vtoladapt.scenario import scenario_from_mapping
+    from vtoladapt.sim.plant import RK4_WORK_SIZE, plant_advance, plant_first_stage
+    from vtoladapt.sim.scenario import scenario_from_mapping
     from vtoladapt.sensors import sensors_step
-    from vtoladapt.simulate import prepare
+    from vtoladapt.sim.driver import prepare
     from vtoladapt.wind import wind_step
 
     run = prepare(scenario_from_mapping(SCENARIO, "bench_sim"))

@@ -155,7 +155,7 @@ def pytest_collection_finish(session):
     """Compile (or load) the simulator's kernels before a long session starts.
 
     On a cold cache the loop's callees compile in two processes side by side
-    (:func:`vtoladapt.simulate.load_kernels`: the controller in a second process), which saves
+    (:func:`vtoladapt.sim.driver.load_kernels`: the controller in a second process), which saves
     about a third of the loop's compile time on two cores; otherwise the first test that flies
     compiles everything in one. A warm cache only loads the code (a second or two).
     Under pytest-xdist the workers take turns through a file lock: the first compiles, the
@@ -164,8 +164,8 @@ def pytest_collection_finish(session):
     """
     if len(session.items) < WARM_UP_MIN_TESTS or os.environ.get("VTOLADAPT_NO_WARM_UP", "") not in ("", "0"):
         return
-    from vtoladapt.scenario import scenario_from_mapping
-    from vtoladapt.simulate import load_kernels
+    from vtoladapt.sim.scenario import scenario_from_mapping
+    from vtoladapt.sim.driver import load_kernels
 
     scenario = scenario_from_mapping({"name": "warm-up", "vehicle": "caltech_vtol", "duration_s": 0.1},
                                      "<warm-up>")

@@ -112,7 +112,7 @@ MODULES = package_modules()
 
 def test_the_package_is_covered():
     # the walk found the package's parts (a broken walk would make the checks below vacuous)
-    for expected in ("vtoladapt.wind", "vtoladapt.plant", "vtoladapt.sensors", "vtoladapt.layout",
+    for expected in ("vtoladapt.wind", "vtoladapt.sim.plant", "vtoladapt.sensors", "vtoladapt.layout",
                      "vtoladapt.fitting.bayes", "vtoladapt.probe.calibration"):
         assert expected in MODULES
     assert sum(len(public_objects(m)) for m in MODULES) > 150

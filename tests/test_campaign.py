@@ -5,7 +5,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from vtoladapt.campaign import Variation, plan_campaign, run_campaign
+from vtoladapt.campaign.runner import Variation, plan_campaign, run_campaign
 from vtoladapt.config import ConfigError
 
 SCENARIO = """
@@ -75,7 +75,7 @@ def test_campaign_file_resolves_the_base_scenarios_relative_paths_against_the_ba
     """A campaign file in one folder whose base scenario, in another, names its vehicle by a relative
     path: the draws were validated with the description "c.toml (campaign draw 0: ...)" as the
     scenario's location, so the vehicle was looked up as "A/c.toml ([campaign] base ../B/myveh.toml"."""
-    from vtoladapt.campaign import plan_campaign_file
+    from vtoladapt.campaign.runner import plan_campaign_file
     from vtoladapt.vehicle import VEHICLE_DIR
 
     (tmp_path / "A").mkdir()

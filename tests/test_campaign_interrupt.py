@@ -15,7 +15,7 @@ import time
 import pytest
 
 from conftest import SHORT_FAN_SCENARIO
-from vtoladapt.campaign_cluster import _SigintHeld
+from vtoladapt.campaign.cluster import _SigintHeld
 from vtoladapt.errors import ExitCode
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "killpg") or not hasattr(signal, "pthread_sigmask"),

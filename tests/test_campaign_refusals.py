@@ -10,10 +10,10 @@ from pathlib import Path
 import pytest
 
 from conftest import SHORT_FAN_SCENARIO
-import vtoladapt.campaign as campaign
-import vtoladapt.campaign_cluster as campaign_cluster
-from vtoladapt.campaign import MAX_CAMPAIGN_RUNS, Variation, plan_campaign, plan_campaign_file
-from vtoladapt.campaign_cluster import check_listen
+import vtoladapt.campaign.cluster as campaign_cluster
+import vtoladapt.campaign.runner as campaign
+from vtoladapt.campaign.cluster import check_listen
+from vtoladapt.campaign.runner import MAX_CAMPAIGN_RUNS, Variation, plan_campaign, plan_campaign_file
 from vtoladapt.cli import main
 from vtoladapt.config import ConfigError
 from vtoladapt.errors import ExitCode

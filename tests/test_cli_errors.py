@@ -62,9 +62,9 @@ def test_tiny_control_period_is_refused(tmp_path, capsys):
 
 def test_log_size_ceiling_names_the_bytes_and_the_budget(tmp_path, capsys):
     path = _scenario(tmp_path, text=SINGLE.replace("2.0", "3600.0") + "dt_control_s = 1e-4\n")
-    from vtoladapt.limits import ANALYSIS_COLUMNS_PER_RUN, ANALYSIS_TRANSIENT_COLUMNS
+    from vtoladapt.sim.limits import ANALYSIS_COLUMNS_PER_RUN, ANALYSIS_TRANSIENT_COLUMNS
 
-    # what a run holds, counted (vtoladapt.limits.run_memory): 36 M ticks of the analysed columns
+    # what a run holds, counted (vtoladapt.sim.limits.run_memory): 36 M ticks of the analysed columns
     _check(["run", path, "--out", tmp_path / "o"], capsys, ExitCode.BAD_INPUT,
            f"analysing 1 run(s) x 36000000 ticks x {ANALYSIS_COLUMNS_PER_RUN} columns + "
            f"{ANALYSIS_TRANSIENT_COLUMNS} transient, x 8 bytes", "needs 27.4 GiB", "memory budget")
@@ -360,13 +360,13 @@ def test_a_ctrl_c_that_python_dropped_still_interrupts(tmp_path, capsys, monkeyp
 
 
 def test_the_simulator_stops_between_chunks_on_a_dropped_ctrl_c():
-    """A pending Ctrl-C request stops :func:`vtoladapt.simulate.simulate` at its next chunk."""
+    """A pending Ctrl-C request stops :func:`vtoladapt.sim.driver.simulate` at its next chunk."""
     import os
     import signal
 
     from vtoladapt.errors import sigint_handling
-    from vtoladapt.scenario import scenario_from_mapping
-    from vtoladapt.simulate import simulate
+    from vtoladapt.sim.scenario import scenario_from_mapping
+    from vtoladapt.sim.driver import simulate
 
     scenario = scenario_from_mapping({"name": "t", "vehicle": "caltech_vtol", "duration_s": 0.2}, "<t>")
     with sigint_handling():

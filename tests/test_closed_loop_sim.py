@@ -28,8 +28,8 @@ from vtoladapt import forces, load_vehicle
 from vtoladapt.control.config import CONTROLLER_KINDS, ControllerConfig
 from vtoladapt.control.kernel import FAULT_PROBE
 from vtoladapt.frames import GRAVITY_MPS2, quat_to_rotmat
-from vtoladapt.scenario import scenario_from_mapping
-from vtoladapt.simulate import simulate
+from vtoladapt.sim.scenario import scenario_from_mapping
+from vtoladapt.sim.driver import simulate
 from vtoladapt.wind import FAN_MAX_SPEED_MPS
 
 VEHICLE = "caltech_vtol"

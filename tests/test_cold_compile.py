@@ -1,7 +1,7 @@
 """Every entry point compiles from an empty kernel cache, whichever kernel it reaches first.
 
 Numba compiles a callee with its caller's ``_nrt`` (reference counting) setting unless the callee
-states its own, and the tick's kernels are compiled without (:mod:`vtoladapt.compiled_loop`). A
+states its own, and the tick's kernels are compiled without (:mod:`vtoladapt.sim.loop`). A
 callee that allocates therefore compiles or fails depending on which caller reached it first, and
 a warm cache hides the order. Each case here runs in a fresh process with its own empty
 ``NUMBA_CACHE_DIR``, so nothing is compiled before its entry point.

@@ -20,7 +20,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from vtoladapt import layout as L
-from vtoladapt import mixer
+from vtoladapt.sim import mixer
 from vtoladapt.config import ConfigError
 from vtoladapt.control import (
     CONTROLLER_KINDS,
@@ -38,8 +38,8 @@ from vtoladapt.control.config import SharedControllerConfig
 from vtoladapt.control.layouts import P_DT_NOMINAL
 from vtoladapt.control.registry import CONTROLLERS
 from vtoladapt.experiments.metrics import identifiability
-from vtoladapt.scenario import load_scenario, scenario_from_mapping
-from vtoladapt.simulate import prepare
+from vtoladapt.sim.scenario import load_scenario, scenario_from_mapping
+from vtoladapt.sim.driver import prepare
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 

@@ -224,8 +224,8 @@ def test_closed_loop_true_alpha_kept_below_the_believed_stall_with_the_plant_sta
     import tomllib
     from pathlib import Path
 
-    from vtoladapt.scenario import scenario_from_mapping
-    from vtoladapt.simulate import simulate_many
+    from vtoladapt.sim.scenario import scenario_from_mapping
+    from vtoladapt.sim.driver import simulate_many
 
     base = tomllib.loads((Path(__file__).resolve().parents[1] / "scenarios" / "paper_comparison.toml")
                          .read_text(encoding="utf-8"))

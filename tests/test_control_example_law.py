@@ -84,7 +84,7 @@ FLIGHT = textwrap.dedent('''
     from vtoladapt.control import Controller, Measurement, Reference
     from vtoladapt.control.config import controller_config_from_mapping
     from vtoladapt.frames import GRAVITY_MPS2, quat_multiply, quat_normalize, quat_to_rotmat
-    from vtoladapt.scenario import ExperimentConfig
+    from vtoladapt.sim.scenario import ExperimentConfig
 
     assert vtoladapt.__file__.startswith(PACKAGE_ROOT), vtoladapt.__file__
     cfg = controller_config_from_mapping({"kind": "example", "example": {"gain_scale": 1.2}}, "user.toml")
@@ -135,7 +135,7 @@ def _package_with_example_law(root: Path) -> Path:
     (pkg / "control" / "laws" / "example.py").write_text(EXAMPLE_LAW)
     registry = pkg / "control" / "registry.py"
     text = registry.read_text()
-    end = text.index(")}\n", text.index("CONTROLLERS: dict[str, ControllerInfo]"))
+    end = text.index("), package=", text.index("CONTROLLERS: Registry = Registry("))
     registry.write_text(text[:end] + REGISTRY_ENTRY + text[end:])
     return root
 

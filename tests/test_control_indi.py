@@ -34,8 +34,8 @@ from vtoladapt.control.kernel import CONTROLLER_DIAG_COLUMNS, DIAG_SIZE, FAULT_A
 from vtoladapt.control.laws import indi
 from vtoladapt.control.registry import CONTROLLERS, controller_info
 from vtoladapt.frames import GRAVITY_MPS2, quat_to_rotmat
-from vtoladapt.scenario import scenario_from_mapping
-from vtoladapt.simulate import simulate
+from vtoladapt.sim.scenario import scenario_from_mapping
+from vtoladapt.sim.driver import simulate
 from vtoladapt.wind import FAN_MAX_SPEED_MPS
 
 VEHICLE = "caltech_vtol"

@@ -16,7 +16,7 @@ from vtoladapt.control.laws import check_law
 from vtoladapt.control.registry import (
     ADAPTIVE_IDS, COMPOSITE_IDS, CONTROLLER_IDS, CONTROLLERS, controller_info, law_index,
 )
-from vtoladapt.scenario import ExperimentConfig
+from vtoladapt.sim.scenario import ExperimentConfig
 
 SRC = Path(vtoladapt.__file__).resolve().parent
 

@@ -19,9 +19,9 @@ from vtoladapt.control.registry import CONTROLLER_IDS, PAPER_ADAPTIVE_IDS
 from vtoladapt.experiments.claims import check_claims
 from vtoladapt.experiments.distribution import summarize_claims, variant_seeds
 from vtoladapt.experiments.readme import readme_block, readme_tables
-from vtoladapt.metrics import airspeed_bin_labels, pred_err_p95_by_airspeed
-from vtoladapt.plant import TABLE_I_DRAW_CLIP_SIGMAS, PlantCoefficients, PlantConfig, draw_table_i_coefficients
-from vtoladapt.scenario import load_scenario
+from vtoladapt.sim.run_metrics import airspeed_bin_labels, pred_err_p95_by_airspeed
+from vtoladapt.sim.plant import TABLE_I_DRAW_CLIP_SIGMAS, PlantCoefficients, PlantConfig, draw_table_i_coefficients
+from vtoladapt.sim.scenario import load_scenario
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -56,7 +56,7 @@ def test_table_i_draw_is_seeded_and_keeps_explicit_overrides(caltech):
 
 
 def test_paper_scenarios_fly_a_drawn_plant_and_the_controller_keeps_table_i():
-    from vtoladapt.simulate import prepare
+    from vtoladapt.sim.driver import prepare
 
     for name in ("paper_comparison", "paper_convergence"):
         sc = load_scenario(name)
@@ -180,3 +180,26 @@ def test_readme_tables_render_the_fixture_metrics(reproduced):
     frac = m["distribution"]["comparison"]["claims"]["adaptive_track_best"]
     assert f"({frac['successes']}/{frac['n']})" in text
     assert "src/vtoladapt/control/laws/l1.py" in text and not math.isnan(frac["fraction"])
+
+
+def test_wind_phases_of_the_paper_comparison():
+    """The comparison's schedule (fan 30 % at 5 s, +10 % every 5 s to 70 % at 30 s, off at 40 s):
+    rising 5-30 s, plateau 30-40 s, fan-off transient 40-45 s."""
+    from vtoladapt.experiments.metrics import fan_throttle_series, wind_phase_masks
+    from vtoladapt.sim.scenario import SCENARIO_DIR, load_scenario
+
+    comp = load_scenario(SCENARIO_DIR / "paper_comparison.toml")
+    t = np.arange(0.0, 50.0, 0.004)
+    masks = wind_phase_masks(t, fan_throttle_series(comp, t))
+    for name, (start, end) in {"rising": (5.0, 30.0), "plateau": (30.0, 40.0), "fan_off": (40.0, 45.0)}.items():
+        sel = t[masks[name]]
+        assert sel[0] == pytest.approx(start, abs=0.004) and sel[-1] == pytest.approx(end, abs=0.004), name
+    # a constant wind that never stops has no phases
+    still = wind_phase_masks(t, np.full(t.shape, 40.0))
+    assert not any(m.any() for m in still.values())
+
+
+def test_ablation_flies_the_controllers_the_claims_judge():
+    from vtoladapt.experiments.distribution import claim_controllers
+
+    assert claim_controllers(CONTROLLER_IDS) == ("composite", "composite_pconst", "tracking_only", "pid", "pd")

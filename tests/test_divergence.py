@@ -8,13 +8,13 @@ import json
 import numpy as np
 import pytest
 
-from vtoladapt.campaign import RunSpec, run_campaign
+from vtoladapt.campaign.runner import RunSpec, run_campaign
 from vtoladapt.config import ConfigError
-from vtoladapt.monitor import DivergenceError
-from vtoladapt.monitor import EnvelopeConfig as EnvelopeDefault
-from vtoladapt.results import SimulationResult
-from vtoladapt.scenario import scenario_from_mapping
-from vtoladapt.simulate import simulate
+from vtoladapt.sim.monitor import DivergenceError
+from vtoladapt.sim.monitor import EnvelopeConfig as EnvelopeDefault
+from vtoladapt.sim.results import SimulationResult
+from vtoladapt.sim.scenario import scenario_from_mapping
+from vtoladapt.sim.driver import simulate
 
 DT = 0.004
 
@@ -225,7 +225,7 @@ def test_cli_run_with_a_non_finite_state_exits_1_with_the_envelope_off(tmp_path,
 
 
 def test_campaign_counts_a_non_finite_run_as_diverged_with_the_envelope_off(tmp_path, monkeypatch):
-    import vtoladapt.scenario as scenario_module
+    import vtoladapt.sim.scenario as scenario_module
 
     real = scenario_module.scenario_from_mapping
     monkeypatch.setattr(scenario_module, "scenario_from_mapping",

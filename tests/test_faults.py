@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 
 from vtoladapt.config import ConfigError
-from vtoladapt.faults import (FAULT_KINDS, FAULT_STATE, FaultConfig, apply_actuator_faults,
+from vtoladapt.sim.faults import (FAULT_KINDS, FAULT_STATE, FaultConfig, apply_actuator_faults,
                               apply_measurement_faults, fault_table, faults_to_kernel)
 from vtoladapt.layout import MEAS_P_W, MEAS_SIZE, MEAS_V_I_B, MEAS_V_I_VALID, N_MOTORS
-from vtoladapt.scenario import load_scenario, scenario_from_mapping
-from vtoladapt.simulate import controller_prior, simulate_many
+from vtoladapt.sim.scenario import load_scenario, scenario_from_mapping
+from vtoladapt.sim.driver import controller_prior, simulate_many
 
 FAULT_START_S = 8.0
 # worst position error (m) over the whole run: measured, then ~1.5x; see README fault table

@@ -29,7 +29,7 @@ from hypothesis import strategies as st
 
 from conftest import REPO_DATA_DIR
 from vtoladapt.config import ConfigError
-from vtoladapt.scenario import SCENARIO_DIR, Scenario, scenario_from_mapping
+from vtoladapt.sim.scenario import SCENARIO_DIR, Scenario, scenario_from_mapping
 from vtoladapt.vehicle import VEHICLE_DIR, Vehicle, vehicle_from_mapping
 
 SCALE = float(os.environ.get("VTOLADAPT_FUZZ_SCALE", "1"))
@@ -205,7 +205,7 @@ def test_mutated_vehicles_are_accepted_or_refused_cleanly(mapping):
 @fuzz_settings(300)
 @given(data=st.data())
 def test_byte_mutated_scenario_and_vehicle_files(tmp_path_factory, data):
-    from vtoladapt.scenario import load_scenario
+    from vtoladapt.sim.scenario import load_scenario
     from vtoladapt.vehicle import load_vehicle
 
     which = data.draw(st.sampled_from(["scenario", "vehicle"]))
@@ -260,7 +260,7 @@ def in_range_mutation(draw):
 @fuzz_settings(8)
 @given(mapping=in_range_mutation())
 def test_accepted_physical_mutations_fly_with_finite_state(mapping):
-    from vtoladapt.simulate import simulate
+    from vtoladapt.sim.driver import simulate
 
     try:
         scenario = scenario_from_mapping(mapping, "fuzz_run.toml")

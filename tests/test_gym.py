@@ -19,15 +19,15 @@ from vtoladapt.gym import HoldEnv, HoldVectorEnv
 from vtoladapt.gym.config import RANDOMIZED_COEFFICIENTS, episode_scenario, make_config
 from vtoladapt.gym.spaces import (ACTION_FIELDS, OBS_CMD, OBS_P_ERR, OBS_Q, OBS_SIZE, OBS_V,
                                   OBS_V_I, OBS_V_I_VALID, OBSERVATION_FIELDS, markdown_table)
-from vtoladapt.scenario import load_scenario
-from vtoladapt.simulate import CHUNK_S, simulate
+from vtoladapt.sim.scenario import load_scenario
+from vtoladapt.sim.driver import CHUNK_S, simulate
 
 
 def short_hold(duration_s: float) -> dict:
     """The shipped gym_hold scenario as a mapping, shortened (the wind's times scaled with it)."""
     import tomllib
 
-    from vtoladapt.scenario import SCENARIO_DIR
+    from vtoladapt.sim.scenario import SCENARIO_DIR
 
     data = tomllib.loads((SCENARIO_DIR / "gym_hold.toml").read_text())
     scale = duration_s / data["duration_s"]
@@ -350,7 +350,7 @@ def test_equal_controller_parameters_are_stored_once_and_others_apart():
     row loaded with other parameters holds its own (those of its scenario) and gives it back when
     reloaded with the shared ones."""
     from vtoladapt.gym.batch import RunBatch
-    from vtoladapt.simulate import prepare
+    from vtoladapt.sim.driver import prepare
 
     variant = short_hold(0.1)
     variant.setdefault("controller", {}).setdefault("composite", {})["forgetting_lambda"] = 0.37

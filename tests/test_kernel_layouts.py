@@ -11,7 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from vtoladapt import layout, mixer, plant, sensors
+from vtoladapt import layout, sensors
+from vtoladapt.sim import mixer, plant
 from vtoladapt.layout import BlockLayout
 from vtoladapt.probe import ProbeTip, SDP33Sensor, estimation, sensor, tip
 from vtoladapt.wind import WindConfig, dryden, fan_array, gusts

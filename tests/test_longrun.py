@@ -5,9 +5,9 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from vtoladapt.longrun import rotation_orthonormality_error, stream_run
-from vtoladapt.scenario import load_scenario
-from vtoladapt.simulate import simulate
+from vtoladapt.sim.longrun import rotation_orthonormality_error, stream_run
+from vtoladapt.sim.scenario import load_scenario
+from vtoladapt.sim.driver import simulate
 
 
 def test_streamed_log_equals_the_in_memory_log(tmp_path):

@@ -6,10 +6,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import vtoladapt
-from vtoladapt import layout, plant
+from vtoladapt import layout
+from vtoladapt.sim import plant
 from vtoladapt.config import ConfigError
 from vtoladapt.frames import GRAVITY_MPS2, quat_from_euler, quat_to_rotmat
-from vtoladapt.mixer import mix, mixer_params
+from vtoladapt.sim.mixer import mix, mixer_params
 
 
 @pytest.fixture(scope="module")
@@ -271,10 +272,10 @@ def test_applied_collective_is_the_commanded_one_unless_the_mixer_saturated(veh,
     """The mixer keeps sum T_i = T_total while it can (its allocation's first row is all ones), so the
     collective the rotor commands amount to is the commanded one; once it saturates, it is the total
     thrust the rotors were actually sent, which is what the controller is told (report_mixed)."""
-    from vtoladapt.compiled_loop import report_mixed
+    from vtoladapt.sim.loop import report_mixed
     from vtoladapt.control.api import Controller
     from vtoladapt.control.kernel import controller_initial_state, state_last_command
-    from vtoladapt.mixer import applied_collective
+    from vtoladapt.sim.mixer import applied_collective
 
     mp = mixer_params(veh)
     t_unit = veh.mass.mass_kg * veh.theta_scaled[1] / 4
@@ -294,7 +295,7 @@ def test_applied_collective_is_the_commanded_one_unless_the_mixer_saturated(veh,
 
 def test_a_collective_shift_is_reported_to_the_controller(veh):
     """A roll demand at high collective: the mixer lowers the collective to keep roll (PX4's order)."""
-    from vtoladapt.mixer import applied_collective
+    from vtoladapt.sim.mixer import applied_collective
 
     motor = np.empty(5)
     assert mix(np.array([0.3, 0.97, 1.5, 0.0, 0.0]), mixer_params(veh), motor)

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from vtoladapt.limits import ROW_CHECKS, _settings_rows, ranges_markdown
-from vtoladapt.scenario import Scenario
+from vtoladapt.sim.limits import ROW_CHECKS, _settings_rows, ranges_markdown
+from vtoladapt.sim.scenario import Scenario
 from vtoladapt.vehicle import Vehicle
 
 README = Path(__file__).resolve().parents[1] / "README.md"
@@ -27,17 +27,17 @@ def test_every_numeric_key_declares_both_bounds():
 
 def test_readme_lists_every_range_as_the_code_checks_it():
     """README "When things go wrong" holds the table; regenerate it with
-    ``python -c "from vtoladapt.limits import ranges_markdown; print(ranges_markdown())"``."""
+    ``python -c "from vtoladapt.sim.limits import ranges_markdown; print(ranges_markdown())"``."""
     assert ranges_markdown() in README.read_text(encoding="utf-8")
 
 
 def test_readme_log_size_row_counts_the_logs_columns_and_their_ceilings():
     """The size-ceiling row is written by hand: it must follow the log's width, the budget's model
-    (vtoladapt.limits.run_memory) and the ceilings it gives the shipped experiments."""
+    (vtoladapt.sim.limits.run_memory) and the ceilings it gives the shipped experiments."""
     from dataclasses import replace
 
-    from vtoladapt.limits import ANALYSIS_COLUMNS_PER_RUN, ANALYSIS_TRANSIENT_COLUMNS, log_columns, max_duration_s
-    from vtoladapt.scenario import load_scenario
+    from vtoladapt.sim.limits import ANALYSIS_COLUMNS_PER_RUN, ANALYSIS_TRANSIENT_COLUMNS, log_columns, max_duration_s
+    from vtoladapt.sim.scenario import load_scenario
 
     row = next(ln for ln in README.read_text(encoding="utf-8").splitlines()
                if ln.startswith("| simulation logs"))

@@ -18,14 +18,14 @@ import numpy as np
 import pytest
 
 from vtoladapt.config import ConfigError, Validated, _type_hints
-from vtoladapt.faults import FAULT_ROW, FaultConfig, apply_actuator_faults, faults_to_kernel
-from vtoladapt.scenario import load_scenario, scenario_from_mapping
+from vtoladapt.sim.faults import FAULT_ROW, FaultConfig, apply_actuator_faults, faults_to_kernel
+from vtoladapt.sim.scenario import load_scenario, scenario_from_mapping
 
 SEGFAULT_SCRIPT = """
 from dataclasses import replace
-from vtoladapt.faults import FaultConfig
-from vtoladapt.scenario import load_scenario
-from vtoladapt.simulate import simulate
+from vtoladapt.sim.faults import FaultConfig
+from vtoladapt.sim.scenario import load_scenario
+from vtoladapt.sim.driver import simulate
 base = load_scenario("gym_hold").replace(duration_s=1.0)
 try:
     fault = FaultConfig(kind="stuck_throttle", start_s=0.2, end_s=0.8, motor=MOTOR)
@@ -79,7 +79,7 @@ def test_scenario_replaced_in_python_is_checked(change, message):
 
 def test_simulate_refuses_a_log_beyond_the_memory_budget_before_allocating_it():
     """3600 s at 10 kHz is 36 M ticks (about 48 GiB of log): the size-ceiling error, not numpy's MemoryError."""
-    from vtoladapt.simulate import simulate
+    from vtoladapt.sim.driver import simulate
 
     sc = dataclasses.replace(load_scenario("gym_hold"), duration_s=3600.0, dt_control_s=1e-4,
                              controller=dataclasses.replace(load_scenario("gym_hold").controller,
@@ -102,9 +102,9 @@ def test_a_mocap_latency_beyond_its_ring_is_refused_at_load_naming_the_file(tmp_
 
 def _settings_objects():
     """One instance of every settings class reachable from the shipped configurations."""
-    from vtoladapt.campaign import load_campaign_file
+    from vtoladapt.campaign.runner import load_campaign_file
     from vtoladapt.gym.config import HoldEnvConfig
-    from vtoladapt.scenario import SCENARIO_DIR
+    from vtoladapt.sim.scenario import SCENARIO_DIR
 
     sc = scenario_from_mapping({
         "name": "all", "vehicle": "caltech_vtol", "duration_s": 1.0,
@@ -190,7 +190,7 @@ def test_a_value_outside_a_fields_declared_range_is_refused_when_built_in_python
 
 def test_simulate_refuses_a_run_of_no_tick():
     """Found by the hostile pass: duration_s below one dt_control_s raised UnboundLocalError."""
-    from vtoladapt.simulate import simulate
+    from vtoladapt.sim.driver import simulate
 
     with pytest.raises(ConfigError, match="is 0 control ticks; a run needs at least 1"):
         simulate(load_scenario("gym_hold").replace(duration_s=0.001))

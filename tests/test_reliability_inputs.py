@@ -84,7 +84,7 @@ def test_fit_refuses_a_force_no_aircraft_can_see(tmp_path, capsys):
 
 
 def test_the_range_table_gives_a_reason_for_every_physical_lower_bound():
-    from vtoladapt.limits import BOUND_REASONS, ranges_markdown
+    from vtoladapt.sim.limits import BOUND_REASONS, ranges_markdown
 
     table = ranges_markdown()
     for key, why in BOUND_REASONS.items():
@@ -103,7 +103,7 @@ def test_waypoints_under_a_hold_reference_are_refused_not_ignored(tmp_path, caps
 
 def test_waypoints_in_python_under_a_hold_reference_are_refused():
     from vtoladapt.config import ConfigError
-    from vtoladapt.scenario import ReferenceConfig
+    from vtoladapt.sim.scenario import ReferenceConfig
 
     with pytest.raises(ConfigError, match="waypoints: 2 rows with kind = 'hold', which ignores them"):
         ReferenceConfig(kind="hold", waypoints=((0.0, 0, 0, -1), (5.0, 1, 0, -1)))
@@ -112,7 +112,7 @@ def test_waypoints_in_python_under_a_hold_reference_are_refused():
 def test_a_table_longer_than_its_ceiling_is_refused_before_its_rows_are_read():
     """The row count is checked first: rows that are not even numbers are never looked at."""
     from vtoladapt.config import ConfigError
-    from vtoladapt.scenario import MAX_WAYPOINTS, scenario_from_mapping
+    from vtoladapt.sim.scenario import MAX_WAYPOINTS, scenario_from_mapping
 
     rows = ["not a row"] * (MAX_WAYPOINTS + 1)
     with pytest.raises(ConfigError, match=rf"\[reference\] waypoints: {MAX_WAYPOINTS + 1} entries; allowed: at most "
@@ -202,7 +202,7 @@ def test_a_replay_whose_every_sample_is_on_the_ground_says_so(tmp_path, capsys, 
 
 def test_the_hover_message_has_a_readable_throttle_and_never_says_100_over_100(caltech):
     from vtoladapt.config import ConfigError
-    from vtoladapt.plant import PlantCoefficients, PlantConfig, hover_trim_motor
+    from vtoladapt.sim.plant import PlantCoefficients, PlantConfig, hover_trim_motor
 
     with pytest.raises(ConfigError) as info:  # before: a 150-digit throttle
         hover_trim_motor(caltech, PlantConfig(coefficients=PlantCoefficients(CTz=1e-300)))

@@ -17,7 +17,7 @@ from PIL import Image
 
 from vtoladapt.cli import format_vehicle, main
 from vtoladapt.control.registry import CONTROLLER_IDS
-from vtoladapt.metrics import METRIC_INFO, metric_label
+from vtoladapt.sim.run_metrics import METRIC_INFO, metric_label
 from vtoladapt.vehicle import load_vehicle, vehicle_from_mapping
 
 SNAKE_KEY = re.compile(r"^[a-z0-9]+(_[a-z0-9]+)+$")
@@ -99,8 +99,8 @@ def test_report_figures_are_inline_and_captioned(reproduced):
 @pytest.fixture(scope="module")
 def comparison_runs(reproduced):
     from vtoladapt.experiments.running import _scaled
-    from vtoladapt.results import SimulationResult
-    from vtoladapt.scenario import load_scenario
+    from vtoladapt.sim.results import SimulationResult
+    from vtoladapt.sim.scenario import load_scenario
 
     scenario = _scaled(load_scenario("paper_comparison"), 0.12)
     runs = {cid: SimulationResult.from_parquet(reproduced / "comparison" / "runs"
@@ -152,8 +152,8 @@ def test_every_axis_of_the_experiment_figures_has_a_unit(reproduced, comparison_
     from vtoladapt.experiments import (plot_parameter_convergence, plot_tracking_axes,
                                        plot_tracking_comparison)
     from vtoladapt.experiments.running import _scaled
-    from vtoladapt.results import SimulationResult
-    from vtoladapt.scenario import load_scenario
+    from vtoladapt.sim.results import SimulationResult
+    from vtoladapt.sim.scenario import load_scenario
 
     scenario, runs = comparison_runs
     _assert_axes_have_units(plot_tracking_comparison(scenario, runs))
@@ -165,7 +165,7 @@ def test_every_axis_of_the_experiment_figures_has_a_unit(reproduced, comparison_
 
 
 def test_campaign_figure_counts_whole_runs_and_plots_the_varied_keys():
-    from vtoladapt.campaign import _setting_unit
+    from vtoladapt.campaign.runner import _setting_unit
     from vtoladapt.experiments import plot_campaign
 
     rng = np.random.default_rng(4)

@@ -3,7 +3,7 @@
 * caltech_vtol: Table I (force model, mean and std), Table II (airframe), Table III (P0) of
   Shi et al., ICRA 2020, typed in here from the paper and also parsed from the paper's LaTeX
   tables, vendored in ``data/paper/shi2020_tables.tex`` (see its SOURCE.md).
-* px4_standard_vtol: every force-model number equals conversions.px4_standard_vtol_force_model()
+* px4_standard_vtol: every force-model number equals vehicles.px4_standard_vtol.px4_standard_vtol_force_model()
   to 4 significant figures (rel 5e-4), and the conversion is checked by independent physics
   (hover thrust of four Gazebo rotors, a continuous least-squares fit of the rotor drag).
 """
@@ -19,7 +19,7 @@ import pytest
 from scipy.integrate import quad
 
 from vtoladapt import PARAMETER_NAMES, load_vehicle, models
-from vtoladapt.conversions import PX4_STANDARD_VTOL, px4_standard_vtol_force_model
+from vtoladapt.vehicles.px4_standard_vtol import PX4_STANDARD_VTOL, px4_standard_vtol_force_model
 from vtoladapt.frames import GRAVITY_MPS2
 
 PAPER = Path(__file__).resolve().parents[1] / "data" / "paper" / "shi2020_tables.tex"

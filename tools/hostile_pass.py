@@ -240,7 +240,7 @@ def handmade_cases() -> list[dict]:
 
 
 def fuzz_cases(rng: random.Random, n_scenarios: int, n_vehicles: int) -> list[dict]:
-    from vtoladapt.scenario import Scenario
+    from vtoladapt.sim.scenario import Scenario
     from vtoladapt.vehicle import Vehicle
 
     s_keys, v_keys = schema_keys(Scenario), schema_keys(Vehicle)
@@ -433,7 +433,7 @@ def run_api_case(case: dict, base) -> tuple[str, str]:
     import numpy as np
 
     from vtoladapt.config import ConfigError
-    from vtoladapt.simulate import simulate
+    from vtoladapt.sim.driver import simulate
 
     rng = random.Random(case["seed"])
     objects = _api_objects(base)
@@ -527,7 +527,7 @@ def worker(case_file: Path, start: int, fd: int, work: Path, baseline: Path) -> 
 
     report = os.fdopen(fd, "w", buffering=1)
     cases = json.loads(case_file.read_text())
-    from vtoladapt.scenario import load_scenario
+    from vtoladapt.sim.scenario import load_scenario
 
     base = load_scenario(SCENARIOS / "gym_hold.toml").replace(duration_s=0.3)
     envs = {}

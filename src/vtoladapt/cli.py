@@ -2,6 +2,7 @@
 
     vtoladapt reproduce --out DIR           the paper's experiments, figures and report
     vtoladapt run SCENARIO.toml --out DIR   one scenario (a single run or an experiment)
+    vtoladapt tune SCENARIO --controller ID tune a law's declared gains (one budget for every law)
     vtoladapt campaign SCENARIO --runs N    Monte-Carlo campaign on a Dask cluster
     vtoladapt vehicle list | show NAME      shipped vehicles and their parameters
     vtoladapt tunnel / fit / fit-realdata   virtual wind tunnel and Bayesian model fitting
@@ -42,6 +43,9 @@ def _add_run(sub) -> None:
     p.add_argument("--seed", type=int, default=None, help="override the seed")
     p.add_argument("--controller", default=None,
                    help="override [controller] kind: an id of vtoladapt.control.registry (that controller only)")
+    p.add_argument("--tuned", default=None, metavar="FILE",
+                   help="fly the law of a tuned settings file (from `vtoladapt tune`, e.g. scenarios/tuned/...) "
+                        "with its gains (that controller only)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_force_argument(p)
     p.set_defaults(handler=_cmd_run)
@@ -69,17 +73,20 @@ def _add_vehicle(sub) -> None:
     show.set_defaults(handler=_cmd_vehicle_show)
 
 
-def load_run_scenario(path, duration_s=None, seed=None, controller=None):
+def load_run_scenario(path, duration_s=None, seed=None, controller=None, tuned=None):
     """The scenario of ``vtoladapt run`` with its command-line overrides, fully validated.
 
     The overrides go through the same checks as the file's keys (``--duration`` has
-    ``duration_s``'s range), and the logs must fit the memory budget (:mod:`vtoladapt.limits`).
+    ``duration_s``'s range), and the logs must fit the memory budget (:mod:`vtoladapt.sim.limits`).
+    ``tuned``: a tuned settings file (:mod:`vtoladapt.experiments.tuning`); its law flies alone, with
+    its gains (``--controller`` must then name the same law or be left out).
     """
     from dataclasses import replace
 
+    from .config import ConfigError
     from .control.config import ControllerConfig
-    from .limits import check_run_size
-    from .scenario import Scenario, load_scenario
+    from .sim.limits import check_run_size
+    from .sim.scenario import Scenario, load_scenario
 
     scenario = load_scenario(path)
     if duration_s is not None:
@@ -87,6 +94,14 @@ def load_run_scenario(path, duration_s=None, seed=None, controller=None):
                                                             "--duration"))
     if seed is not None:
         scenario = replace(scenario, seed=check_value(Scenario, "seed", seed, "--seed"))
+    if tuned is not None:
+        from .experiments.tuning import tuned_controller
+
+        config = tuned_controller(scenario.controller, tuned)
+        if controller is not None and controller != config.kind:
+            raise ConfigError(f"--controller {controller} with --tuned {tuned}: the file tunes {config.kind}")
+        scenario = replace(scenario, controller=config)
+        controller = config.kind
     if controller is not None:
         kind = check_value(ControllerConfig, "kind", controller, "--controller")
         scenario = replace(scenario, controller=replace(scenario.controller, kind=kind))
@@ -106,7 +121,7 @@ def _cmd_run(args) -> int:
     from .outputs import OutputError
     from .preflight import check_experiment
 
-    scenario = load_run_scenario(args.scenario, args.duration, args.seed, args.controller)
+    scenario = load_run_scenario(args.scenario, args.duration, args.seed, args.controller, args.tuned)
     target = OutputDir(args.out, "run", force=args.force, planned=planned_outputs(scenario))
     # what needs the built vehicle and plant (hover, the law's prior, the envelope at the start),
     # for every run the experiment flies: all before the folder is claimed
@@ -147,8 +162,8 @@ def _cmd_reproduce(args) -> int:
 def _check_reproduce_size(scale: float) -> None:
     from dataclasses import replace
 
-    from .limits import check_run_size
-    from .scenario import SCENARIO_DIR, load_scenario
+    from .sim.limits import check_run_size
+    from .sim.scenario import SCENARIO_DIR, load_scenario
 
     for name in ("paper_convergence", "paper_comparison"):
         sc = load_scenario(SCENARIO_DIR / f"{name}.toml")
@@ -217,7 +232,8 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``vtoladapt`` parser: every sub-command registers itself here."""
-    from .campaign import register_cli as register_campaign
+    from .campaign.runner import register_cli as register_campaign
+    from .experiments.tuning import register_cli as register_tune
     from .fitting.cli import register_cli as register_fitting
     from .probe.cli import register_cli as register_probe
     from .replay.cli import register_cli as register_replay
@@ -226,7 +242,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true",
                         help="show the traceback of an error (accepted anywhere on the line)")
     sub = parser.add_subparsers(dest="command", required=True)
-    for register in (_add_reproduce, _add_run, _add_vehicle, register_campaign, register_fitting,
+    for register in (_add_reproduce, _add_run, register_tune, _add_vehicle, register_campaign, register_fitting,
                      register_probe, register_replay):
         register(sub)
     return parser

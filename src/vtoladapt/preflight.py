@@ -4,7 +4,7 @@ Validation of a scenario's tables (:mod:`vtoladapt.config`) cannot see what need
 vehicle and plant: whether the plant can hover on its lift rotors, whether the controller's
 law accepts the prior, whether a calibration file holds a usable calibration, whether the
 initial state is inside the ``[envelope]``. :func:`check_flyable` builds each run exactly as the
-simulator will (:func:`vtoladapt.simulate.prepare`, for two ticks) and checks the first state
+simulator will (:func:`vtoladapt.sim.driver.prepare`, for two ticks) and checks the first state
 against the envelope, so any setup error is raised here, naming the file (or the campaign draw),
 instead of after ``--out`` was claimed: a command that ends with exit 2 changes nothing on disk.
 A short run costs about 2 ms once the kernels are loaded.
@@ -16,7 +16,7 @@ from dataclasses import replace
 from typing import Iterable
 
 from .config import ConfigError
-from .scenario import Scenario
+from .sim.scenario import Scenario
 
 
 def _named(exc: ConfigError, where: str) -> ConfigError:
@@ -26,9 +26,9 @@ def _named(exc: ConfigError, where: str) -> ConfigError:
 
 def check_flyable(scenario: Scenario, where: str) -> None:
     """Raise a one-line :class:`ConfigError` naming ``where`` if the run of ``scenario`` cannot be
-    set up (anything :func:`~vtoladapt.simulate.prepare` refuses) or starts outside its envelope."""
-    from .monitor import check_envelope
-    from .simulate import prepare
+    set up (anything :func:`~vtoladapt.sim.driver.prepare` refuses) or starts outside its envelope."""
+    from .sim.monitor import check_envelope
+    from .sim.driver import prepare
 
     short = replace(scenario, duration_s=2.0 * scenario.dt_control_s)
     try:

@@ -75,7 +75,7 @@ A sensor suite is three things; the simulator and the tools here use nothing els
 :func:`run_sensor_model` drives any such suite over a recorded truth;
 ``tests/test_sensor_interface.py`` writes a suite of its own (a GNSS-class receiver instead of
 motion capture) and holds it and :func:`sensors_step` to the same contract. The closed loop
-(:mod:`vtoladapt.compiled_loop`) calls :func:`sensors_step`. A new model of one channel goes
+(:mod:`vtoladapt.sim.loop`) calls :func:`sensors_step`. A new model of one channel goes
 into it the way the pressure probe did: its settings in that channel's config class, its block
 in the layouts above, a compiled function called from :func:`sensors_step` (for the probe, a
 ``_probe_<model>`` function selected by ``PROBE_MODELS``) that draws a fixed number of random

@@ -56,6 +56,11 @@ A law is a module with these six names (:func:`.laws.check_law` checks them):
     ``config.loop_rate_hz``, INDI's filter against ``K_v``): a ``ConfigError`` starting with
     ``source``. :class:`ControllerConfig` runs it for its ``kind`` whenever it is made (from a file
     or in Python), a scenario for every law it compares.
+``TUNABLE`` (optional)
+    The gains ``vtoladapt tune`` may search: a tuple of ``(setting, low, high, log_scale)``, the
+    setting a key of the law's table (``"K_I[0:2]"`` for components of a tuple,
+    ``"controller.<key>"`` for a shared key that is the law's gain); see
+    :mod:`vtoladapt.experiments.tuning`. Absent or empty: nothing to tune.
 ``init_state(params, state) -> None``
     Python, at start and reset: anything the law's memory needs beyond zeros (the shared start
     is theta-hat = theta_init, P^-1 = P0^-1, filters empty; ``state`` is the whole array).
@@ -71,7 +76,9 @@ A law is a module with these six names (:func:`.laws.check_law` checks them):
     ``FAULT_*`` bits (int). An adaptive law updates theta-hat and ``P^-1`` in the shared
     estimate block (:data:`.adaptation.MEMORY` at ``S_ESTIMATE``). It may write the law-owned
     diagnostics ``P_diag_*``, ``projection_active_bounds`` and ``integrator_*``, which hold
-    diag(P0), 0 and 0 otherwise.
+    diag(P0), 0 and 0 otherwise. When ``update`` runs, ``diag``'s ``fault_flags`` column holds the
+    front end's ``FAULT_*`` bits of this tick (e.g. ``FAULT_VELOCITY``: the velocity is the last
+    good one, held because this tick's was not plausible); the back end then writes the column.
 
 Adding a law is this module in :mod:`.laws` and one :class:`.registry.ControllerInfo` entry in
 :data:`.registry.CONTROLLERS`: validation, scenarios, experiments, the API, the CLI and the

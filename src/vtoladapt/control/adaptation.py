@@ -48,14 +48,20 @@ III's P0 it is). The step is therefore implicit in the terms linear in theta-hat
 
     theta_k+1 = theta_k + dt K tau_k,
     K = Gamma_k+1^-1 = P_k+1                  (composite: Gamma_k+1 already holds b W^T W)
-      = (Gamma_0 + dt W^T W)^-1               (composite_pconst)
+      = phi(dt P_0 W^T W) P_0                 (composite_pconst, phi(X) = X^-1 (I - e^-X))
       = P_0                                   (tracking_only: no W term)
 
-(``Gamma_k+1`` before the trace cap), i.e. backward Euler in the prediction-error term. It is
-stable for any W and dt, equals the continuous law to first order in dt, has the same stationary
-points (``tau = 0``), and for the composite law is the exact recursive-least-squares update. The
-sigma term stays explicit (stable while ``dt sigma lambda_max(P0) < 2``, checked when the
-parameters are built), so that the composite law's gain is exactly P.
+(``Gamma_k+1`` before the trace cap). For the composite law this is backward Euler in the
+prediction-error term, the exact recursive-least-squares update. For the constant-P law it is the
+exact solution over the tick of ``theta' = P_0 tau`` with W, a_m and the tracking term held: P is
+P_0, and the tick's ``K`` is what the continuous law does in ``dt`` (191 along C_Tz in hover with
+Table III's 200, ``dt P_0 W^T W`` = 0.094). (Backward Euler there, ``K = (Gamma_0 + dt W^T W)^-1``,
+had put 183 and made the law depend on the tick.) Both are stable for any W and dt, equal the
+continuous law to first order in dt and have its stationary points (``tau = 0``). The sigma term
+stays explicit (stable while ``dt sigma lambda_max(P0) < 2``, checked when the parameters are
+built), so that the composite law's gain is exactly P.
+
+The constant-P law's ``K`` is formed as its inverse through the 3 x 3 ``W P_0 W^T`` (:mod:`.exact_step`).
 
 Extensions (not in the paper; off in :func:`adaptation_step`)
 --------------------------------------------------------------
@@ -86,6 +92,7 @@ from numba import njit
 
 from ..frames import rows_transpose_times
 from ..layout import BlockLayout, Field
+from .exact_step import constant_gain_inverse
 
 N_THETA = 8
 
@@ -142,10 +149,10 @@ PROJECTION_WORK_SIZE = PROJECTION_WORK.size
 
 # One step's scratch (meaningless between ticks); P_DIAG is the step's output.
 WORK = BlockLayout("adaptation scratch", [
-    Field("WTW", N_THETA * N_THETA, "-", "W^T W, then (composite_pconst) the gain's inverse"),
+    Field("WTW", N_THETA * N_THETA, "-", "W^T W (composite), or the constant-P gain's inverse"),
     Field("M", N_THETA * N_THETA, "-", "L^-1 for the Cholesky factor L of the gain's inverse"),
     Field("L", N_THETA * N_THETA, "-", "L"),
-    Field("K", N_THETA * N_THETA, "-", "the gain K, formed only to project"),
+    Field("K", N_THETA * N_THETA, "-", "the gain K, formed only to project (before: the constant-P gain's scratch)"),
     Field("TAU", N_THETA, "-", "tau of eq:th_adapt"),
     Field("D0", N_THETA, "-", "K tau"),
     Field("D", N_THETA, "-", "its projection"),
@@ -356,11 +363,13 @@ def forgetting_weights(lam: float, dt: float) -> tuple:
 
 
 @njit(cache=True, error_model="numpy")
-def information_update(Gamma, g, Gamma0, g0, WtW, h, a, b) -> None:
+def information_update(Gamma, g, Gamma0, g0, WtW, h, a, b, toward_prior=1.0) -> None:
     """One exact step of ``Gamma' = W^T W - lambda (Gamma - Gamma_0)`` (eq:P_adapt, information form).
 
     ``Gamma <- a Gamma + (1 - a) Gamma_0 + b W^T W`` in place, with ``(a, b)`` from
     :func:`forgetting_weights` (8 x 8 matrices at ``Gamma[g:]``, ``Gamma0[g0:]``, ``WtW[h:]``).
+    ``toward_prior = 0``: the paper's pure forgetting ``Gamma' = W^T W - lambda Gamma`` (P winds up
+    where W does not excite; measured against the shipped law in the README, "Deviations").
     """
     n = N_THETA
     Gamma = Gamma[g:g + n * n]
@@ -368,7 +377,7 @@ def information_update(Gamma, g, Gamma0, g0, WtW, h, a, b) -> None:
     WtW = WtW[h:h + n * n]
     for i in range(n):
         for j in range(i, n):
-            v = flush_tiny(a * Gamma[n * i + j] + (1.0 - a) * Gamma0[n * i + j] + b * WtW[n * i + j])
+            v = flush_tiny(a * Gamma[n * i + j] + toward_prior * (1.0 - a) * Gamma0[n * i + j] + b * WtW[n * i + j])
             Gamma[n * i + j] = v
             Gamma[n * j + i] = v
 
@@ -626,7 +635,8 @@ def adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, fo
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, forget_b, sigma,
-                             trace_max, active_set, w_track, w_pred, directional, gain_scale) -> tuple:
+                             trace_max, active_set, w_track, w_pred, directional, gain_scale,
+                             toward_prior=1.0) -> tuple:
     """One tick of eq:th_adapt and eq:P_adapt (see the module notes), in place.
 
     The paper's law is ``w_track = w_pred = gain_scale = 1``, ``directional = False``
@@ -635,7 +645,7 @@ def weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, for
     information increment ``w_pred W^T W`` (weights in [0, 1] saying how far the linear model is
     trusted this tick); ``directional``: the composite mode forgets only along the excited
     directions (:func:`directional_information_update`); ``gain_scale``: the tracking mode's
-    gain is ``gain_scale P0``.
+    gain is ``gain_scale P0``; ``toward_prior`` 0: the paper's pure forgetting (:func:`information_update`).
 
     Parameters
     ----------
@@ -686,18 +696,23 @@ def weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, for
     n_active = 0
     active = 0
     if mode == ADAPT_TRACKING:
-        # K = P0
+        # K = gain_scale P0. The direction P0 tau is projected with P0 and its inverse, then scaled:
+        # the projection of k P0 tau in the metric (k P0)^-1 is k times that of P0 tau in the metric
+        # P0^-1. (Projecting k P0 tau with P0's matrices mixed the two: the free-set system
+        # K^-1[F, F], solved when five or more bounds are held, gave P0's free step whatever k.)
         p0 = p + PRIOR_P0
         for i in range(n):
             x[p_diag + i] = gain_scale * prior[p0 + n * i + i]
             t = 0.0
             for j in range(n):
                 t += prior[p0 + n * i + j] * x[tau + j]
-            x[d0 + i] = gain_scale * t
+            x[d0 + i] = t
         if bounded:
-            # the projection in the P0 metric is the same for any positive multiple of P0
             n_active, active = project_direction(prior, p0, prior, p + PRIOR_GAMMA0, x, tau, d0, w + WK_D,
                                                  w + WK_PROJECTION, at_upper, at_lower, active_set)
+        scaled = w + WK_D if bounded else d0
+        for i in range(n):
+            x[scaled + i] *= gain_scale
     else:
         G = w + WK_WTW
         gram(x, wf, x, G)
@@ -709,15 +724,14 @@ def weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, for
                 directional_information_update(x, gam, prior, p + PRIOR_GAMMA0, x, wf, x, G,
                                                1.0 - w_pred * (1.0 - forget_a), w_pred * forget_b, x, w + WK_M)
             else:
-                information_update(x, gam, prior, p + PRIOR_GAMMA0, x, G, forget_a, w_pred * forget_b)
+                information_update(x, gam, prior, p + PRIOR_GAMMA0, x, G, forget_a, w_pred * forget_b, toward_prior)
             G = gam
         else:
-            # backward Euler in the prediction term: K = (P0^-1 + dt W^T W)^-1
-            g0 = p + PRIOR_GAMMA0
+            # P = P0, solved exactly over the tick: K = phi(dt P0 W^T W) P0, formed as its inverse
+            # (scratch: the gain's block, written below only if a bound is held)
             for i in range(n):
                 x[p_diag + i] = prior[p + PRIOR_P0 + n * i + i]
-                for j in range(n):
-                    x[G + n * i + j] = prior[g0 + n * i + j] + w_pred * dt * x[G + n * i + j]
+            constant_gain_inverse(x, wf, prior, p + PRIOR_P0, p + PRIOR_GAMMA0, G, w + WK_K, w_pred * dt, n)
         M = w + WK_M
         if not cholesky_lower(x, G, x, w + WK_L, n):
             if mode == ADAPT_COMPOSITE:
@@ -782,4 +796,5 @@ __all__ = ["ADAPT_COMPOSITE", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "M
            "WORK_SIZE", "adaptation_step", "bound_sides", "cap_information", "cholesky_lower",
            "cholesky_solve", "directional_information_update", "factor_apply", "factor_diag", "flush_tiny", "forgetting_weights", "gram",
            "gram_of_factor", "information_update", "inverse_factor", "lowpass", "lowpass_gain",
-           "lyapunov_at", "lyapunov_function", "prediction_error", "project_direction", "spd_inverse", "weighted_adaptation_step"]
+           "lyapunov_at", "lyapunov_function", "prediction_error", "project_direction", "spd_inverse",
+           "weighted_adaptation_step"]

@@ -88,7 +88,7 @@ def horizontal_residual(v_W, R, w_N, w_E, w_D, u_x, u_z, theta, model, a_x, a_y)
 
 # Compiled with reference counting whatever its caller: it allocates its Jacobian scratch, and
 # Numba compiles a callee with its caller's setting unless the callee states its own (the
-# controller step that reaches it is compiled without, see vtoladapt.compiled_loop).
+# controller step that reaches it is compiled without, see vtoladapt.sim.loop).
 @njit(cache=True, _nrt=True)
 def estimate_horizontal_wind(v_W, R, w_D, w_N0, w_E0, cold, u_x, u_z, theta, model, a_x, a_y, tol,
                              airspeed_max, sin_sideslip_max) -> tuple:

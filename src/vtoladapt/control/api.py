@@ -337,7 +337,7 @@ class Controller:
         controller and the motors did): the next step's regressor and adaptation take these as the
         applied throttles (eq:prediction_error) instead of the command. ``throttle_z_pct`` is the
         collective the lift rotors amount to, ``sqrt(mean u_i^2)`` over the four rotors
-        (:func:`vtoladapt.mixer.applied_collective`, which the shipped simulation reports). Values are
+        (:func:`vtoladapt.sim.mixer.applied_collective`, which the shipped simulation reports). Values are
         clipped to [0, the vehicle's throttle_max_pct]; a non-finite value raises ValueError.
         """
         u_max = self.vehicle.actuators.throttle_max_pct

@@ -19,7 +19,7 @@ blocks) and in each law's module (its own blocks); outside them use the accessor
 (:func:`state_theta_hat`, :func:`state_P_inv`, :func:`state_P`, :func:`set_state_theta_hat`, ...).
 
 The step is compiled without Numba's reference counting, as every kernel of the simulator's tick
-(:mod:`vtoladapt.compiled_loop`): a law's ``update`` must not allocate arrays (its scratch lives in
+(:mod:`vtoladapt.sim.loop`): a law's ``update`` must not allocate arrays (its scratch lives in
 its state block, and values pass between functions as tuples).
 """
 from __future__ import annotations
@@ -72,6 +72,9 @@ def controller_step(params, state, meas, ref, dt, cmd, diag) -> None:
     (dt, new_dt, faults, may_adapt, probe_ok, R, v_W, v_i, p_tilde, v_r, v_r_dot, v_tilde_raw, v_tilde, a_d, yaw_d,
      Phi, flow) = front_end(params, state, meas, ref, dt)
     default_law_diagnostics(params, diag)
+    # the front end's fault bits of this tick, readable by the law (e.g. a velocity held by the
+    # sanitiser); the back end overwrites the column with these and the law's own bits
+    diag[DIAG_FAULTS] = faults
     # the flow the laws' model-validity measures read (the controller's own v_i, never the plant's)
     state[S_V_I_LAW] = v_i[0]
     state[S_V_I_LAW + 1] = v_i[1]
@@ -103,8 +106,7 @@ def _vector(name: str, value, n: int = N_THETA) -> np.ndarray:
 def theta_bound_half_widths(theta_0, theta_std, bound_fraction, bound_sigmas: float) -> np.ndarray:
     """Half-widths of the theta-hat box: ``max(bound_fraction |theta_0|, bound_sigmas |std|)``.
 
-    The one rule for the bounds, whether theta_0 comes from the vehicle file or a fitted posterior.
-    Never narrower than ``1e-13 |theta_0|`` (1e-13 where theta_0 = 0): well above rounding, far
+    :func:`theta_bounds` applies them (and the signs physics gives). Never narrower than ``1e-13 |theta_0|`` (1e-13 where theta_0 = 0): well above rounding, far
     below any real bound, so a degenerate setting cannot give a zero-width box that freezes
     theta-hat.
     """
@@ -114,18 +116,34 @@ def theta_bound_half_widths(theta_0, theta_std, bound_fraction, bound_sigmas: fl
     return np.maximum(half, 1e-13 * np.where(th0 != 0.0, np.abs(th0), 1.0))
 
 
-def default_theta_bounds(vehicle, theta_0=None, theta_std=None) -> tuple[np.ndarray, np.ndarray]:
-    """Box bounds of theta-hat: ``theta_0 +- max(bound_fraction |theta_0|, bound_sigmas std)``.
+def theta_bounds(theta_0, theta_std, bound_fraction, bound_sigmas: float) -> tuple[np.ndarray, np.ndarray]:
+    """Box bounds of theta-hat: ``theta_0 +- max(bound_fraction |theta_0|, bound_sigmas |std|)``
+    (:func:`theta_bound_half_widths`), cut at zero where a coefficient's sign is known from physics
+    (:func:`vtoladapt.vehicle.parameter_signs`): a non-negative one's lower bound is at least 0, a
+    non-positive one's upper bound at most 0.
 
-    ``bound_fraction``, ``bound_sigmas`` from ``vehicle.adaptation``; ``std`` defaults to
-    ``vehicle.theta_std_scaled`` (Table I), all in the adaptation scaling
-    (:func:`theta_bound_half_widths`).
+    The one rule for the bounds, whether theta_0 comes from the vehicle file or a fitted posterior.
+    (Without the cut the caltech_vtol's ``bound_fraction`` 1.5 on C_S let theta-hat reach
+    ``-0.5 theta_0``: a rotor side force along the flow.)
+    """
+    from ..vehicle import parameter_signs
+
+    th0 = np.asarray(theta_0, dtype=float)
+    half = theta_bound_half_widths(th0, theta_std, bound_fraction, bound_sigmas)
+    signs = parameter_signs()
+    lower = np.where(signs > 0, np.maximum(th0 - half, 0.0), th0 - half)
+    upper = np.where(signs < 0, np.minimum(th0 + half, 0.0), th0 + half)
+    return lower, upper
+
+
+def default_theta_bounds(vehicle, theta_0=None, theta_std=None) -> tuple[np.ndarray, np.ndarray]:
+    """Box bounds of theta-hat (:func:`theta_bounds`) with the vehicle's ``bound_fraction``, ``bound_sigmas``.
+
+    ``std`` defaults to ``vehicle.theta_std_scaled`` (Table I), all in the adaptation scaling.
     """
     th0 = vehicle.theta_scaled if theta_0 is None else _vector("theta_0", theta_0)
     std = vehicle.theta_std_scaled if theta_std is None else _vector("theta_std", theta_std)
-    half = theta_bound_half_widths(th0, std, vehicle.adaptation.bound_fraction,
-                                   vehicle.adaptation.bound_sigmas)
-    return th0 - half, th0 + half
+    return theta_bounds(th0, std, vehicle.adaptation.bound_fraction, vehicle.adaptation.bound_sigmas)
 
 
 def controller_params(config, vehicle, theta_0=None, P0_diag=None, theta_lower=None, theta_upper=None,
@@ -348,4 +366,4 @@ __all__ = ["CONTROLLER_DIAG_COLUMNS", "DIAG_SIZE", "controller_initial_state", "
            "controller_step", "default_theta_bounds", "information_sum", "law_of_params", "set_state_theta_hat", "state_P",
            "state_P_inv", "state_filtered_accel", "state_filtered_regressor", "state_integrator",
            "state_last_command", "set_last_command", "state_law_field", "state_theta_hat", "state_wind_estimate",
-           "theta_bound_half_widths"]
+           "theta_bound_half_widths", "theta_bounds"]

@@ -3,13 +3,17 @@
 Configuration validation (the ``kind`` choices and the ``[controller.<id>]`` tables), scenarios,
 experiments, the step API, the compiled step's dispatch and the CLI read the list of controllers
 from here and nowhere else. A new control law is one new module in :mod:`vtoladapt.control.laws`
-(the interface is in :mod:`vtoladapt.control`) and one entry below.
+(the interface is in :mod:`vtoladapt.control`) and one entry below. :data:`CONTROLLERS` is the
+``"law"`` kind of :mod:`vtoladapt.components` (the package's laws, then those registered by a call
+or an entry point).
 """
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass
 from types import ModuleType
+
+from ..components import Registry
+from .laws import check_law
 
 
 @dataclass(frozen=True)
@@ -37,9 +41,8 @@ class ControllerInfo:
 
     @property
     def law(self) -> ModuleType:
-        """The law's module (imported on first use)."""
-        name = self.module if "." in self.module else f"{__package__}.laws.{self.module}"
-        return importlib.import_module(name)
+        """The law's module (imported and checked against the law interface on first use)."""
+        return CONTROLLERS.module(self.id)
 
     @property
     def settings(self) -> type:
@@ -47,7 +50,7 @@ class ControllerInfo:
         return self.law.Settings
 
 
-CONTROLLERS: dict[str, ControllerInfo] = {c.id: c for c in (
+CONTROLLERS: Registry = Registry("law", check_law, (
     ControllerInfo("composite", "C. Adapt", "C0", True, True,
                    "the paper's composite adaptive law (eq:th_adapt, eq:P_adapt)", "composite", paper="I",
                    adapts_theta=True),
@@ -55,7 +58,8 @@ CONTROLLERS: dict[str, ControllerInfo] = {c.id: c for c in (
                    "the composite law with P held at P0 (the paper's controller II)", "composite_pconst", paper="II",
                    adapts_theta=True),
     ControllerInfo("tracking_only", "Tracking-error adapt", "C4", True, False,
-                   "adaptation on the tracking error only, theta-hat' = P0 Phi^T R^T v-tilde (III)",
+                   "adaptation on the tracking error only, theta-hat' = k P0 Phi^T R^T v-tilde with k <= 1 from "
+                   "the gain rule (the paper's III has k = 1: gain_rule = \"paper\")",
                    "tracking_only", paper="III", adapts_theta=True),
     ControllerInfo("pid", "PID", "C1", False, False,
                    "PX4-style velocity PID with the same force allocation, theta-hat = theta_0 (IV)", "pid", paper="IV"),
@@ -69,7 +73,7 @@ CONTROLLERS: dict[str, ControllerInfo] = {c.id: c for c in (
     ControllerInfo("l1", "L1 adaptive", "C6", True, False,
                    "L1 adaptive control: eq:f_ctrl with theta-hat = theta_0 minus the low-passed estimate of a "
                    "velocity predictor's piecewise-constant adaptation (Hovakimyan & Cao 2010)", "l1"),
-)}
+), package=f"{__package__}.laws")
 
 CONTROLLER_IDS: tuple[str, ...] = tuple(CONTROLLERS)
 ADAPTIVE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if c.adaptive)

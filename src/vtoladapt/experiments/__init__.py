@@ -16,7 +16,7 @@ metrics.json schema
 ``vel_err_rms_high_wind_mps`` (fan >= 60 %), ``overshoot_after_fan_off_mps`` (peak velocity error
 in the 5 s after the fan stops), and for the composite controllers ``pred_err_rms_g`` and
 ``pred_err_p95_g`` (after the first 2 s), plus further diagnostics (labels and units of every key:
-:data:`vtoladapt.metrics.METRIC_INFO`).
+:data:`vtoladapt.sim.run_metrics.METRIC_INFO`).
 ``convergence.param_std_ratio.<param>``: spread (std) of theta-hat across the runs at the end
 divided by at the start. ``claims.<name>``: ``{"holds", "value", "threshold", "statement",
 "paper_claim", "source"}`` (``paper_claim`` false: a diagnostic of ours, labelled so).

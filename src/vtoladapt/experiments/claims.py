@@ -11,7 +11,7 @@ import math
 from typing import Optional
 
 from ..control.registry import COMPOSITE_IDS, PAPER_ADAPTIVE_IDS, PAPER_BASELINE_IDS
-from ..metrics import airspeed_bin_labels
+from ..sim.run_metrics import airspeed_bin_labels
 
 CLAIM_UNITS: dict[str, str] = {
     "pd_large_errors_at_high_wind": "ratio",

@@ -1,6 +1,6 @@
 """The envelope targets: what each campaign run is judged on, and their fractions over the draws.
 
-A campaign file (:mod:`vtoladapt.campaign`, ``[campaign]``) flies every draw of its conditions
+A campaign file (:mod:`vtoladapt.campaign.runner`, ``[campaign]``) flies every draw of its conditions
 with each of its controllers on the same seed. :func:`envelope_run_metrics` reduces one run's
 log to the numbers the targets need; :func:`envelope_summary` judges the targets per draw and
 reports each as the fraction of draws where it holds with its 95 % Wilson interval, overall, per
@@ -43,7 +43,7 @@ from typing import Iterable, Optional, Sequence
 import numpy as np
 
 from ..control.registry import ADAPTIVE_IDS, COMPOSITE_IDS, PAPER_BASELINE_IDS
-from ..metrics import AIRSPEED_BINS_MPS, airspeed_bin_labels, run_metrics
+from ..sim.run_metrics import AIRSPEED_BINS_MPS, airspeed_bin_labels, run_metrics
 from ..stats import fraction_holding, median_iqr
 
 PRED_ERR_BOUND_G = 0.05
@@ -112,7 +112,7 @@ def alpha_excursions(alpha_abs_rad: np.ndarray, counted: np.ndarray, threshold_r
 def envelope_run_metrics(result, scenario) -> dict:
     """The numbers one run is judged on (every key always present; NaN where not applicable).
 
-    ``result`` is a :class:`~vtoladapt.results.SimulationResult` of ``scenario``. Keys: the run
+    ``result`` is a :class:`~vtoladapt.sim.results.SimulationResult` of ``scenario``. Keys: the run
     metrics (``vel_err_rms_mps``, ``pred_err_p95_g``, ...), per airspeed bin ``B``
     ``pred_err_p95_g[B]`` (composite controllers), ``vel_err_rms_mps[B]`` and
     ``alpha_over_protect_fraction[B]`` / ``alpha_over_protect_longest_s[B]``; the alpha

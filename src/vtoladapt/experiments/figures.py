@@ -16,9 +16,9 @@ import numpy as np
 
 from ..control.registry import COMPOSITE_IDS, CONTROLLER_IDS, CONTROLLERS
 from ..frames import GRAVITY_MPS2
-from ..metrics import metric_label
-from ..results import SimulationResult
-from ..scenario import Scenario
+from ..sim.run_metrics import metric_label
+from ..sim.results import SimulationResult
+from ..sim.scenario import Scenario
 from ..vehicle import PARAMETER_NAMES
 from .metrics import THETA_SCALED_UNITS, fan_speed_series, fan_throttle_series
 from .report import _save_figure

@@ -10,10 +10,10 @@ from pathlib import Path
 from typing import Optional
 
 
-from ..metrics import run_metrics
-from ..monitor import DivergenceError
-from ..results import SimulationResult
-from ..scenario import SCENARIO_DIR, Scenario, load_scenario
+from ..sim.run_metrics import run_metrics
+from ..sim.monitor import DivergenceError
+from ..sim.results import SimulationResult
+from ..sim.scenario import SCENARIO_DIR, Scenario, load_scenario
 from .claims import check_claims
 from .figures import (CONTROLLER_LABELS, figure_parameter_convergence, figure_single_run,
                       figure_tracking_axes, figure_tracking_comparison)
@@ -86,7 +86,7 @@ def _note(msg: str, show: bool) -> None:
 
 def _warm_up(scenario: Scenario, show: bool) -> None:
     """Compile (or load from the on-disk cache) the kernels, telling the user."""
-    from ..simulate import load_kernels
+    from ..sim.driver import load_kernels
 
     t0 = time.perf_counter()
     _note("Loading compiled kernels (the first run on a machine compiles them: about 90 s on 2 idle "
@@ -120,9 +120,9 @@ def run_convergence(scenario: Scenario, progress: Optional[_Progress] = None,
 def _run_all(runs: list[Scenario], progress: Optional[_Progress], desc: str,
              logs: Optional[list[Path]] = None) -> list[SimulationResult]:
     """Every run side by side, one thread per core (bit-identical to running them one by one): in
-    memory, or each streamed to its log file in ``logs`` (:func:`vtoladapt.longrun.stream_many`)."""
-    from ..longrun import stream_many
-    from ..simulate import simulate_many
+    memory, or each streamed to its log file in ``logs`` (:func:`vtoladapt.sim.longrun.stream_many`)."""
+    from ..sim.driver import simulate_many
+    from ..sim.longrun import stream_many
 
     if progress is not None:
         progress.set(desc)
@@ -187,7 +187,7 @@ def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, wa
     A comparison or convergence experiment is also flown over ``variants`` seeded variants
     (default ``[experiment] variants``; 1: none): ``metrics["distribution"][kind]``
     (:mod:`vtoladapt.experiments.distribution`)."""
-    from ..longrun import stream_to_parquet
+    from ..sim.longrun import stream_to_parquet
 
     out.mkdir(parents=True, exist_ok=True)
     if warm:
@@ -201,7 +201,7 @@ def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, wa
     try:
         if kind == "single":
             # every log is streamed to its file in row groups and read back by column: memory holds what
-            # the metrics and figures use, whatever the duration (vtoladapt.limits.check_run_size)
+            # the metrics and figures use, whatever the duration (vtoladapt.sim.limits.check_run_size)
             res = stream_to_parquet(scenario, out / log_names(scenario)[0], progress.callback())
             metrics["run"] = run_metrics(res, fan_throttle_series(scenario, res.time_s))
             figures.append(figure_single_run(scenario, res, out / FIGURES[kind][0]))
@@ -267,20 +267,22 @@ def _figure_refs(figures: list[Path]) -> list[FigureRef]:
     return [FigureRef(p.name, FIGURE_CAPTIONS.get(p.name, p.stem)) for p in figures]
 
 
-ABLATION_VARIANTS = 10
-"""Seeded variants per plant configuration of the ablation."""
-WIND_VARIANTS = 5
+ABLATION_VARIANTS = 30
+"""Seeded variants per plant configuration of the ablation (every distribution claim: at least 30)."""
+WIND_VARIANTS = 30
 """Seeded variants per controller and wind condition of the method x wind table."""
 
 
 def reproduce(out: Path, duration_scale: float = 1.0, show_progress: bool = True,
               variants: Optional[int] = None, ablation_variants: int = ABLATION_VARIANTS,
-              wind_variants: int = WIND_VARIANTS) -> dict:
+              wind_variants: int = WIND_VARIANTS, tuned: bool = True) -> dict:
     """Both paper experiments, one combined metrics.json and report.
 
     Each experiment is flown once at its scenario seed (the figures) and over seeded variants
-    (``variants``, default each scenario's ``[experiment] variants``): ``distribution.<experiment>``.
-    Then the comparison's claims with each unmodelled effect off (``ablation``, over
+    (``variants``, default each scenario's ``[experiment] variants``): ``distribution.<experiment>``,
+    the comparison's with every pair of laws compared (``distribution.comparison.paired``). Then
+    every law with its shipped tuned settings over the same variants (``tuned``; ``tuned=False``
+    skips it), the comparison's claims with each unmodelled effect off (``ablation``, over
     ``ablation_variants``) and the method x wind table (``wind_table``, over ``wind_variants``);
     0 skips either."""
     out = Path(out)
@@ -299,13 +301,22 @@ def reproduce(out: Path, duration_scale: float = 1.0, show_progress: bool = True
     metrics = {"convergence": m_conv["convergence"], "comparison": m_comp["comparison"]}
     metrics["claims"] = check_claims(metrics["comparison"], metrics["convergence"])
     metrics["distribution"] = {**m_conv.get("distribution", {}), **m_comp.get("distribution", {})}
-    from .distribution import ABLATION_EFFECTS, WIND_CONDITIONS, WIND_HOLD_S, ablation, wind_table
+    from .distribution import (ABLATION_EFFECTS, WIND_CONDITIONS, WIND_HOLD_S, ablation, claim_controllers,
+                               wind_table)
+    from .tuning import tuned_comparison
 
+    default = metrics["distribution"].get("comparison")
+    if tuned and default is not None:
+        n = default["variants"]
+        metrics["tuned"] = _with_progress(
+            lambda add: tuned_comparison(comp, n, default, add),
+            n * len(comp.experiment.controllers) * comp.duration_s, show_progress, "tuned laws")
     if ablation_variants > 0:
+        reused = default is not None and default["variants"] == ablation_variants
         metrics["ablation"] = _with_progress(
-            lambda add: ablation(comp, ablation_variants, add),
-            (1 + len(ABLATION_EFFECTS)) * ablation_variants * len(comp.experiment.controllers) * comp.duration_s,
-            show_progress, "ablation")
+            lambda add: ablation(comp, ablation_variants, add, all_on=default),
+            (len(ABLATION_EFFECTS) + (0 if reused else 1)) * ablation_variants
+            * len(claim_controllers(comp.experiment.controllers)) * comp.duration_s, show_progress, "ablation")
     if wind_variants > 0:
         metrics["wind_table"] = _with_progress(
             lambda add: wind_table(comp, wind_variants, add, duration_scale),
@@ -317,7 +328,7 @@ def reproduce(out: Path, duration_scale: float = 1.0, show_progress: bool = True
                       ("comparison", "fig_tracking_comparison.png"), ("comparison", "fig_tracking_axes.png")):
         figures.append(_copy_file(out / sub / name, out / name))
     _write_json(out / "metrics.json", metrics)
-    from ..simulate import controller_prior
+    from ..sim.driver import controller_prior
 
     notes = [f"Generated by `vtoladapt reproduce` in {time.perf_counter() - t0:.0f} s "
              f"(duration scale {duration_scale:g}).",
@@ -345,8 +356,8 @@ def reproduce(out: Path, duration_scale: float = 1.0, show_progress: bool = True
 
 def _fault_rows(show_progress: bool) -> list[dict]:
     """Fly the shipped fault scenarios (one fault each, a few seconds in all) and tabulate them."""
-    from ..faults import FAULT_KINDS, fault_table
-    from ..simulate import simulate_many
+    from ..sim.faults import FAULT_KINDS, fault_table
+    from ..sim.driver import simulate_many
 
     scenarios = [load_scenario(SCENARIO_DIR / "faults" / f"{k}.toml") for k in FAULT_KINDS]
     _note(f"Faults: {len(scenarios)} scenarios", show_progress)

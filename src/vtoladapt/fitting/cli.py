@@ -147,7 +147,7 @@ def register_cli(subparsers) -> dict[str, argparse.ArgumentParser]:
 
 def _vehicle(name: str):
     """``--vehicle``: checked as a scenario's ``vehicle`` key is, then loaded."""
-    from ..scenario import Scenario
+    from ..sim.scenario import Scenario
 
     return load_vehicle(check_value(Scenario, "vehicle", name, "--vehicle"))
 
@@ -177,7 +177,7 @@ def _is_tunnel_output(path: Path) -> bool:
 
 def cmd_tunnel(args: argparse.Namespace) -> int:
     """Handler of ``vtoladapt tunnel``; returns the exit code."""
-    from ..limits import check_tunnel_rows
+    from ..sim.limits import check_tunnel_rows
     from .tunnel import BalanceNoise, design_points, make_design, run_virtual_tunnel, \
         truth_path_for, write_tunnel_run
 
@@ -243,7 +243,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     """Handler of ``vtoladapt fit``; returns the exit code."""
     import dataclasses
 
-    from ..limits import check_fit_size
+    from ..sim.limits import check_fit_size
     from .bayes import SamplerSettings, fit_table1
     from .data import read_force_balance_csv
 

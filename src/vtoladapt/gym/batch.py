@@ -31,10 +31,10 @@ from numba import typed
 from ..control.kernel import DIAG_SIZE, P_TAU_MAX, P_U_MAX
 from ..control.trajectory import trajectory_from_reference
 from ..layout import CMD_SIZE, MEAS_SIZE, N_MOTORS, X_SIZE
-from ..plant import RK4_WORK_SIZE
-from ..scenario import Scenario
+from ..sim.plant import RK4_WORK_SIZE
+from ..sim.scenario import Scenario
 from ..sensors import SENSOR_STATE
-from ..simulate import PreparedRun, prepare
+from ..sim.driver import PreparedRun, prepare
 from .config import HoldEnvConfig
 from .kernel import (B_SENS_S, BLOCKS, MODE_DIRECT, MODE_RESIDUAL, O_SHARED, OP_BEGIN, OP_SKIP, OP_STEP,
                      SET_ACTION_COST, SET_COS_TILT_MAX, SET_DT_S, SET_MAX_ERR_M, SET_MODE, SET_N_SUB, SET_N_TICKS,
@@ -48,7 +48,7 @@ MIN_CHUNK_ENVS = 16
 """No fewer environments per chunk (except when there are fewer than ``workers`` x this)."""
 
 _PER_RUN = BLOCKS[BLOCKS.index("plant_params"):] + SHARED_BLOCKS
-"""The blocks loaded from a :class:`~vtoladapt.simulate.PreparedRun` (attributes of that name)."""
+"""The blocks loaded from a :class:`~vtoladapt.sim.driver.PreparedRun` (attributes of that name)."""
 _SCRATCH_SIZES = {"x": X_SIZE, "v_wind": 3, "f_B": 3, "v_i": 3, "meas": MEAS_SIZE, "cmd": CMD_SIZE,
                   "base": CMD_SIZE, "diag": DIAG_SIZE, "motor": N_MOTORS, "work": RK4_WORK_SIZE}
 
@@ -259,7 +259,7 @@ class RunBatch:
     """``n`` closed-loop runs of one base scenario, stacked row by row, stepped in ``workers`` threads.
 
     Row ``i`` holds run ``i``'s plant state, kernel parameters and states (from
-    :func:`vtoladapt.simulate.prepare` of its episode's scenario), the scratch the two halves of a
+    :func:`vtoladapt.sim.driver.prepare` of its episode's scenario), the scratch the two halves of a
     tick hand each other, its tick counter and its generator. The rows are cut into contiguous
     chunks (:data:`CHUNKS_PER_WORKER` per thread, at least :data:`MIN_CHUNK_ENVS` rows each),
     which the threads claim as they come free; the compiled step releases the GIL.

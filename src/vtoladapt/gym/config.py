@@ -20,8 +20,8 @@ from typing import Any, Mapping, Optional
 import numpy as np
 
 from ..config import ConfigError, Validated, build, setting
-from ..plant import PlantCoefficients
-from ..scenario import Scenario, load_scenario, scenario_from_mapping
+from ..sim.plant import PlantCoefficients
+from ..sim.scenario import Scenario, load_scenario, scenario_from_mapping
 from ..vehicle import PARAMETER_NAMES
 
 ENV_ID = "vtoladapt/Hold-v0"

@@ -5,7 +5,7 @@ Episode
     draws the episode's scenario from the environment's generator (:func:`~vtoladapt.gym.config.episode_scenario`:
     plant coefficients from the vehicle's Table I posterior, fan throttle factor and array bearing,
     then the run's seed) and prepares it exactly as ``vtoladapt run`` would; ``episode_scenario``
-    holds it, so any episode can be replayed with :func:`vtoladapt.simulate.simulate`.
+    holds it, so any episode can be replayed with :func:`vtoladapt.sim.driver.simulate`.
 Step
     One controller tick (the scenario's ``dt_control_s``, 4 ms): the action is the command of
     this tick (or a residual on the composite controller's), see :mod:`vtoladapt.gym.spaces`.
@@ -19,7 +19,7 @@ Termination and truncation
     ``duration_s``.
 
 With ``residual=True`` and a zero action the run is the simulator's own: for episodes no longer
-than :data:`vtoladapt.simulate.CHUNK_S` (where the simulator's tick times are ``k dt`` too) the
+than :data:`vtoladapt.sim.driver.CHUNK_S` (where the simulator's tick times are ``k dt`` too) the
 observations come from the same log, bit for bit (tested).
 """
 from __future__ import annotations
@@ -30,7 +30,7 @@ import gymnasium as gym
 import numpy as np
 
 from ..config import ConfigError
-from ..scenario import Scenario
+from ..sim.scenario import Scenario
 from .batch import RunBatch
 from .config import ENV_ID, HoldEnvConfig, episode_scenario, make_config
 from .kernel import OP_SKIP, OP_STEP

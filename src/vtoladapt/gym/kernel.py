@@ -2,8 +2,8 @@
 
 One environment step is one controller tick (``dt_control_s``, 4 ms at 250 Hz) split where the
 agent acts: the action becomes the command of tick ``k`` (second half,
-:func:`vtoladapt.compiled_loop.tick_actuate`: mixer and plant), then the first half of tick
-``k + 1`` (:func:`vtoladapt.compiled_loop.tick_sense`: wind, sensors and, in residual mode, the
+:func:`vtoladapt.sim.loop.tick_actuate`: mixer and plant), then the first half of tick
+``k + 1`` (:func:`vtoladapt.sim.loop.tick_sense`: wind, sensors and, in residual mode, the
 composite controller) gives the next observation. Both halves are the simulator's own, so a run
 whose residual is zero is the simulator's run, bit for bit.
 
@@ -32,7 +32,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from ..compiled_loop import tick_actuate, tick_sense
+from ..sim.loop import tick_actuate, tick_sense
 from ..control.kernel import set_last_command
 from ..layout import CMD_SIZE, CMD_TAU_B, CMD_U_X, CMD_U_Z, MEAS_OMEGA_B, MEAS_P_W, MEAS_Q_WB, MEAS_V_I_B, \
     MEAS_V_I_VALID, MEAS_V_W, REF_P_W, X_P_W, X_Q_WB, X_SIZE
@@ -52,7 +52,7 @@ BLOCKS: tuple[str, ...] = ("x", "v_wind", "f_B", "v_i", "meas", "cmd", "base", "
                            "plant_params", "controller_state", "wind_params", "wind_state", "sensor_params",
                            "sensor_state")
 """The blocks of an environment's row, in order: the plant state and the scratch of a tick first
-(touched by every step), then the parameters and states of :class:`vtoladapt.simulate.PreparedRun`."""
+(touched by every step), then the parameters and states of :class:`vtoladapt.sim.driver.PreparedRun`."""
 (B_X, B_V_WIND, B_F_B, B_V_I, B_MEAS, B_CMD, B_BASE, B_DIAG, B_MOTOR, B_WORK, B_PLANT, B_CTRL_S, B_WIND_P,
  B_WIND_S, B_SENS_P, B_SENS_S) = range(len(BLOCKS))
 SHARED_BLOCKS: tuple[str, ...] = ("mixer_params", "controller_params")
@@ -262,7 +262,7 @@ def step_batch(rngs, op, actions, settings, tau_max, ref_table, S, off, P, pidx,
     float array (the log row and true theta the environment does not keep).
 
     Each environment steps in :func:`_step_env`, compiled without Numba's reference counting as
-    the tick's kernels are (:mod:`vtoladapt.compiled_loop`): its twenty-odd row slices would
+    the tick's kernels are (:mod:`vtoladapt.sim.loop`): its twenty-odd row slices would
     otherwise cost an atomic increment and decrement each. This loop keeps it only to take each
     generator out of the typed list.
     """

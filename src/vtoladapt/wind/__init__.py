@@ -42,7 +42,7 @@ A wind model is three things; the simulator and the tools here use nothing else:
 :func:`wind_series` is built on it); ``tests/test_wind_interface.py`` writes a model of its own
 (a wind shear that depends on ``p_W``) and holds it and the composed model to the same contract.
 
-The closed loop (:mod:`vtoladapt.compiled_loop`) calls the composed model, :func:`wind_step`.
+The closed loop (:mod:`vtoladapt.sim.loop`) calls the composed model, :func:`wind_step`.
 To bring a new kind of wind into scenarios, add it as a part: a module here with its settings
 class, a ``BlockLayout`` of its parameter block (and state block, if any), a ``pack_*`` function
 and a compiled ``add_*`` / ``*_step`` that adds its velocity to ``out_v_wind_W`` reading its

@@ -85,12 +85,12 @@ def add_information(state, g, weight, dt) -> None:
 @njit(cache=True, _nrt=False)
 def adaptive_estimate(mode, params, state, diag, s_active, s_work, may_adapt, Phi, R, v_tilde, dt, forget_a,
                       forget_b, sigma, trace_max, w_track=1.0, w_pred=1.0, directional=False,
-                      gain_scale=1.0) -> tuple:
+                      gain_scale=1.0, toward_prior=1.0) -> tuple:
     """Update theta-hat and P (eq:th_adapt, eq:P_adapt) if ``may_adapt``; write ``P_diag`` and ``projection_active_bounds``.
 
     ``s_active``: the law's state slot holding the last projection's active set; ``s_work``: its
     :data:`~vtoladapt.control.adaptation.WORK` block; ``w_track``, ``w_pred``, ``directional``,
-    ``gain_scale``: see :func:`vtoladapt.control.adaptation.weighted_adaptation_step` (the
+    ``gain_scale``, ``toward_prior``: see :func:`vtoladapt.control.adaptation.weighted_adaptation_step` (the
     defaults are the paper's law). Returns ``(e, adapt_active, faults)``: the prediction error
     before the update (m/s^2 body), whether theta-hat was updated, ``FAULT_*`` bits.
     """
@@ -100,7 +100,7 @@ def adaptive_estimate(mode, params, state, diag, s_active, s_work, may_adapt, Ph
     if may_adapt:
         n_active, active_set, e = ad.weighted_adaptation_step(
             mode, state, S_ESTIMATE, s_work, params, P_PRIOR, Phi, R, v_tilde, dt, forget_a, forget_b, sigma,
-            trace_max, int(state[s_active]), w_track, w_pred, directional, gain_scale)
+            trace_max, int(state[s_active]), w_track, w_pred, directional, gain_scale, toward_prior)
         state[s_active] = active_set
         if mode == ad.ADAPT_COMPOSITE:
             # the composite step leaves W^T W of this tick's W in its scratch (the other modes overwrite

@@ -14,6 +14,10 @@ directions comes from the projection bounds, not from sigma.
 
 Options beyond the paper (measured, defaults are the shipped law)
 ------------------------------------------------------------------
+``forgetting = "paper"`` is the paper's eq:P_adapt, ``(P^-1)' = W^T W - lambda P^-1``: the
+information decays in every direction, so P grows without bound where the regressor does not
+excite (the shipped law forgets toward P0 instead; measured in the README, "Deviations from the
+paper").
 ``forgetting = "directional"`` forgets only the information along the directions the current
 regressor excites (:func:`vtoladapt.control.adaptation.directional_information_update`), so
 unexcited directions keep their information and theta-hat does not wander along them.
@@ -58,7 +62,9 @@ class CompositeSettings(Validated):
     forgetting: str = setting(
         "-", "how eq:P_adapt forgets: 'prior' (every direction relaxes toward P0 at lambda, the shipped "
         "law), 'directional' (only the directions the current regressor excites are forgotten; "
-        "unexcited ones keep their information)", default="prior", choices=("prior", "directional"))
+        "unexcited ones keep their information), 'paper' (the paper's P' = -P W^T W P + lambda P: "
+        "unexcited directions of P grow without bound)", default="prior",
+        choices=("prior", "directional", "paper"))
     validity_gating: bool = setting(
         "-", "weight the prediction-error term and the information increment by the model's validity "
         "(measured alpha against the vehicle's believed stall angle), and drop the tracking term while "
@@ -68,6 +74,9 @@ class CompositeSettings(Validated):
 Settings = CompositeSettings
 """The law interface's name for the settings class."""
 
+TUNABLE = (("forgetting_lambda", 0.05, 20.0, True), ("sigma", 1e-6, 1.0, True))
+"""The gains ``vtoladapt tune`` searches (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale)."""
+
 
 PARAMS = BlockLayout("composite parameters", [
     Field("LAMBDA", 1, "1/s", "forgetting factor"),
@@ -75,6 +84,7 @@ PARAMS = BlockLayout("composite parameters", [
     Field("TRACE_MAX", 1, "adaptation units", "cap on trace(P^-1 - P0^-1)"),
     Field("DIRECTIONAL", 1, "-", "1: directional forgetting"),
     Field("GATING", 1, "-", "1: model-validity gating"),
+    Field("TOWARD_PRIOR", 1, "-", "1: forgetting toward P0; 0: the paper's pure forgetting"),
     Field("ALPHA_TRUST", 1, "rad", "model fully trusted up to this |alpha| (believed stall - margin)"),
     Field("ALPHA_STALL", 1, "rad", "model not trusted from this |alpha| on (believed stall)"),
 ])
@@ -83,8 +93,9 @@ STATE = BlockLayout("composite state", [
     Field("FORGET", 2, "-", "forgetting weights (a, b) for the current dt"),
     Field("WORK", ad.WORK.size, "-", "the adaptation's scratch (no meaning between ticks)"),
 ])
-P_LAMBDA, P_SIGMA, P_TRACE_MAX, P_DIRECTIONAL, P_GATING, P_ALPHA_TRUST, P_ALPHA_STALL = law_offsets(
-    PARAMS, P_LAW, "LAMBDA", "SIGMA", "TRACE_MAX", "DIRECTIONAL", "GATING", "ALPHA_TRUST", "ALPHA_STALL")
+P_LAMBDA, P_SIGMA, P_TRACE_MAX, P_DIRECTIONAL, P_GATING, P_TOWARD_PRIOR, P_ALPHA_TRUST, P_ALPHA_STALL = law_offsets(
+    PARAMS, P_LAW, "LAMBDA", "SIGMA", "TRACE_MAX", "DIRECTIONAL", "GATING", "TOWARD_PRIOR", "ALPHA_TRUST",
+    "ALPHA_STALL")
 S_ACTIVE_SET, S_FORGET, S_WORK = law_offsets(STATE, S_LAW, "ACTIVE_SET", "FORGET", "WORK")
 
 
@@ -95,7 +106,7 @@ def fill_params(settings: CompositeSettings, ctx: LawContext) -> np.ndarray:
     return PARAMS.pack(LAMBDA=settings.forgetting_lambda, SIGMA=settings.sigma,
                        TRACE_MAX=settings.information_trace_max,
                        DIRECTIONAL=float(settings.forgetting == "directional"),
-                       GATING=float(settings.validity_gating),
+                       GATING=float(settings.validity_gating), TOWARD_PRIOR=float(settings.forgetting != "paper"),
                        ALPHA_TRUST=np.radians(env.alpha_protect_deg), ALPHA_STALL=np.radians(env.stall_angle_deg))
 
 
@@ -116,6 +127,6 @@ def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_t
     e, adapt_active, faults = adaptive_estimate(
         ad.ADAPT_COMPOSITE, params, state, diag, S_ACTIVE_SET, S_WORK, may_adapt, Phi, R, v_tilde, dt,
         state[S_FORGET], state[S_FORGET + 1], params[P_SIGMA], params[P_TRACE_MAX], w_track, w_pred,
-        params[P_DIRECTIONAL] > 0.0, 1.0)
+        params[P_DIRECTIONAL] > 0.0, 1.0, params[P_TOWARD_PRIOR])
     K_v = (params[P_K_V], params[P_K_V + 1], params[P_K_V + 2])
     return force_command(v_r_dot, v_tilde, K_v), e, adapt_active, faults

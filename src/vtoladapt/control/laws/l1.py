@@ -76,12 +76,18 @@ Start-up, dt changes, faults
 * ``new_dt`` recomputes ``e^{-a_s T}``, ``Phi(T)^-1 e^{-a_s T}``, the filter gain and the bleed.
 * The law uses no accelerometer and needs no probe (the fallback incident velocity only changes
   ``f_applied``, and ``sigma-hat`` absorbs its error), so it ignores ``may_adapt`` and never
-  adapts theta-hat (``adapt_active`` is False). The interface passes no fault bits to a law: a
-  held velocity is recognised as a velocity equal, to the bit, to the last tick's (what the front
-  end's last-good-value hold produces; a real 250 Hz velocity with noise never repeats). Then
-  ``sigma-hat`` is frozen and bled (``fault_bleed_s``), the filter keeps running, and the next
-  fresh sample re-seats the predictor (one tick without an update), so that an outage is not
-  read as one tick's acceleration.
+  adapts theta-hat (``adapt_active`` is False). A velocity the front end holds because the
+  measurement was not plausible (``FAULT_VELOCITY`` in the front end's fault bits, which the
+  kernel leaves in ``diag``'s ``fault_flags`` for the law) freezes ``sigma-hat`` and bleeds it
+  (``fault_bleed_s``); the filter keeps running, and the next good sample re-seats the predictor
+  (one tick without an update), so that an outage is not read as one tick's acceleration.
+* A velocity equal to the last tick's is not a fault: a sample-and-hold source (motion capture
+  slower than the loop, a replayed log) repeats its samples. The predictor and the
+  piecewise-constant law run on every tick against the held sample, so the estimate on a held
+  tick says "no acceleration" and the next fresh sample's tick the rest; the estimate's mean is
+  the source's slope and ``C(s)`` filters the ripple. (Until issue #25 a repeat counted as a
+  fault: with 100 Hz motion capture in a 250 Hz loop the predictor was re-seated on 60 % of the
+  ticks and the estimate never built up.)
 * Anything non-finite in the law's memory (impossible for the sanitised inputs, but guarded)
   restarts it from the measured velocity with ``sigma-hat = 0`` and sets ``FAULT_ADAPTATION``.
 """
@@ -99,7 +105,8 @@ from .. import adaptation as ad
 from ...frames import rows_times
 from ..frontend import prediction_error
 from ..layouts import (
-    DIAG_INTEGRATOR, FAULT_ADAPTATION, N_THETA, P_ACC_MAX, P_K_V, P_LAW, S_LAW, S_THETA, law_offsets,
+    DIAG_FAULTS, DIAG_INTEGRATOR, FAULT_ADAPTATION, FAULT_VELOCITY, N_THETA, P_ACC_MAX, P_K_V, P_LAW, S_LAW,
+    S_THETA, law_offsets,
 )
 from ..tracking import force_command, limit_norm
 from . import LawContext
@@ -124,6 +131,10 @@ class L1Settings(Validated):
 
 Settings = L1Settings
 """The law interface's name for the settings class."""
+
+TUNABLE = (("cutoff_radps", 0.5, 40.0, True), ("predictor_pole_radps", 0.5, 100.0, True))
+"""The gains ``vtoladapt tune`` searches (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale);
+a_s up to 100 rad/s keeps ``a_s dt`` = 0.4 < 0.5 at 250 Hz."""
 
 
 PARAMS = BlockLayout("l1 parameters", [
@@ -222,12 +233,14 @@ def model_force_W(state, Phi, R) -> tuple:
 
 
 @njit(cache=True)
-def l1_estimate(params, state, v_W, f_now) -> int:
-    """Predictor, piecewise-constant adaptation and filter for one tick (module notes); returns ``FAULT_*`` bits."""
+def l1_estimate(params, state, v_W, f_now, held) -> int:
+    """Predictor, piecewise-constant adaptation and filter for one tick (module notes); returns ``FAULT_*`` bits.
+
+    ``held``: the front end is holding the last good velocity (this tick's was not plausible).
+    """
     decay = state[S_GAINS_L1 + G_DECAY]
     k_adapt = state[S_GAINS_L1 + G_ADAPT]
     phi = (1.0 - decay) / params[P_A_S]
-    held = (v_W[0] == state[S_V_HOLD] and v_W[1] == state[S_V_HOLD + 1] and v_W[2] == state[S_V_HOLD + 2])
     faults = 0
     if state[S_RUNNING] > 0.0 and not held:
         for i in range(3):
@@ -282,7 +295,8 @@ def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_t
     """
     if new_dt:
         update_gains(params, state, dt)
-    faults = l1_estimate(params, state, v_W, model_force_W(state, Phi, R))
+    held = (int(diag[DIAG_FAULTS]) & FAULT_VELOCITY) != 0
+    faults = l1_estimate(params, state, v_W, model_force_W(state, Phi, R), held)
     K_v = (params[P_K_V], params[P_K_V + 1], params[P_K_V + 2])
     f_b = force_command(v_r_dot, v_tilde, K_v)
     s = (state[S_SIGMA_LPF], state[S_SIGMA_LPF + 1], state[S_SIGMA_LPF + 2])

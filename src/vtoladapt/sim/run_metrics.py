@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .frames import GRAVITY_MPS2
+from ..frames import GRAVITY_MPS2
 from .results import SimulationResult
 
 PRED_ERR_SKIP_S = 2.0

@@ -16,7 +16,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from .vehicle import PARAMETER_NAMES
+from ..vehicle import PARAMETER_NAMES
 
 PARQUET_FORMAT_VERSION = 1
 
@@ -79,21 +79,19 @@ class SimulationResult:
         the paper's figures. Computed once and cached.
         """
         if self._v_tilde is None:
-            from .control.tracking import reference_velocity
-
+            # vtoladapt.control.tracking.reference_velocity's v_r, every row at once (a Python loop
+            # over it held the GIL for a third of a comparison run's time): the correction
+            # Lambda_p p~, scaled to its limit where longer
             lam = np.asarray(self.metadata["Lambda_p"], dtype=float)
             corr_max = float(self.metadata["velocity_correction_max_mps"])
             p_tilde = self.position_W - self.columns_like(("ref_p_N_m", "ref_p_E_m", "ref_p_D_m"))
             v_d = self.columns_like(("ref_v_N_mps", "ref_v_E_mps", "ref_v_D_mps"))
-            a_d = self.columns_like(("ref_a_N_mps2", "ref_a_E_mps2", "ref_a_D_mps2"))
-            v = self.velocity_W
-            v_r = np.empty(3)
-            v_r_dot = np.empty(3)
-            out = np.empty_like(v)
-            for k in range(len(v)):
-                reference_velocity(p_tilde[k], v_d[k], a_d[k], v[k], lam, corr_max, v_r, v_r_dot)
-                out[k] = v[k] - v_r
-            self._v_tilde = out
+            c = lam * p_tilde
+            n = np.sqrt(c[:, 0] * c[:, 0] + c[:, 1] * c[:, 1] + c[:, 2] * c[:, 2])
+            saturated = ~(n <= corr_max)
+            s = np.ones_like(n)
+            s[saturated] = corr_max / n[saturated]
+            self._v_tilde = self.velocity_W - (v_d - s[:, None] * c)
         return self._v_tilde
 
     @property
@@ -122,7 +120,7 @@ class SimulationResult:
         return self.diverged_at_s is not None
 
     def raise_if_diverged(self) -> "SimulationResult":
-        """Return ``self``, or raise :class:`vtoladapt.monitor.DivergenceError` if the run diverged."""
+        """Return ``self``, or raise :class:`vtoladapt.sim.monitor.DivergenceError` if the run diverged."""
         if self.diverged:
             from .monitor import DivergenceError
 
@@ -139,7 +137,7 @@ class SimulationResult:
         path.parent.mkdir(parents=True, exist_ok=True)
         table = pa.table({name: self.data[:, i] for i, name in enumerate(self.columns)})
         table = table.replace_schema_metadata({**(table.schema.metadata or {}), **log_metadata_entries(self.metadata)})
-        from .outputs import atomic_path
+        from ..outputs import atomic_path
 
         with atomic_path(path) as tmp:  # never a half-written log; recorded in the folder's manifest
             pq.write_table(table, tmp)
@@ -147,7 +145,7 @@ class SimulationResult:
 
     @classmethod
     def from_parquet(cls, path: str | Path) -> "SimulationResult":
-        """Read a log written by :meth:`to_parquet` or streamed (:func:`vtoladapt.longrun.stream_to_parquet`)."""
+        """Read a log written by :meth:`to_parquet` or streamed (:func:`vtoladapt.sim.longrun.stream_to_parquet`)."""
         meta = log_file_metadata(path)
         table = pq.read_table(path)
         data = np.column_stack([table.column(i).to_numpy() for i in range(table.num_columns)])
@@ -172,7 +170,7 @@ def log_metadata_entries(metadata: dict) -> dict[bytes, bytes]:
 
 
 class LoggedResult(SimulationResult):
-    """A run whose log stays in its Parquet file (streamed by :func:`vtoladapt.longrun.stream_to_parquet`).
+    """A run whose log stays in its Parquet file (streamed by :func:`vtoladapt.sim.longrun.stream_to_parquet`).
 
     A column is read from the file the first time it is used and then kept, so memory holds the
     columns the metrics and figures use (:attr:`loaded_columns`), never the whole log; ``data``

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import pickle
 
-from .config import MEMORY_BUDGET_BYTES, ConfigError, check_memory
+from ..config import MEMORY_BUDGET_BYTES, ConfigError, check_memory
 
 FLOAT_BYTES = 8
 FORCE_BALANCE_COLUMNS = 16
@@ -26,7 +26,7 @@ CAMPAIGN_ROW_BYTES = 4096
 
 def log_columns() -> int:
     """Columns of a simulation log (one float64 each per control tick)."""
-    from .compiled_loop import N_LOG
+    from .loop import N_LOG
 
     return N_LOG
 
@@ -52,7 +52,7 @@ errors, filtered series): measured 56 for the one-hour single run (peak minus a 
 CONVERGENCE_THETA_COLUMNS = 8
 """theta-hat of every convergence run, stacked for its figure."""
 STREAM_ROW_GROUP_ROWS = 15_000
-"""Rows of the row group a streamed run holds (60 s at 250 Hz; :data:`vtoladapt.longrun.ROW_GROUP_S`),
+"""Rows of the row group a streamed run holds (60 s at 250 Hz; :data:`vtoladapt.sim.longrun.ROW_GROUP_S`),
 held twice while it is written (the buffer and its Arrow copy)."""
 
 
@@ -67,7 +67,7 @@ def run_memory(scenario, variants: int | None = None, workers: int | None = None
     """
     import os
 
-    from .layout import REF_SIZE
+    from ..layout import REF_SIZE
 
     ticks = float(scenario.n_ticks)
     runs = experiment_runs(scenario)
@@ -111,7 +111,7 @@ def check_run_size(scenario, where: str, variants: int | None = None) -> None:
 def check_worker_runs(scenario, where: str, workers: int) -> None:
     """Refuse a scenario whose in-memory runs, ``workers`` at a time (a campaign's workers: each holds
     one log while it computes the run's metrics), exceed the budget."""
-    from .layout import REF_SIZE
+    from ..layout import REF_SIZE
 
     check_ticks(scenario, where)
     per_tick = log_columns() + REF_SIZE + 1 + ANALYSIS_TRANSIENT_COLUMNS
@@ -122,9 +122,9 @@ def check_worker_runs(scenario, where: str, workers: int) -> None:
 
 
 def in_memory_run_bytes(scenario) -> float:
-    """Bytes :func:`vtoladapt.simulate.simulate` holds for one run: the log, the reference table and
+    """Bytes :func:`vtoladapt.sim.driver.simulate` holds for one run: the log, the reference table and
     the tick times, one float64 each per control tick (``log_columns() + REF_SIZE + 1`` per tick)."""
-    from .layout import REF_SIZE
+    from ..layout import REF_SIZE
 
     return float(scenario.n_ticks) * (log_columns() + REF_SIZE + 1) * FLOAT_BYTES
 
@@ -132,7 +132,7 @@ def in_memory_run_bytes(scenario) -> float:
 def check_in_memory_runs(scenarios, where: str) -> None:
     """Refuse runs whose in-memory logs (:func:`in_memory_run_bytes`, summed: ``simulate_many``
     returns them all) exceed the budget, before any array is allocated."""
-    from .layout import REF_SIZE
+    from ..layout import REF_SIZE
 
     scenarios = list(scenarios)
     for sc in scenarios:
@@ -218,7 +218,7 @@ ROW_CHECKS = {
 
 
 def _range_text(meta) -> str:
-    from .config import MAGNITUDE_MAX
+    from ..config import MAGNITUDE_MAX
 
     parts = []
     for name, sym in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")):
@@ -240,7 +240,7 @@ def _settings_rows(cls: type, prefix: str = "") -> list[tuple[str, str, str]]:
     import types
     import typing
 
-    from .config import _type_hints
+    from ..config import _type_hints
 
     rows = []
     hints = _type_hints(cls)
@@ -268,7 +268,7 @@ def _settings_rows(cls: type, prefix: str = "") -> list[tuple[str, str, str]]:
 def ranges_markdown() -> str:
     """The README's table of every numeric key of a scenario and a vehicle file and its range."""
     from .scenario import Scenario
-    from .vehicle import Vehicle
+    from ..vehicle import Vehicle
 
     lines = ["| file | key | allowed (unit) | why the lower bound |", "|---|---|---|---|"]
     for name, cls in (("scenario", Scenario), ("vehicle", Vehicle)):

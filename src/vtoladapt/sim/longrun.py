@@ -2,7 +2,7 @@
 
 A one-hour flight at 250 Hz is 900 000 log rows of 157 float64 columns (1.1 GB in memory), so
 :func:`stream_to_parquet` never holds more than one row group: it advances the loop a chunk at a time
-(:func:`vtoladapt.simulate.run_chunk`, the same kernel :func:`~vtoladapt.simulate.simulate`
+(:func:`vtoladapt.sim.driver.run_chunk`, the same kernel :func:`~vtoladapt.sim.driver.simulate`
 calls) and appends each row group to the Parquet file. Every command that writes a simulation log
 (``vtoladapt run``, ``reproduce``) writes it this way (:func:`stream_many` for several runs side by
 side). :func:`stream_run` adds, after each row group, a measure of what a long run could wear out: the orthonormality of ``R_WB`` (from the plant's quaternion and
@@ -22,8 +22,8 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from .frames import quats_to_rotmats
-from .layout import X_Q_WB
+from ..frames import quats_to_rotmats
+from ..layout import X_Q_WB
 from .scenario import Scenario
 
 
@@ -75,11 +75,11 @@ ROW_GROUP_S = 60.0
 def stream_to_parquet(scenario: Scenario, out: str | Path, progress=None, row_group_s: float = ROW_GROUP_S,
                       on_chunk: Optional[Callable] = None):
     """Run ``scenario`` writing its log to ``out`` (Parquet, one row group per ``row_group_s``); return
-    the result backed by the file (:class:`vtoladapt.results.LoggedResult`).
+    the result backed by the file (:class:`vtoladapt.sim.results.LoggedResult`).
 
     Memory stays flat whatever the duration: one row group of the log is in memory at a time. The
-    loop advances :data:`vtoladapt.simulate.CHUNK_S` at a time (:func:`vtoladapt.simulate.run_chunk`,
-    the kernel :func:`~vtoladapt.simulate.simulate` calls, which also honours Ctrl-C there), so the
+    loop advances :data:`vtoladapt.sim.driver.CHUNK_S` at a time (:func:`vtoladapt.sim.driver.run_chunk`,
+    the kernel :func:`~vtoladapt.sim.driver.simulate` calls, which also honours Ctrl-C there), so the
     file holds the same columns and values ``simulate`` returns, and its footer the run's metadata.
     ``progress(simulated_s, duration_s)`` is called after each chunk, ``on_chunk(run, x, rows)``
     (the prepared run, its state and the rows just written) after each row group. The file is written
@@ -89,10 +89,10 @@ def stream_to_parquet(scenario: Scenario, out: str | Path, progress=None, row_gr
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from .compiled_loop import LOG_COLUMNS, N_LOG
-    from .outputs import atomic_path
+    from ..outputs import atomic_path
+    from .driver import CHUNK_S, prepare, run_chunk, run_metadata
+    from .loop import LOG_COLUMNS, N_LOG
     from .results import LoggedResult, log_metadata_entries
-    from .simulate import CHUNK_S, prepare, run_chunk, run_metadata
 
     from .limits import check_ticks
 
@@ -161,8 +161,8 @@ def stream_many(runs: Sequence[tuple[Scenario, Path]], workers: Optional[int] = 
 def stream_run(scenario: Scenario, out: str | Path, chunk_s: float = 60.0) -> LongRunReport:
     """Run ``scenario`` streaming its log to ``out`` (:func:`stream_to_parquet`, one row group per
     ``chunk_s``) and measure, after each row group, what a long run could wear out."""
-    from .control.kernel import state_P_inv, state_theta_hat
-    from .simulate import controller_prior
+    from ..control.kernel import state_P_inv, state_theta_hat
+    from .driver import controller_prior
 
     health = {"R_err": 0.0, "P_sym": 0.0, "theta_out": 0.0, "eig_min": np.inf, "eig_max": -np.inf,
               "rss_start": 0.0, "rss_max": 0.0, "groups": 0, "bounds": None}
@@ -199,14 +199,14 @@ def stream_run(scenario: Scenario, out: str | Path, chunk_s: float = 60.0) -> Lo
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m vtoladapt.longrun SCENARIO OUT.parquet [CHUNK_S]``: stream a run, print its report."""
+    """``python -m vtoladapt.sim.longrun SCENARIO OUT.parquet [CHUNK_S]``: stream a run, print its report."""
     import sys
 
     from .scenario import load_scenario
 
     args = sys.argv[1:] if argv is None else argv
     if len(args) not in (2, 3):
-        print("usage: python -m vtoladapt.longrun SCENARIO OUT.parquet [CHUNK_S]", file=sys.stderr)
+        print("usage: python -m vtoladapt.sim.longrun SCENARIO OUT.parquet [CHUNK_S]", file=sys.stderr)
         return 2
     report = stream_run(load_scenario(args[0]), args[1], float(args[2]) if len(args) == 3 else 60.0)
     print(report.to_json())

@@ -16,7 +16,7 @@ import socket
 import threading
 from typing import Any, Callable, Optional
 
-from .config import ConfigError
+from ..config import ConfigError
 
 SCHEDULER_CONNECT_TIMEOUT_S = 5.0
 """How long ``--scheduler ADDRESS`` waits for the scheduler to answer."""

@@ -1,4 +1,4 @@
-"""Conversions of other simulators' aircraft models into this package's force model.
+"""How ``px4_standard_vtol.toml``'s force model is derived from PX4's Gazebo ``standard_vtol`` model.
 
 PX4's Gazebo ``standard_vtol`` (the reference SITL VTOL) models its lift and pusher rotors as
 ``T = k_motor omega^2`` with a commanded rotor speed up to ``omega_max``, a rotor drag

@@ -11,8 +11,8 @@ on one thread per core (``--scheduler none``: no worker processes to start). It 
 
 The local cluster's scheduler, workers and status page listen on ``127.0.0.1`` only (another
 address with ``--listen``); connecting to a given scheduler gives up after
-:data:`~vtoladapt.campaign_cluster.SCHEDULER_CONNECT_TIMEOUT_S` with a one-line error; a Ctrl-C
-reaches this process only, never the local cluster's workers (:mod:`vtoladapt.campaign_cluster`).
+:data:`~vtoladapt.campaign.cluster.SCHEDULER_CONNECT_TIMEOUT_S` with a one-line error; a Ctrl-C
+reaches this process only, never the local cluster's workers (:mod:`vtoladapt.campaign.cluster`).
 
 All draws come from ``numpy.random.default_rng(scenario seed)``: the same command gives the same
 campaign, whatever the cluster.
@@ -39,11 +39,11 @@ from typing import Optional
 
 import numpy as np
 
-from .campaign_cluster import LOOPBACK, check_listen, check_scheduler, run_on_dask
-from .config import (PATH_PATTERN, ConfigError, Validated, build, check_flag, read_toml, refuse_internal_keys,
+from .cluster import LOOPBACK, check_listen, check_scheduler, run_on_dask
+from ..config import (PATH_PATTERN, ConfigError, Validated, build, check_flag, read_toml, refuse_internal_keys,
                      setting)
-from .control.registry import CONTROLLER_IDS
-from .outputs import OutputDir, add_force_argument, output_path, write_json, write_parquet
+from ..control.registry import CONTROLLER_IDS
+from ..outputs import OutputDir, add_force_argument, output_path, write_json, write_parquet
 
 
 @dataclass(frozen=True)
@@ -136,11 +136,11 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
     comparison or convergence study needs ``controller`` (``--controller``), rather than
     silently flying only its ``[controller] kind``.
     """
-    from .config import check_value
-    from .control.config import ControllerConfig
-    from .limits import check_campaign_runs, check_worker_runs
-    from .preflight import check_flyable
-    from .scenario import Scenario, scenario_from_mapping
+    from ..config import check_value
+    from ..control.config import ControllerConfig
+    from ..preflight import check_flyable
+    from ..sim.limits import check_campaign_runs, check_worker_runs
+    from ..sim.scenario import Scenario, scenario_from_mapping
 
     runs = check_runs_flag(runs)
     _check_variations(variations)
@@ -412,10 +412,10 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
     point of a Latin hypercube (or uniform) over the dimensions, the ``[[campaign.vary]]`` keys
     first, then the ``[campaign.choices]`` (an option is the stratum ``floor(u n_options)``).
     """
-    from .config import check_value
-    from .limits import check_campaign_runs, check_worker_runs
-    from .preflight import check_all
-    from .scenario import scenario_from_mapping
+    from ..config import check_value
+    from ..preflight import check_all
+    from ..sim.limits import check_campaign_runs, check_worker_runs
+    from ..sim.scenario import scenario_from_mapping
 
     cf = load_campaign_file(path)
     cfg = cf.config
@@ -503,7 +503,7 @@ def _validate_written(cf: CampaignFile, mapping: dict, where: str):
     the campaign file), or a one-line ConfigError naming ``where``. The scenario so far has
     passed, so a vehicle that fails to load is the one written there: it is reported as
     ``where``'s ``vehicle = ...`` (the lookup itself names only the base scenario's file)."""
-    from .scenario import Scenario, scenario_from_mapping
+    from ..sim.scenario import Scenario, scenario_from_mapping
 
     scenario = build(Scenario, {**mapping, "source_path": str(cf.base_path)}, source=where)
     try:
@@ -516,9 +516,9 @@ def _validate_written(cf: CampaignFile, mapping: dict, where: str):
 
 def _run_controller(spec: RunSpec) -> dict:
     """One controller's run of a campaign-file draw, reduced to its row (the envelope metrics)."""
-    from .experiments.envelope import envelope_run_metrics
-    from .scenario import scenario_from_mapping
-    from .simulate import simulate
+    from ..experiments.envelope import envelope_run_metrics
+    from ..sim.scenario import scenario_from_mapping
+    from ..sim.driver import simulate
 
     mapping = dict(spec.mapping)
     mapping["controller"] = {**spec.mapping.get("controller", {}), "kind": spec.controller}
@@ -530,10 +530,10 @@ def _run_controller(spec: RunSpec) -> dict:
 
 def run_one(spec: RunSpec) -> dict:
     """Run one campaign member (executed on a Dask worker) and return its row."""
-    from .experiments import fan_throttle_series
-    from .metrics import run_metrics
-    from .scenario import scenario_from_mapping
-    from .simulate import simulate
+    from ..experiments import fan_throttle_series
+    from ..sim.run_metrics import run_metrics
+    from ..sim.scenario import scenario_from_mapping
+    from ..sim.driver import simulate
 
     if spec.controller is not None:
         return _run_controller(spec)
@@ -616,7 +616,7 @@ def _write_envelope_outputs(rows: list[dict], out: Path, campaign: dict) -> dict
     targets' fractions) and ``fig_campaign.png`` (the fractions with their intervals)."""
     import pyarrow as pa
 
-    from .experiments.envelope import envelope_summary, figure_envelope
+    from ..experiments.envelope import envelope_summary, figure_envelope
 
     keys = list(dict.fromkeys(k for r in rows for k in r))
     columns = {k: [r.get(k) for r in rows] for k in keys}
@@ -638,7 +638,7 @@ class _NoProgress:
 def _progress(total: int, show: bool):
     if not show:
         return _NoProgress()
-    from .progress import progress_bar
+    from ..progress import progress_bar
 
     return progress_bar(total=total, unit="run", desc="campaign")
 
@@ -666,7 +666,7 @@ def _write_outputs(rows: list[dict], out: Path, varied: tuple[str, ...] = ()) ->
 def figure_campaign_png(rows: list[dict], path: Path, varied: list[str] | tuple[str, ...] = ()) -> Path:
     """The campaign's figure: metric histograms (whole-number counts) and each metric against
     every varied scenario key, with the key's unit from the scenario's declarations."""
-    from .experiments import figure_campaign
+    from ..experiments import figure_campaign
 
     return figure_campaign(rows, path, varied, {k: u for k in varied if (u := _setting_unit(k))})
 
@@ -675,7 +675,7 @@ def _setting_unit(dotted_key: str) -> str | None:
     """The declared unit of a dotted scenario key (``plant.stall_angle_deg`` -> ``deg``), or None."""
     import dataclasses
 
-    from .scenario import Scenario
+    from ..sim.scenario import Scenario
 
     cls = Scenario
     parts = dotted_key.split(".")
@@ -771,7 +771,7 @@ def _cmd_campaign_file(args) -> int:
                      listen=args.listen, campaign=info)
     import json
 
-    from .experiments.envelope import TARGETS
+    from ..experiments.envelope import TARGETS
 
     summary = json.loads((Path(args.out) / "summary.json").read_text())
     n_draws = summary["campaign"]["draws"]

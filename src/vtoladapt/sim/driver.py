@@ -13,15 +13,15 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from . import layout
-from .config import ConfigError
-from .errors import check_interrupt
-from .frames import quat_from_euler
+from .. import layout
+from ..config import ConfigError
+from ..errors import check_interrupt
+from ..frames import quat_from_euler
 from .mixer import mixer_params
 from .plant import hover_trim_motor
 from .results import SimulationResult
 from .scenario import Scenario
-from .vehicle import Vehicle
+from ..vehicle import Vehicle
 
 ProgressCallback = Callable[[float, float], None]
 """Called as ``progress(simulated_s, duration_s)`` between chunks of a run."""
@@ -57,11 +57,11 @@ class PreparedRun:
 
 def prepare(scenario: Scenario) -> PreparedRun:
     """Convert a validated scenario into kernel arrays. All random draws come from the scenario seed."""
-    from .control.api import controller_arrays
-    from .control.trajectory import trajectory_from_reference
+    from ..control.api import controller_arrays
+    from ..control.trajectory import trajectory_from_reference
     from .faults import faults_to_kernel
-    from .sensors import draw_probe_offsets, sensors_initial_state
-    from .wind import wind_initial_state
+    from ..sensors import draw_probe_offsets, sensors_initial_state
+    from ..wind import wind_initial_state
 
     vehicle = scenario.load_vehicle()
     plant = scenario.plant.resolved(vehicle, scenario.seed)
@@ -114,7 +114,7 @@ def controller_prior(scenario: Scenario, vehicle: Vehicle):
     the theta-hat bounds follow :func:`vtoladapt.fitting.controller_prior`. The plant keeps its
     own truth either way.
     """
-    from .control.kernel import default_theta_bounds
+    from ..control.kernel import default_theta_bounds
 
     path = scenario.posterior_path()
     if path is None:
@@ -122,7 +122,7 @@ def controller_prior(scenario: Scenario, vehicle: Vehicle):
         lower, upper = default_theta_bounds(vehicle, theta0)
         return vehicle, theta0, np.array(vehicle.adaptation.P0_diag), lower, upper, \
             f"Table I of {vehicle.name} (published means)"
-    from .fitting import apply_posterior
+    from ..fitting import apply_posterior
 
     ctrl_vehicle, (theta0, P0, lower, upper) = apply_posterior(vehicle, path)
     return ctrl_vehicle, theta0, P0, lower, upper, f"posterior {path}"
@@ -131,11 +131,11 @@ def controller_prior(scenario: Scenario, vehicle: Vehicle):
 def run_chunk(run: PreparedRun, x: np.ndarray, k0: int, k1: int, log: np.ndarray) -> tuple[int, int]:
     """Advance ``run`` (state ``x``) over ticks ``k0 .. k1-1`` into ``log`` (``k1 - k0`` rows).
 
-    Returns ``(ticks_done, reason)`` of :func:`vtoladapt.compiled_loop.run_closed_loop`. Raises
+    Returns ``(ticks_done, reason)`` of :func:`vtoladapt.sim.loop.run_closed_loop`. Raises
     KeyboardInterrupt first if Ctrl-C was pressed (:func:`vtoladapt.errors.check_interrupt`): a
     Ctrl-C Python dropped inside a C callback still stops every caller's run at its next chunk.
     """
-    from .compiled_loop import run_closed_loop
+    from .loop import run_closed_loop
 
     check_interrupt()
     sc = run.scenario
@@ -152,9 +152,9 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
 
     A run whose state leaves the scenario's ``[envelope]`` stops there: the result holds the
     ticks before it, and ``result.diverged_at_s`` / ``result.divergence_reason`` say when and why
-    (:mod:`vtoladapt.monitor`); nothing is raised (``result.raise_if_diverged()`` does).
+    (:mod:`vtoladapt.sim.monitor`); nothing is raised (``result.raise_if_diverged()`` does).
     """
-    from .compiled_loop import LOG_COLUMNS, N_LOG
+    from .loop import LOG_COLUMNS, N_LOG
     from .limits import check_in_memory_runs
 
     check_in_memory_runs([scenario], scenario.source_path or f"scenario {scenario.name!r}")
@@ -183,7 +183,7 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
 def run_metadata(run: PreparedRun, x: np.ndarray, n_done: int, reason: int, k_last: int, wall: float) -> dict:
     """The metadata of a finished run (:attr:`SimulationResult.metadata`): ``n_done`` ticks, ended by
     envelope ``reason`` (0: none) with state ``x``, ``k_last`` the last tick of the chunk it ended in."""
-    from .control.kernel import information_sum
+    from ..control.kernel import information_sum
 
     scenario = run.scenario
     diverged_at_s = None
@@ -257,7 +257,7 @@ def _has_disk_cache(dispatcher) -> bool:
 
 def _controller_step_compiled() -> None:
     """Compile (or load) the controller step for the simulator loop's argument types."""
-    from .control.kernel import DIAG_SIZE, controller_step
+    from ..control.kernel import DIAG_SIZE, controller_step
     from .scenario import scenario_from_mapping
 
     run = prepare(scenario_from_mapping({"name": "warm-up", "vehicle": "caltech_vtol", "duration_s": 0.004},
@@ -271,8 +271,8 @@ def _controller_step_compiled() -> None:
 def _plant_wind_sensors_compiled(run: PreparedRun) -> None:
     """Compile (or load) the plant, wind and sensor kernels for the simulator loop's argument types."""
     from .plant import RK4_WORK_SIZE, plant_advance, plant_first_stage
-    from .sensors import sensors_step
-    from .wind import wind_step
+    from ..sensors import sensors_step
+    from ..wind import wind_step
 
     x = run.x0.copy()
     v_wind = np.zeros(3)
@@ -295,14 +295,14 @@ def load_kernels(scenario: Scenario) -> None:
     and sensors; the loop, compiled last, loads the controller from the cache the other process
     wrote. On a warm cache nothing is started and only the loop's cached code is loaded.
     """
-    from .control.kernel import controller_step
-    from .compiled_loop import run_closed_loop
+    from ..control.kernel import controller_step
+    from .loop import run_closed_loop
 
     helper = None
     if not _has_disk_cache(run_closed_loop) and not _has_disk_cache(controller_step):
         try:
             helper = subprocess.Popen([sys.executable, "-c",
-                                       "from vtoladapt.simulate import _controller_step_compiled as c; c()"],
+                                       "from vtoladapt.sim.driver import _controller_step_compiled as c; c()"],
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         except OSError:
             helper = None  # no second process: compile everything here

@@ -38,13 +38,13 @@ from typing import Optional
 import numpy as np
 from numba import njit
 
-from . import forces
-from .config import ConfigError, Validated, build, setting
-from .frames import GRAVITY_MPS2
-from .layout import (MOTOR_PUSHER, N_LIFT, N_MOTORS, X_MOTOR, X_OMEGA_B, X_P_W, X_Q_WB, X_SIZE, X_V_W,
+from .. import forces
+from ..config import ConfigError, Validated, build, setting
+from ..frames import GRAVITY_MPS2
+from ..layout import (MOTOR_PUSHER, N_LIFT, N_MOTORS, X_MOTOR, X_OMEGA_B, X_P_W, X_Q_WB, X_SIZE, X_V_W,
                      BlockLayout, Field)
-from .scaling import theta_to_scaled
-from .vehicle import PARAMETER_NAMES, Vehicle
+from ..scaling import theta_to_scaled
+from ..vehicle import PARAMETER_NAMES, Vehicle
 
 #: UIUC magf 7x4 static thrust coefficient (mean of the 16 static points, 3069-7203 RPM).
 UIUC_7X4_STATIC_CT = 0.08188

@@ -3,10 +3,10 @@
 Per controller tick ``k`` (time ``t = k dt``), in this order:
 
 0. the divergence monitor checks the state against the scenario's envelope
-   (:mod:`vtoladapt.monitor`); outside it, the run stops before this tick;
+   (:mod:`vtoladapt.sim.monitor`); outside it, the run stops before this tick;
 1. the wind model advances and gives the wind at the vehicle, held over the tick;
 2. the sensors sample the true state, the true specific force and the true incident flow, and the
-   scenario's active sensor faults alter the measurement (:mod:`vtoladapt.faults`);
+   scenario's active sensor faults alter the measurement (:mod:`vtoladapt.sim.faults`);
 3. the controller computes its command from the measurement and the reference (its output is
    held until the next tick, as on a flight computer);
 4. the mixer turns the command into five motor commands (if it saturated, the controller is told the
@@ -16,7 +16,7 @@ Per controller tick ``k`` (time ``t = k dt``), in this order:
 
 Steps 1-3 are :func:`tick_sense`, steps 4-6 :func:`tick_actuate`; :func:`run_closed_loop` calls
 the two in turn, and the Gymnasium environment (:mod:`vtoladapt.gym`) acts between them. The loop
-sees only kernel arrays; :mod:`vtoladapt.simulate` builds them from a scenario.
+sees only kernel arrays; :mod:`vtoladapt.sim.driver` builds them from a scenario.
 
 The kernels a tick runs -- the tick functions here, the controller step and the adaptive laws'
 updates, the plant, sensor, wind, mixer, fault and envelope kernels -- are compiled without Numba's
@@ -32,8 +32,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .control.adaptation import lyapunov_at
-from .control.kernel import (
+from ..control.adaptation import lyapunov_at
+from ..control.kernel import (
     CONTROLLER_DIAG_COLUMNS,
     DIAG_Q_TILDE,
     DIAG_V_TILDE,
@@ -42,8 +42,8 @@ from .control.kernel import (
     controller_step,
     set_last_command,
 )
-from .forces import airflow_angles
-from .layout import (
+from ..forces import airflow_angles
+from ..layout import (
     CMD_SIZE,
     COMMAND_COLUMNS,
     MEAS_SIZE,
@@ -61,8 +61,8 @@ from .faults import active_mask, apply_actuator_faults, apply_measurement_faults
 from .mixer import MX_U_MAX, applied_collective, mix
 from .monitor import REASON_OK, check_envelope
 from .plant import RK4_WORK_SIZE, plant_advance, plant_first_stage
-from .sensors import sensors_step
-from .wind import wind_step
+from ..sensors import sensors_step
+from ..wind import wind_step
 
 N_DIAG = len(CONTROLLER_DIAG_COLUMNS)
 
@@ -114,7 +114,7 @@ def tick_sense(x, plant_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_
 @njit(cache=True, nogil=True, _nrt=False)
 def report_mixed(ctrl_state, motor_cmd, saturated) -> None:
     """Tell the controller what the mixer sent when it saturated: the pusher throttle and the collective
-    the four lift-rotor commands amount to (:func:`vtoladapt.mixer.applied_collective`).
+    the four lift-rotor commands amount to (:func:`vtoladapt.sim.mixer.applied_collective`).
 
     The flight computer owns the mixer, so this is its own output, not the plant's truth (actuator
     faults act after it). A saturated mixer shifts the collective to keep roll and pitch; the
@@ -179,14 +179,14 @@ def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state,
     """Simulate up to ``ref_table.shape[0]`` controller ticks from time ``t0``, one row of ``log`` per tick.
 
     Returns ``(ticks_done, reason)``: all ticks and ``REASON_OK``, or, when the state leaves the
-    ``envelope`` (:func:`vtoladapt.monitor.check_envelope`), the ticks completed before it and the
+    ``envelope`` (:func:`vtoladapt.sim.monitor.check_envelope`), the ticks completed before it and the
     reason code; ``x`` is then the offending state and only ``log[:ticks_done]`` is written.
     ``faults`` is the fault schedule (``(n, FAULT_ROW_SIZE)``, possibly empty) and ``fault_state``
-    its state (:mod:`vtoladapt.faults`).
+    its state (:mod:`vtoladapt.sim.faults`).
 
     ``x``, ``ctrl_state``, ``wind_state``, ``sens_state`` and ``fault_state`` are advanced in
     place, so a run can be continued. The loop releases the GIL: runs with their own arrays and
-    generators advance in parallel threads (:func:`vtoladapt.simulate.simulate_many`).
+    generators advance in parallel threads (:func:`vtoladapt.sim.driver.simulate_many`).
     ``theta_true`` (the plant's linear-model coefficients) is used only for the Lyapunov function
     in the log, never by the controller. Each tick is :func:`tick_sense` (with the controller run
     here, after the sensor faults) then the mixer, the actuator faults and

@@ -15,19 +15,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from .config import (NAME_PATTERN, PATH_PATTERN, ApplicableKeys, ConfigError, Validated, build, read_toml,
-                     refuse_internal_keys, setting)
-from .control.config import (SCENARIO_DT_DEFAULT_S, SCENARIO_DT_RANGE_S, ControllerConfig, check_rate_matches_dt,
-                             rate_from_dt)
-from .control.registry import CONTROLLER_IDS, THETA_ADAPTIVE_IDS
+from ..config import (NAME_PATTERN, PATH_PATTERN, ApplicableKeys, ConfigError, Validated, build, read_toml,
+                      refuse_internal_keys, setting)
+from ..control.config import (SCENARIO_DT_DEFAULT_S, SCENARIO_DT_RANGE_S, ControllerConfig, check_rate_matches_dt,
+                              rate_from_dt)
+from ..control.registry import CONTROLLER_IDS, THETA_ADAPTIVE_IDS
 from .faults import MAX_FAULTS, FaultConfig
 from .monitor import EnvelopeConfig
 from .plant import PlantConfig
-from .sensors import SensorsConfig
-from .vehicle import Vehicle, load_vehicle
-from .wind import WindConfig
+from ..sensors import SensorsConfig
+from ..vehicle import Vehicle, load_vehicle
+from ..wind import WindConfig
 
-SCENARIO_DIR = Path(__file__).with_name("scenarios")
+SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 MAX_WAYPOINTS = 100_000
 """Most rows of ``[reference] waypoints``: one every 36 ms over the longest run (3600 s); checked before
 the rows are, so a file of millions of them is refused at once."""
@@ -180,7 +180,7 @@ class Scenario(Validated):
         """Delays kept in ring buffers of whole ticks must fit them at this run's ``dt_control_s``
         (checked here, naming the file, rather than by the kernel when the run has started)."""
         from .faults import LATENCY_RING_TICKS, MAX_FAULTS
-        from .sensors import MOCAP_RING_SIZE, latency_ticks
+        from ..sensors import MOCAP_RING_SIZE, latency_ticks
 
         dt = self.dt_control_s
         latency = self.sensors.mocap.latency_s
@@ -269,9 +269,10 @@ def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | 
 
 def shipped_scenario_names() -> list[str]:
     """The names :func:`load_scenario` accepts for the shipped scenarios (``faults/...`` included;
-    the shipped campaign files, which hold a ``[campaign]`` table, are not scenarios)."""
+    the shipped campaign files, which hold a ``[campaign]`` table, and the tuned settings files of
+    ``tuned/``, which hold a ``[tuning]`` table, are not scenarios)."""
     return sorted(p.relative_to(SCENARIO_DIR).with_suffix("").as_posix() for p in SCENARIO_DIR.rglob("*.toml")
-                  if "campaign" not in read_toml(p))
+                  if not {"campaign", "tuning"} & set(read_toml(p)))
 
 
 def load_scenario(name_or_path: str | Path) -> Scenario:
@@ -288,5 +289,8 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     if "campaign" in data:
         raise ConfigError(f"{path}: a campaign file ([campaign] table), not a scenario; "
                           f"run it with: vtoladapt campaign {path} --out DIR")
+    if "tuning" in data:
+        raise ConfigError(f"{path}: a tuned settings file ([tuning] table), not a scenario; "
+                          f"fly it with: vtoladapt run SCENARIO --tuned {path} --out DIR")
     refuse_internal_keys(data, str(path))
     return scenario_from_mapping(data, str(path), source_path=path)

@@ -20,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .layout import CMD_SIZE, CMD_TAU_B, CMD_U_X, CMD_U_Z, MOTOR_PUSHER, N_LIFT, N_MOTORS, BlockLayout, Field
-from .vehicle import Vehicle, lift_allocation_matrix
+from ..layout import CMD_SIZE, CMD_TAU_B, CMD_U_X, CMD_U_Z, MOTOR_PUSHER, N_LIFT, N_MOTORS, BlockLayout, Field
+from ..vehicle import Vehicle, lift_allocation_matrix
 
 MIXER_PARAMS = BlockLayout("mixer parameters", [
     Field("INV", 16, "-", "4x4 inverse of the allocation matrix, row-major"),
@@ -141,7 +141,7 @@ def motor_commands(command, mixer) -> tuple[np.ndarray, bool]:
     motor clipped). Shape, type and finiteness are checked (TypeError or ValueError otherwise),
     then the compiled :func:`mix` runs.
     """
-    from .control.api import Command
+    from ..control.api import Command
 
     cmd = _float_vector("command", command.array if isinstance(command, Command) else command, (CMD_SIZE,))
     p = mixer_params(mixer) if isinstance(mixer, Vehicle) else _float_vector("mixer params", mixer, (MX_SIZE,))

@@ -4,9 +4,10 @@ The envelope is stated once, here, as the scenario's ``[envelope]`` table (:clas
 units in the names, defaults below). The compiled loop checks the plant state against it at the
 start of every tick (:func:`check_envelope`) and once more after the last one; the first
 violation stops the run. The log keeps every tick before it (each of them inside the envelope,
-so finite), and the result says when and why (:attr:`vtoladapt.results.SimulationResult.diverged_at_s`,
+so finite), and the result says when and why (:attr:`vtoladapt.sim.results.SimulationResult.diverged_at_s`,
 ``divergence_reason``). ``[envelope] enabled = false`` switches the limits off, never the check for a
-non-finite state: NaN or inf in the state stops the run either way. A diverged run is not an exception inside a campaign (the campaign counts
+non-finite state: NaN or inf in the state stops the run either way. A diverged run is not an exception
+inside a campaign (the campaign counts
 it and goes on); a caller that wants one calls :meth:`SimulationResult.raise_if_diverged`, which
 raises :class:`DivergenceError`.
 """
@@ -18,9 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .config import Validated, setting
-from .errors import RunFailed
-from .layout import REF_P_W, X_OMEGA_B, X_P_W, X_SIZE, X_V_W, BlockLayout, Field
+from ..config import Validated, setting
+from ..errors import RunFailed
+from ..layout import REF_P_W, X_OMEGA_B, X_P_W, X_SIZE, X_V_W, BlockLayout, Field
 
 REASON_OK = 0
 REASON_NON_FINITE = 1
@@ -71,7 +72,7 @@ class EnvelopeConfig(Validated):
         default=1000.0, gt=0.0, le=1e6)
 
     def _check(self, source: str) -> None:
-        from .config import ConfigError
+        from ..config import ConfigError
 
         if not self.min_height_m < self.max_height_m:
             raise ConfigError(f"{source}: [envelope] min_height_m = {self.min_height_m:g}: must be below "
@@ -88,7 +89,7 @@ class EnvelopeConfig(Validated):
         ``ref`` the reference row it was checked against)."""
         if code == REASON_NON_FINITE:
             bad = [i for i in range(X_SIZE) if not math.isfinite(x[i])]
-            from .layout import STATE_COLUMNS
+            from ..layout import STATE_COLUMNS
             return f"non-finite state ({', '.join(STATE_COLUMNS[i] for i in bad[:4])}) at t = {t_s:.3f} s"
         if code == REASON_SPEED:
             return (f"speed {np.linalg.norm(x[X_V_W:X_V_W + 3]):.3g} m/s above envelope.max_speed_mps = "

@@ -2,7 +2,7 @@
 
 Each entry names a fault ``kind``, a start ``start_s`` and an end ``end_s`` (the fault is active for
 ``start_s <= t < end_s``) and, where it applies, a motor or a magnitude. Two compiled steps apply
-them every tick (:mod:`vtoladapt.compiled_loop`):
+them every tick (:mod:`vtoladapt.sim.loop`):
 
 * :func:`apply_measurement_faults`, between the sensors and the controller, on the measurement
   array (the controller sees the faulty reading; the log's ``meas_*`` columns record it);
@@ -42,8 +42,8 @@ from typing import Optional
 import numpy as np
 from numba import njit
 
-from .config import ApplicableKeys, ConfigError, Validated, setting
-from .layout import (MEAS_ACCEL_B, MEAS_OMEGA_B, MEAS_P_W, MEAS_V_I_B, MEAS_V_I_VALID, MEAS_V_W, MOTOR_PUSHER,
+from ..config import ApplicableKeys, ConfigError, Validated, setting
+from ..layout import (MEAS_ACCEL_B, MEAS_OMEGA_B, MEAS_P_W, MEAS_V_I_B, MEAS_V_I_VALID, MEAS_V_W, MOTOR_PUSHER,
                      N_MOTORS, BlockLayout, Field)
 
 FAULT_KINDS: tuple[str, ...] = (
@@ -261,7 +261,7 @@ RECOVERED_POSITION_ERROR_M = 0.3
 def fault_table(results) -> list[dict]:
     """One row per faulted run, for the report's fault table.
 
-    ``results``: :class:`~vtoladapt.results.SimulationResult` objects of scenarios with a
+    ``results``: :class:`~vtoladapt.sim.results.SimulationResult` objects of scenarios with a
     ``[[faults]]`` schedule (their metadata holds it). Each row: ``scenario``, ``faults`` (kinds),
     ``window_s`` (first start, last end), ``pos_err_before_m`` (worst before the first fault),
     ``pos_err_worst_m`` (worst from the first fault on), ``pos_err_final_m`` (worst over the last
