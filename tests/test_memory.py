@@ -5,7 +5,7 @@ Before: ``vtoladapt run`` held its whole log (one 909 MB row group for the hour)
 counted the log array only, and the measured peaks were two to three times the count (3.5 GB for
 ``scenarios/long_hour.toml``, counted 1.13 GB; 2.8 GB for the eight-controller comparison at 600 s,
 counted 1.5 GB). The slow tests below measure the peak resident memory of both against
-:func:`vtoladapt.limits.run_memory`.
+:func:`vtoladapt.sim.limits.run_memory`.
 """
 from __future__ import annotations
 
@@ -20,11 +20,11 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from vtoladapt.limits import ANALYSIS_COLUMNS_PER_RUN, run_memory
-from vtoladapt.longrun import stream_to_parquet
-from vtoladapt.results import LoggedResult, SimulationResult
-from vtoladapt.scenario import load_scenario, scenario_from_mapping
-from vtoladapt.simulate import simulate
+from vtoladapt.sim.limits import ANALYSIS_COLUMNS_PER_RUN, run_memory
+from vtoladapt.sim.longrun import stream_to_parquet
+from vtoladapt.sim.results import LoggedResult, SimulationResult
+from vtoladapt.sim.scenario import load_scenario, scenario_from_mapping
+from vtoladapt.sim.driver import simulate
 
 
 def _short(duration_s=2.0, **extra):
@@ -60,7 +60,8 @@ def test_a_streamed_run_that_diverges_keeps_the_ticks_before(tmp_path):
     ("paper_convergence", {"runs": 3}),
 ])
 def test_the_metrics_and_figures_read_no_more_columns_than_the_budget_counts(tmp_path, name, extra):
-    """The budget counts ANALYSIS_COLUMNS_PER_RUN columns per run (3 of them the cached velocity error)."""
+    """The budget counts ANALYSIS_COLUMNS_PER_RUN columns per run (3 of them the cached velocity error);
+    the files written are the ones planned."""
     from vtoladapt.experiments import run_experiment
     from vtoladapt.outputs import OutputDir
 
@@ -80,6 +81,11 @@ def test_the_metrics_and_figures_read_no_more_columns_than_the_budget_counts(tmp
         LoggedResult.__init__ = original
     assert seen
     assert max(len(r.loaded_columns) for r in seen) <= ANALYSIS_COLUMNS_PER_RUN - 3
+    # and it wrote exactly what `vtoladapt run` checks --out for before it starts (planned_outputs)
+    from vtoladapt.experiments.running import planned_outputs
+    from vtoladapt.outputs import read_manifest
+
+    assert sorted(read_manifest(tmp_path / "o")["files"]) == sorted(planned_outputs(sc))
 
 
 PEAK = textwrap.dedent("""
