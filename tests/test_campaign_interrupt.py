@@ -146,3 +146,17 @@ def test_ctrl_c_while_the_local_cluster_starts_is_honoured_in_one_line(tmp_path)
     assert "Traceback" not in err and len(lines) == 1 and "interrupted" in lines[0], err
     assert not (tmp_path / "o").exists()
     assert not left, "a process of the campaign's group outlived it"
+
+
+def test_ctrl_c_while_the_command_is_still_importing_is_one_line():
+    """Found by tools/hostile_pass.py: a Ctrl-C in the command's first second (Numba's import) raised
+    KeyboardInterrupt from the middle of an import: a traceback and status -2. The command line takes
+    SIGINT over before its heavy imports; the signal here arrives right after that, as the imports run."""
+    code = ("import sys; sys.argv = ['vtoladapt', 'campaign', 'x.toml', '--out', 'o']\n"
+            "import vtoladapt.cli, os, signal\n"
+            "os.kill(os.getpid(), signal.SIGINT)\n"
+            "import vtoladapt.sim.driver\n"  # what it was importing
+            "print('not stopped')\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == ExitCode.INTERRUPTED, proc.stderr
+    assert proc.stderr == "vtoladapt: interrupted while starting; nothing was written\n" and proc.stdout == ""

@@ -21,16 +21,33 @@ for errors (``ConfigError`` for bad input), which :func:`main` reports.
 """
 from __future__ import annotations
 
-import argparse
-import atexit
-import json
 import os
+import signal
 import sys
-import traceback
 
-from .config import check_value
-from .errors import ExitCode, Terminated, exit_code_for, interrupt_requested, one_line, sigint_handling
-from .outputs import OutputDir, add_force_argument, output_path
+
+def _interrupted_while_starting(signum, frame) -> None:
+    """Ctrl-C or SIGTERM before :func:`main` takes them over (the imports take up to a second on a busy
+    machine; Python's own handler raised KeyboardInterrupt from the middle of an import, a traceback
+    and status -2): one line and the command's status. Nothing was written yet."""
+    term = signum == signal.SIGTERM
+    os.write(2, f"vtoladapt: {'terminated (SIGTERM)' if term else 'interrupted'} while starting; nothing "
+                "was written\n".encode())
+    os._exit(143 if term else 130)
+
+
+if __name__ == "__main__" or os.path.basename(sys.argv[0]) == "vtoladapt":  # the command, not an import
+    signal.signal(signal.SIGINT, _interrupted_while_starting)
+    signal.signal(signal.SIGTERM, _interrupted_while_starting)
+
+import argparse  # noqa: E402
+import atexit  # noqa: E402
+import json  # noqa: E402
+import traceback  # noqa: E402
+
+from .config import check_value  # noqa: E402
+from .errors import ExitCode, Terminated, exit_code_for, interrupt_requested, one_line, sigint_handling  # noqa: E402
+from .outputs import OutputDir, add_force_argument, output_path  # noqa: E402
 
 
 def _add_run(sub) -> None:
