@@ -576,11 +576,11 @@ def signal_case(rng: random.Random, work: Path, what: str, sig: int, timeout: fl
     (d / "short.toml").write_text(BASE_TEXT.replace("duration_s = 0.3", "duration_s = 1.0"))
     if what == "run":
         argv = ["run", str(d / "s.toml"), "--out", str(d / "out"), "--quiet"]
-        delay = rng.uniform(0.5, 12.0)
+        delay = rng.uniform(0.1, 12.0)
     else:
         argv = ["campaign", str(d / "short.toml"), "--runs", "400", "--workers", "2", "--out", str(d / "out"),
                 "--quiet"]
-        delay = rng.uniform(0.5, 8.0)
+        delay = rng.uniform(0.1, 8.0)
     proc = subprocess.Popen([sys.executable, "-m", "vtoladapt.cli", *argv], stderr=subprocess.PIPE,
                             stdout=subprocess.DEVNULL, text=True, start_new_session=True)
     if what == "campaign" and rng.random() < 0.6:  # aim at the cluster's start-up and the first runs
