@@ -1,10 +1,10 @@
 """The package's layers: every module belongs to one, and no module imports from a layer above its own.
 
-From the bottom: the foundation (configuration, array layouts, frames, errors, outputs, the component
-registries and the parts' interface), the models (the vehicle, the force model, the airflow probe's
+From the bottom: the foundation (configuration, array layouts, frames, errors, outputs and their folder
+lock, the component registries and the parts' interface), the models (the vehicle, the force model, the airflow probe's
 physics), the components (wind parts, sensor channels, the controller), the simulator, the
 applications built on it (experiments, fitting, the probe's tools, replay, the Gymnasium
-environment, campaigns) and the command line. A module imports its own layer and those below: a
+environment, campaigns, the pre-flight check that sets up an experiment's runs) and the command line. A module imports its own layer and those below: a
 model never reaches into the simulator, the simulator never into an application. The import graph is
 the static one of ``tests/test_import_graph.py`` (imports inside functions included).
 """
@@ -17,7 +17,8 @@ from test_import_graph import import_graph, module_files
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("foundation", ("vtoladapt.config", "vtoladapt.layout", "vtoladapt.frames", "vtoladapt.errors",
                     "vtoladapt.outputs", "vtoladapt.components", "vtoladapt.parts", "vtoladapt.progress",
-                    "vtoladapt.stats", "vtoladapt._kernel_cache", "vtoladapt._version", "vtoladapt.ceilings")),
+                    "vtoladapt.stats", "vtoladapt._kernel_cache", "vtoladapt._version", "vtoladapt.ceilings",
+                    "vtoladapt.folder_lock")),
     ("models", ("vtoladapt.scaling", "vtoladapt.vehicle", "vtoladapt.vehicles", "vtoladapt.forces",
                 "vtoladapt.models", "vtoladapt.probe.tip", "vtoladapt.probe.sensor", "vtoladapt.probe.estimation",
                 "vtoladapt.probe.calibration", "vtoladapt.probe.flow", "vtoladapt.probe.points",
@@ -25,7 +26,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("components", ("vtoladapt.wind", "vtoladapt.sensors", "vtoladapt.control", "vtoladapt.fitting.posterior")),
     ("sim", ("vtoladapt.sim",)),
     ("apps", ("vtoladapt.experiments", "vtoladapt.fitting", "vtoladapt.probe", "vtoladapt.replay", "vtoladapt.gym",
-              "vtoladapt.campaign")),
+              "vtoladapt.campaign", "vtoladapt.preflight")),
     ("cli", ("vtoladapt.cli", "vtoladapt")),
 )
 """Layer name and the modules (a name and everything under it) it holds, bottom first; a module is in

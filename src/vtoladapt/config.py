@@ -47,7 +47,17 @@ computing metrics and figures); set ``VTOLADAPT_MEMORY_BUDGET_GB`` to change it.
 (``--duration`` x rate, ``--runs``, ``--repeats``, ``--walkers``) follow from it."""
 
 MAX_INPUT_FILE_BYTES = 256 * 2**20
-"""Configuration and data files larger than this are refused before they are read."""
+"""Data files (force-balance and probe CSVs, flight logs) larger than this are refused before they are read."""
+
+TOML_BYTES_HELD_PER_BYTE = 40
+"""Memory a configuration file takes per byte of TOML once parsed and validated, measured: a scenario of
+waypoint rows held 1.7 GB for 50 MB (Python lists and floats, then the validated tuples)."""
+
+MAX_TOML_FILE_BYTES = min(16 * 2**20, MEMORY_BUDGET_BYTES // TOML_BYTES_HELD_PER_BYTE)
+"""Configuration files (scenarios, vehicles, campaign files) larger than this are refused before they
+are read: 16 MiB (about 0.6 GiB once parsed, some ten seconds of parsing; the shipped files are a few
+kB, and the longest table a scenario takes, 100 000 waypoint rows, is 4 MiB), less if the memory
+budget is below 16 MiB x 40."""
 
 
 def check_memory(what: str, n_bytes: float, where: str, hint: str = "") -> None:
@@ -99,16 +109,19 @@ def setting(
     lt: float | None = None,
     le: float | None = None,
     length: int | None = None,
+    max_items: int | None = None,
     choices: tuple | None = None,
     pattern: str | None = None,
 ) -> Any:
     """Declare a configuration field with its unit, meaning and allowed values.
 
-    Bounds apply to a scalar, or to every element of a tuple (and of nested tuples). ``pattern``
-    is a regular expression a text value must match in full (e.g. names used in file names).
+    Bounds apply to a scalar, or to every element of a tuple (and of nested tuples). ``max_items``
+    caps a list's length (rows of a table), checked before any element is: a list's memory grows
+    with its length, so it answers to the memory budget before it is read. ``pattern`` is a
+    regular expression a text value must match in full (e.g. names used in file names).
     """
     meta = {"unit": unit, "doc": doc, "gt": gt, "ge": ge, "lt": lt, "le": le,
-            "length": length, "choices": choices, "pattern": pattern}
+            "length": length, "max_items": max_items, "choices": choices, "pattern": pattern}
     if default is _MISSING:
         return dataclasses.field(metadata=meta)
     if isinstance(default, (list, dict, set)):
@@ -200,8 +213,9 @@ def _convert(value: Any, tp: Any, meta: Mapping[str, Any], where: str, source: s
         if meta.get("length") is not None and len(value) != meta["length"]:
             raise ConfigError(
                 f"{where} = {_shown(value)}: must have exactly {meta['length']} elements, has {len(value)}")
+        _check_items(value, meta, where)
         inner = args[0] if args else Any
-        inner_meta = dict(meta, length=None)
+        inner_meta = dict(meta, length=None, max_items=None)
         return tuple(_convert(v, inner, inner_meta, f"{where}[{i}]", source)
                      for i, v in enumerate(value))
     if tp is float:
@@ -239,15 +253,22 @@ def _convert(value: Any, tp: Any, meta: Mapping[str, Any], where: str, source: s
     raise TypeError(f"unsupported configuration field type {tp!r} at {where}")
 
 
+def _check_items(value, meta: Mapping[str, Any], where: str) -> None:
+    if meta.get("max_items") is not None and len(value) > meta["max_items"]:
+        raise ConfigError(f"{where}: {len(value)} entries; allowed: at most {meta['max_items']}")
+
+
 def _is_table_list(tp: Any) -> bool:
     """``tuple[SomeDataclass, ...]``: a TOML array of tables (``[[section.key]]``)."""
     args = typing.get_args(tp)
     return typing.get_origin(tp) is tuple and bool(args) and dataclasses.is_dataclass(args[0])
 
 
-def _build_table_list(tp: Any, value: Any, where: str, source: str, section: str) -> tuple:
+def _build_table_list(tp: Any, value: Any, where: str, source: str, section: str,
+                      meta: Mapping[str, Any]) -> tuple:
     if not isinstance(value, (list, tuple)):
         raise ConfigError(f"{where} = {_shown(value)}: must be a list of tables ([[{section}]])")
+    _check_items(value, meta, where)
     cls = typing.get_args(tp)[0]
     return tuple(build(cls, item, source=source, section=f"{section}[{i}]")
                  for i, item in enumerate(value))
@@ -321,7 +342,7 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
         if dataclasses.is_dataclass(hints[name]):
             kwargs[name] = build(hints[name], data[name], source=source, section=sub_section)
         elif _is_table_list(hints[name]):
-            kwargs[name] = _build_table_list(hints[name], data[name], where, source, sub_section)
+            kwargs[name] = _build_table_list(hints[name], data[name], where, source, sub_section, f.metadata)
         else:
             kwargs[name] = _convert(data[name], hints[name], f.metadata, where, source)
     # the values are converted and checked above: a Validated class's own check would repeat it
@@ -368,6 +389,7 @@ def validate(obj: Any, source: str, section: str = "") -> None:
             item_cls = typing.get_args(tp)[0]
             if not isinstance(value, (list, tuple)) or not all(isinstance(v, item_cls) for v in value):
                 raise ConfigError(f"{where} = {_shown(value)}: must be a tuple of {item_cls.__name__}")
+            _check_items(value, f.metadata, where)
             converted = tuple(value)
         else:
             converted = _convert(value, tp, f.metadata, where, source)
@@ -394,9 +416,9 @@ class Validated:
             validate(self, type(self).__name__, self.config_section)
 
 
-def check_input_file(path: str | Path, what: str = "file") -> Path:
-    """``path`` if it is a readable regular file within :data:`MAX_INPUT_FILE_BYTES`, else a
-    :class:`ConfigError` naming it (missing, a folder, a device or pipe, unreadable, too large,
+def check_input_file(path: str | Path, what: str = "file", max_bytes: int = MAX_INPUT_FILE_BYTES) -> Path:
+    """``path`` if it is a readable regular file within ``max_bytes`` (:data:`MAX_INPUT_FILE_BYTES`),
+    else a :class:`ConfigError` naming it (missing, a folder, a device or pipe, unreadable, too large,
     name too long)."""
     path = Path(path)
     shown = str(path) if len(str(path)) <= 120 else str(path)[:60] + "..." + str(path)[-40:]
@@ -413,9 +435,9 @@ def check_input_file(path: str | Path, what: str = "file") -> Path:
         raise ConfigError(f"{shown}: is not a regular file (a device, pipe or socket); expected a {what}")
     if not os.access(path, os.R_OK):
         raise ConfigError(f"{shown}: no permission to read the {what}")
-    if st.st_size > MAX_INPUT_FILE_BYTES:
-        raise ConfigError(f"{shown}: {st.st_size / 2**20:.0f} MiB; a {what} may have at most "
-                          f"{MAX_INPUT_FILE_BYTES / 2**20:.0f} MiB")
+    if st.st_size > max_bytes:
+        raise ConfigError(f"{shown}: {st.st_size / 2**20:.3g} MiB; a {what} may have at most "
+                          f"{max_bytes / 2**20:.3g} MiB")
     return path
 
 
@@ -431,7 +453,7 @@ def refuse_internal_keys(data: Mapping[str, Any], source: str) -> None:
 def read_toml(path: str | Path) -> dict[str, Any]:
     """Parse a TOML file; a missing, unreadable, binary or invalid file is a :class:`ConfigError`
     naming it."""
-    path = check_input_file(path, "TOML file")
+    path = check_input_file(path, "TOML file", MAX_TOML_FILE_BYTES)
     try:
         text = path.read_bytes().decode("utf-8")
     except UnicodeDecodeError as exc:

@@ -200,7 +200,6 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
     ticks before it, and ``result.diverged_at_s`` / ``result.divergence_reason`` say when and why
     (:mod:`vtoladapt.sim.monitor`); nothing is raised (``result.raise_if_diverged()`` does).
     """
-    from ..control.kernel import information_sum
     from .limits import check_in_memory_runs
 
     check_in_memory_runs([scenario], scenario.source_path or f"scenario {scenario.name!r}")
@@ -219,17 +218,27 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
             break
         if progress is not None:
             progress(k1 * scenario.dt_control_s, scenario.duration_s)
-    wall = time.perf_counter() - wall0
-    diverged_at_s = None
-    why = None
     if reason != 0:
         # a view, not a copy: the rows never written were never touched, so they hold no memory
         log = log[:n_done]
+    metadata = run_metadata(run, x, n_done, reason, k1 - 1, time.perf_counter() - wall0)
+    return SimulationResult(run.log_layout.columns, log, metadata)
+
+
+def run_metadata(run: PreparedRun, x: np.ndarray, n_done: int, reason: int, k_last: int, wall: float) -> dict:
+    """The metadata of a finished run (:attr:`SimulationResult.metadata`): ``n_done`` ticks, ended by
+    envelope ``reason`` (0: none) with state ``x``, ``k_last`` the last tick of the chunk it ended in."""
+    from ..control.kernel import information_sum
+
+    scenario = run.scenario
+    diverged_at_s = None
+    why = None
+    if reason != 0:
         diverged_at_s = n_done * scenario.dt_control_s
         # the row the failed check read: the tick's own, or the chunk's last for the check after it
         why = scenario.envelope.describe_violation(reason, x, diverged_at_s,
-                                                   run.reference_table[min(n_done, k1 - 1)])
-    metadata = {
+                                                   run.reference_table[min(n_done, k_last)])
+    return {
         "scenario": scenario.name, "scenario_path": scenario.source_path, "vehicle": run.vehicle.name,
         "controller": scenario.controller.kind, "seed": scenario.seed,
         "dt_control_s": scenario.dt_control_s, "plant_substeps": scenario.plant_substeps,
@@ -245,7 +254,6 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
         # the adaptation's un-forgotten information sum (identifiability; zero for non-adaptive laws)
         "information_sum": information_sum(run.controller_state).tolist(),
     }
-    return SimulationResult(run.log_layout.columns, log, metadata)
 
 
 def simulate_many(scenarios: Sequence[Scenario], workers: Optional[int] = None,

@@ -136,9 +136,7 @@ class SimulationResult:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         table = pa.table({name: self.data[:, i] for i, name in enumerate(self.columns)})
-        meta = {b"vtoladapt_format": str(PARQUET_FORMAT_VERSION).encode(),
-                b"vtoladapt_metadata": json.dumps(self.metadata, default=_jsonable).encode()}
-        table = table.replace_schema_metadata({**(table.schema.metadata or {}), **meta})
+        table = table.replace_schema_metadata({**(table.schema.metadata or {}), **log_metadata_entries(self.metadata)})
         from ..outputs import atomic_path
 
         with atomic_path(path) as tmp:  # never a half-written log; recorded in the folder's manifest
@@ -147,13 +145,78 @@ class SimulationResult:
 
     @classmethod
     def from_parquet(cls, path: str | Path) -> "SimulationResult":
-        """Read a log written by :meth:`to_parquet`."""
+        """Read a log written by :meth:`to_parquet` or streamed (:func:`vtoladapt.sim.longrun.stream_to_parquet`)."""
+        meta = log_file_metadata(path)
         table = pq.read_table(path)
-        meta = table.schema.metadata or {}
-        if meta.get(b"vtoladapt_format") != str(PARQUET_FORMAT_VERSION).encode():
-            raise ValueError(f"{path}: not a vtoladapt log of format {PARQUET_FORMAT_VERSION}")
         data = np.column_stack([table.column(i).to_numpy() for i in range(table.num_columns)])
-        return cls(tuple(table.column_names), data, json.loads(meta[b"vtoladapt_metadata"]))
+        return cls(tuple(table.column_names), data, meta)
+
+
+def log_file_metadata(path: str | Path) -> dict:
+    """The run metadata of a vtoladapt log file: in the Arrow schema (:meth:`SimulationResult.to_parquet`)
+    or in the Parquet footer (a streamed log, whose metadata is known only when the run ends)."""
+    f = pq.ParquetFile(path)
+    meta = dict(f.schema_arrow.metadata or {})
+    meta.update(f.metadata.metadata or {})
+    if meta.get(b"vtoladapt_format") != str(PARQUET_FORMAT_VERSION).encode():
+        raise ValueError(f"{path}: not a vtoladapt log of format {PARQUET_FORMAT_VERSION}")
+    return json.loads(meta[b"vtoladapt_metadata"])
+
+
+def log_metadata_entries(metadata: dict) -> dict[bytes, bytes]:
+    """The key-value entries a log file carries for ``metadata`` (schema or footer)."""
+    return {b"vtoladapt_format": str(PARQUET_FORMAT_VERSION).encode(),
+            b"vtoladapt_metadata": json.dumps(metadata, default=_jsonable).encode()}
+
+
+class LoggedResult(SimulationResult):
+    """A run whose log stays in its Parquet file (streamed by :func:`vtoladapt.sim.longrun.stream_to_parquet`).
+
+    A column is read from the file the first time it is used and then kept, so memory holds the
+    columns the metrics and figures use (:attr:`loaded_columns`), never the whole log; ``data``
+    reads every column (the whole log in memory: avoid it for long runs).
+    """
+
+    def __init__(self, path: str | Path, columns, metadata: dict, n_rows: int):
+        self.path = Path(path)
+        self.columns = tuple(columns)
+        self.metadata = dict(metadata)
+        self._n = int(n_rows)
+        self._index = {name: i for i, name in enumerate(self.columns)}
+        self._loaded: dict[str, np.ndarray] = {}
+        self._v_tilde = None
+
+    @classmethod
+    def open(cls, path: str | Path) -> "LoggedResult":
+        """The log at ``path`` (a file written by :meth:`SimulationResult.to_parquet` or streamed)."""
+        f = pq.ParquetFile(path)
+        return cls(path, f.schema_arrow.names, log_file_metadata(path), f.metadata.num_rows)
+
+    @property
+    def data(self) -> np.ndarray:
+        """Every column, ``(T, n_columns)``: the whole log in memory."""
+        return np.column_stack([self[c] for c in self.columns]) if self.columns else np.empty((self._n, 0))
+
+    @property
+    def loaded_columns(self) -> tuple[str, ...]:
+        """The columns read so far (what this result holds in memory)."""
+        return tuple(self._loaded)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name not in self._index:
+            raise KeyError(f"no column {name!r}; see .columns")
+        col = self._loaded.get(name)
+        if col is None:
+            col = pq.read_table(self.path, columns=[name]).column(0).to_numpy()
+            self._loaded[name] = col
+        return col
+
+    def columns_like(self, names) -> np.ndarray:
+        """``(T, len(names))`` array of the named columns (each read once)."""
+        return np.column_stack([self[n] for n in names]) if len(names) else np.empty((self._n, 0))
+
+    def __len__(self) -> int:
+        return self._n
 
 
 def _jsonable(obj):

@@ -58,7 +58,7 @@ class WindConfig(Validated):
     fan_array: FanArrayConfig = setting("-", "fan-array wind", default=FanArrayConfig())
     turbulence: TurbulenceConfig = setting("-", "Dryden turbulence", default=TurbulenceConfig())
     gusts: tuple[GustConfig, ...] = setting("-", "discrete gusts ([[wind.gusts]] entries)",
-                                            default=())
+                                            default=(), max_items=MAX_GUSTS)  # counted before they are built
     parts: Any = setting("-", "wind parts registered from outside the package, each from its [wind.<id>] table: "
                          "(id, settings) pairs", default=())
 

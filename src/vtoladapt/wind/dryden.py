@@ -144,9 +144,9 @@ class TurbulenceConfig(Validated):
         le=1.0, length=3)
     altitude_m: float = setting(
         "m", "height above ground for the low-altitude length scales and W20 intensities",
-        default=2.0, gt=0.0, le=1000.0 * FT_M)
+        default=2.0, ge=1.0, le=1000.0 * FT_M)
     length_scale_m: tuple[float, ...] | None = setting(
-        "m", "length scales L_u, L_v, L_w (overrides the altitude model)", default=None, gt=0.0,
+        "m", "length scales L_u, L_v, L_w (overrides the altitude model)", default=None, ge=1.0,
         le=10000.0, length=3)
     convection_speed_mps: float | None = setting(
         "m/s", "airspeed at which the frozen field is convected (default: |mean wind|)",

@@ -62,7 +62,7 @@ class FanArrayConfig(Validated):
 
     schedule: tuple[tuple[float, ...], ...] = setting(
         "[s, %]", "breakpoints [t_s, throttle_pct]; times non-decreasing, throttle 0-100",
-        default=())
+        default=(), max_items=MAX_BREAKPOINTS)
     profile: str | None = setting(
         "-", "the paper's profile instead of a schedule: 'convergence' (still air 10 s, then 30, "
         "50, 70 % for 20 s each) or 'comparison' (off 5 s; 30 % 10 s; 40, 50, 60 % 5 s each; "
