@@ -436,8 +436,10 @@ def tuned_gains_table(tuned: dict):
     a gain within the box's outer :data:`.tuning.EDGE_FRACTION` is marked with the edge it is at."""
     from .tuning import EDGE_FRACTION, box_edge
 
-    shared = list(dict.fromkeys(k for s in tuned["settings"].values() for k in s["tuned"]
-                                if k.startswith("controller.")))
+    # a column for each shared gain every law searched (a law's own shared key, INDI's filter, is its own)
+    laws = list(tuned["settings"].values())
+    shared = [k for k in (laws[0]["tuned"] if laws else {}) if k.startswith("controller.")
+              and all(k in s["tuned"] for s in laws)]
 
     def cell(cid: str, name: str) -> str:
         s = tuned["settings"][cid]
@@ -448,9 +450,8 @@ def tuned_gains_table(tuned: dict):
 
     rows = []
     for cid, s in tuned["settings"].items():
-        own = "; ".join(f"{k} {cell(cid, k)}" for k in s["tuned"] if not k.startswith("controller.")) or "(none)"
-        rows.append((Cell(controller_label(cid)),
-                     *(Cell(cell(cid, k) if k in s["tuned"] else "–", numeric=True) for k in shared), Cell(own)))
+        own = "; ".join(f"{k} {cell(cid, k)}" for k in s["tuned"] if k not in shared) or "(none)"
+        rows.append((Cell(controller_label(cid)), *(Cell(cell(cid, k), numeric=True) for k in shared), Cell(own)))
     caption = ("The gains each law flies, default → tuned (the boxes searched: README \"Tuning a law's gains\"; "
                "[0:2]: north and east, or roll and pitch; [2]: down). \"top tenth of box\", \"bottom tenth of box\": "
                f"within {100 * EDGE_FRACTION:g} % of the box's width (log width where searched in log scale) "
