@@ -140,6 +140,10 @@ def test_every_run_is_measured_with_the_scenarios_position_gain():
     assert mean == per_draw[0] == pytest.approx(expected, rel=1e-12)
     own = float(np.sqrt(np.mean(np.sum(res.velocity_error_W ** 2, axis=1))))   # with the gain it flew
     assert abs(own - expected) > 1e-6 * expected
+    measured = res.measured_with(scenario.controller.Lambda_p)
+    assert measured.data is res.data and res.metadata["Lambda_p"] == [3.0, 3.0, 2.5]    # shared, untouched
+    with pytest.raises(ValueError, match="three finite values"):
+        res.measured_with((1.0, float("nan"), 1.0))
 
 
 def test_box_edges():
