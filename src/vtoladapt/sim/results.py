@@ -76,13 +76,14 @@ class SimulationResult:
 
         ``v_r = p_d' - Lambda_p (p - p_d)`` (eq:wr, with the run's ``Lambda_p`` and correction
         limit from the metadata), so a steady position offset shows as a velocity error, as in
-        the paper's figures. Computed once and cached.
+        the paper's figures. A result :meth:`measured_with` another ``Lambda_p`` uses that one
+        instead of the gain it flew. Computed once and cached.
         """
         if self._v_tilde is None:
             # vtoladapt.control.tracking.reference_velocity's v_r, every row at once (a Python loop
             # over it held the GIL for a third of a comparison run's time): the correction
             # Lambda_p p~, scaled to its limit where longer
-            lam = np.asarray(self.metadata["Lambda_p"], dtype=float)
+            lam = np.asarray(self.metadata.get("metric_Lambda_p") or self.metadata["Lambda_p"], dtype=float)
             corr_max = float(self.metadata["velocity_correction_max_mps"])
             p_tilde = self.position_W - self.columns_like(("ref_p_N_m", "ref_p_E_m", "ref_p_D_m"))
             v_d = self.columns_like(("ref_v_N_mps", "ref_v_E_mps", "ref_v_D_mps"))
@@ -93,6 +94,23 @@ class SimulationResult:
             s[saturated] = corr_max / n[saturated]
             self._v_tilde = self.velocity_W - (v_d - s[:, None] * c)
         return self._v_tilde
+
+    def measured_with(self, Lambda_p) -> "SimulationResult":
+        """The same run (its log shared, not copied) whose :attr:`velocity_error_W` is measured with the
+        position gain ``Lambda_p`` (3 values, 1/s) instead of the one it flew (metadata
+        ``metric_Lambda_p``).
+
+        ``v~ = v - v_r`` weighs the position error by ``Lambda_p``: laws that fly different position
+        gains are compared on one yardstick only if their errors are measured with the same one
+        (``vtoladapt tune`` searches ``Lambda_p``; :mod:`vtoladapt.experiments.tuning`).
+        """
+        lam = [float(x) for x in Lambda_p]
+        if len(lam) != 3 or not all(np.isfinite(lam)):
+            raise ValueError(f"measured_with: Lambda_p = {Lambda_p!r}: three finite values (1/s)")
+        out = SimulationResult(self.columns, self.data, {**self.metadata, "metric_Lambda_p": lam})
+        if lam == [float(x) for x in self.metadata["Lambda_p"]]:
+            out._v_tilde = self._v_tilde
+        return out
 
     @property
     def position_error_W(self) -> np.ndarray:
