@@ -11,7 +11,7 @@ OUT ?= results
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -e '.[test,docs]'
 	touch $(STAMP)
 
 # The suite in TEST_WORKERS processes (pytest-xdist; tests/conftest.py groups each module, and the
