@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= results
 
-.PHONY: test test-slow reproduce tune bench clean
+.PHONY: test test-slow reproduce tune bench docs clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -32,8 +32,15 @@ reproduce: $(STAMP)
 tune: $(STAMP)
 	$(VENV)/bin/vtoladapt tune scenarios/paper_comparison.toml --controller all --out scenarios/tuned --force
 
+# The documentation site, offline and strict: a warning, a broken cross-reference or a missing file fails
+# it (-W --keep-going -n). Runs the examples the tutorials take figures from (once per version of each
+# script) and writes docs/_build/html; open docs/_build/html/index.html. tools/check_site.py checks its
+# layout in headless Chromium.
+docs: $(STAMP)
+	$(PY) -m sphinx -b html -W --keep-going -n -q docs docs/_build/html
+
 bench: $(STAMP)
 	$(PY) benchmarks/run_benchmarks.py
 
 clean:
-	rm -rf $(VENV) $(OUT) .pytest_cache
+	rm -rf $(VENV) $(OUT) .pytest_cache docs/_build docs/_generated docs/reference/generated

@@ -18,7 +18,9 @@ sphinx-argparse.
 """
 from __future__ import annotations
 
+import dataclasses
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -51,9 +53,12 @@ myst_enable_extensions = ["colon_fence", "deflist"]
 myst_heading_anchors = 4  # `page.md#a-heading` links resolve and are checked
 suppress_warnings: list[str] = []
 
+templates_path = ["_templates"]
+
 html_theme = "furo"
 html_title = f"vtoladapt {release}"
-html_static_path: list[str] = []
+html_static_path = ["_static"]
+html_css_files = ["tables.css"]
 html_last_updated_fmt = None
 html_copy_source = False
 html_show_sourcelink = False
@@ -69,6 +74,11 @@ autodoc_class_signature = "separated"
 napoleon_numpy_docstring = True
 napoleon_google_docstring = False
 napoleon_use_rtype = False
+# numpydoc type fields ("x : ndarray, shape (3,)", "float, optional") are prose, not class names: shown
+# as written rather than cross-referenced word by word (which nitpicky mode would report as missing)
+napoleon_use_param = False
+napoleon_use_keyword = False
+napoleon_preprocess_types = False
 add_module_names = False
 
 # --- strictness -----------------------------------------------------------------------------------
@@ -81,6 +91,8 @@ _EXTERNAL = ("numpy", "np", "npt", "numba", "scipy", "pandas", "pyarrow", "pa", 
              "multiprocessing", "subprocess", "io", "os", "json", "datetime", "signal", "socket", "logging")
 nitpick_ignore_regex = [
     (r"py:.*", rf"({'|'.join(_EXTERNAL)})\..*"),
+    # private helpers that appear in signatures and base classes: not part of the reference
+    (r"py:.*", r".*\b_[A-Za-z]\w*"),
     # builtins and typing names as they appear in annotations
     (r"py:.*", r"(Any|Callable|Iterable|Iterator|Mapping|Sequence|Generator|Literal|Self|Optional|Union|"
                r"ClassVar|Final|TypeVar|Protocol|NamedTuple|Path|PathLike|ndarray|Generator|Figure|Axes|"
@@ -93,6 +105,85 @@ nitpick_ignore_regex = [
 ]
 
 
+_IDENTIFIER = re.compile(r"^~?[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$")
+
+
+def _instance_attribute(cls: type, attr: str) -> bool:
+    """Whether instances of ``cls`` have ``attr``: a dataclass field, or assigned as ``self.attr`` in
+    the class's source."""
+    import inspect
+
+    if dataclasses.is_dataclass(cls) and attr in {f.name for f in dataclasses.fields(cls)}:
+        return True
+    try:
+        source = inspect.getsource(cls)
+    except (OSError, TypeError):
+        return False
+    return re.search(rf"\bself\.{re.escape(attr)}\b[^\n=]*=(?!=)", source) is not None
+
+
+def _lookup(target: str, module: str | None, cls: str | None):
+    """``(dotted name, object)`` that ``target`` names: absolute, relative to the documented module
+    (and class), or None when the name does not exist in the code."""
+    import importlib
+
+    target = target.lstrip("~.")
+    candidates = [target]
+    if module:
+        candidates += ([f"{module}.{cls}.{target}"] if cls else []) + [f"{module}.{target}"]
+        parent = module.rsplit(".", 1)[0]
+        candidates.append(f"{parent}.{target}")
+    for name in candidates:
+        parts = name.split(".")
+        for i in range(len(parts), 0, -1):
+            try:
+                obj = importlib.import_module(".".join(parts[:i]))
+            except ImportError:
+                continue
+            try:
+                for attr in parts[i:]:
+                    if isinstance(obj, type) and not hasattr(obj, attr) and _instance_attribute(obj, attr):
+                        obj = None  # set on every instance (a dataclass field, self.x = ... in __init__)
+                        continue
+                    obj = getattr(obj, attr)
+            except AttributeError:
+                break
+            return name, obj
+    return None
+
+
+def _missing_reference(app, env, node, contnode):
+    """A reference Sphinx could not resolve to a documented object.
+
+    - a re-exported name (``vtoladapt.simulate``) links to where the object is defined;
+    - a name that exists in the code but has no entry of its own (a module constant without a
+      docstring, a dataclass field) is shown as code, unlinked;
+    - the words of a docstring's type field ("array, shape (3,)", "m/s") are shown as written.
+
+    Anything else, a name that does not exist in the code, stays a warning, which fails the build.
+    """
+    if node.get("refdomain") != "py":
+        return None
+    target = node.get("reftarget", "")
+    if not _IDENTIFIER.match(target):
+        return contnode  # prose in a type field, not a name
+    found = _lookup(target, node.get("py:module"), node.get("py:class"))
+    if found is None:
+        if node.get("refspecific") and node.get("reftype") == "class" and "." not in target:
+            return contnode  # a word of a type field ("N", "alpha", "Pa"), not a reference
+        return None
+    name, obj = found
+    obj = getattr(obj, "py_func", obj)  # a compiled kernel is documented by its Python source
+    home, qual = getattr(obj, "__module__", None), getattr(obj, "__qualname__", None)
+    if isinstance(home, str) and isinstance(qual, str) and "<locals>" not in qual:
+        domain = env.get_domain("py")
+        for role in ("obj", node.get("reftype")):
+            ref = domain.resolve_xref(env, node["refdoc"], app.builder, role, f"{home}.{qual}", node, contnode)
+            if ref is not None:
+                return ref
+    return contnode  # exists in the code, has no entry of its own
+
+
 def _write_if_changed(path: Path, text: str) -> None:
     """Write a generated page only when it changed, so an unchanged build stays incremental."""
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -102,15 +193,44 @@ def _write_if_changed(path: Path, text: str) -> None:
 
 def _generate(app) -> None:
     """The pages made from the code, before Sphinx reads the sources."""
-    from vtoladapt.settings_reference import settings_markdown
+    from vtoladapt.settings_reference import metrics_markdown, settings_markdown
     from vtoladapt.sim.limits import ranges_markdown
 
     out = DOCS / "_generated"
     _write_if_changed(out / "settings.md", settings_markdown())
     _write_if_changed(out / "ranges.md", ranges_markdown() + "\n")
+    _write_if_changed(out / "metrics.md", metrics_markdown())
+
+
+FIGURE_EXAMPLES = ("first_flight", "scenario_variant", "fit_tunnel_data", "calibrate_probe", "replay_flight_log",
+                   "campaign")
+"""The examples whose output folders the tutorials show figures from (``docs/_generated/examples/NAME``)."""
+
+
+def _run_examples(app) -> None:
+    """Run the examples the tutorials take figures from, each once per version of its script (a stamp
+    holds the script's SHA-256): the figures are the examples' output, never pasted."""
+    import hashlib
+    import subprocess
+
+    for name in FIGURE_EXAMPLES:
+        script = ROOT / "examples" / f"{name}.py"
+        out = DOCS / "_generated" / "examples" / name
+        stamp = out / ".stamp"
+        digest = hashlib.sha256(script.read_bytes()).hexdigest()
+        if stamp.exists() and stamp.read_text() == digest:
+            continue
+        env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT / "src"))
+        done = subprocess.run([sys.executable, str(script), "--out", str(out)], cwd=ROOT, env=env,
+                              capture_output=True, text=True)
+        if done.returncode != 0:
+            raise RuntimeError(f"examples/{name}.py failed (status {done.returncode}): {done.stderr[-2000:]}")
+        stamp.write_text(digest)
 
 
 def setup(app):
     app.connect("builder-inited", _generate)
+    app.connect("builder-inited", _run_examples)
+    app.connect("missing-reference", _missing_reference)
     os.environ.setdefault("MPLBACKEND", "Agg")
     return {"parallel_read_safe": True}

@@ -155,5 +155,18 @@ def settings_markdown() -> str:
     return "\n".join(out).rstrip() + "\n"
 
 
+def metrics_markdown() -> str:
+    """Every metric a run or an experiment reports (``metrics.json`` key, meaning, unit), from the one
+    map the tables and figures use (:data:`vtoladapt.sim.run_metrics.METRIC_INFO` and the per-phase
+    :data:`vtoladapt.experiments.metrics.PHASE_METRIC_INFO`)."""
+    from .experiments.metrics import PHASE_METRIC_INFO
+    from .sim.run_metrics import METRIC_INFO
+
+    rows = ["| key in `metrics.json` | meaning | unit |", "|---|---|---|"]
+    for key, (label, unit) in {**METRIC_INFO, **PHASE_METRIC_INFO}.items():
+        rows.append(f"| `{key}` | {_cell(label)} | {_cell(unit)} |")
+    return "\n".join(rows) + "\n"
+
+
 if __name__ == "__main__":
     print(settings_markdown(), end="")

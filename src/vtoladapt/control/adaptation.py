@@ -44,7 +44,7 @@ The parameter update (eq:th_adapt), discretised
 -----------------------------------------------
 ``theta' = P tau``, ``tau = Phi^T R^T v~ - W^T e - sigma (theta-hat - theta_0)``. An explicit
 Euler step with a constant P is unstable once ``dt * eig(P W^T W) > 2`` (at 20 m/s with Table
-III's P0 it is). The step is therefore implicit in the terms linear in theta-hat:
+III's P0 it is). The step is therefore implicit in the terms linear in theta-hat::
 
     theta_k+1 = theta_k + dt K tau_k,
     K = Gamma_k+1^-1 = P_k+1                  (composite: Gamma_k+1 already holds b W^T W)

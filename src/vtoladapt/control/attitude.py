@@ -128,7 +128,7 @@ from ..frames import rotmat_rows_to_quat
 Y_REGULARISATION_MPS2 = 1e-3
 """eta of the y_i regularisation (m/s^2): below this normal force y_i leans on its fallback."""
 V_WING_MIN_MPS = 1e-6
-"""Below this airspeed x_i = v_i/|v_i| is not formed at all (the blend weight is 0 there anyway)."""
+"""Below this airspeed ``x_i = v_i/|v_i|`` is not formed at all (the blend weight is 0 there anyway)."""
 
 
 @njit(cache=True)

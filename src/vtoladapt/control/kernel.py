@@ -12,7 +12,7 @@ The simulator calls it every tick inside its compiled loop::
 
 The step is a dispatcher: :func:`.frontend.front_end`, then the ``update`` of the law whose
 registry index is in ``params``, then :func:`.backend.back_end`. The laws come from
-:mod:`.registry`; the loop over them is unrolled at compile time (``numba.literal_unroll`` over
+:mod:`~vtoladapt.control.registry`; the loop over them is unrolled at compile time (``numba.literal_unroll`` over
 the tuple of their compiled ``update`` functions), so the compiled step calls the chosen law
 directly and holds no list of laws of its own. The array layouts are in :mod:`.layouts` (shared
 blocks) and in each law's module (its own blocks); outside them use the accessors

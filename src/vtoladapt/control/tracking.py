@@ -16,7 +16,7 @@ Derivatives the paper leaves implicit
       omega_r' = -omega x (R~^T omega_d) + R~^T omega_d' - Lambda_q (q~_0 I + S(q~_v)) (omega - R~^T omega_d) / 2
 
   (checked against finite differences in the tests). ``omega_d`` and ``omega_d'`` come from the
-  history of ``R_d`` (see :mod:`.attitude`).
+  history of ``R_d`` (see :mod:`~vtoladapt.control.attitude`).
 """
 from __future__ import annotations
 

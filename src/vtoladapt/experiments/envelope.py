@@ -21,8 +21,8 @@ The targets (issue #11, "Must show"):
     than :data:`ALPHA_TIME_FRACTION_MAX` of the time the wing flies. alpha counts only where the
     true airspeed is at least the vehicle's ``hover_blend_airspeed_mps[0]`` (below it the wing
     carries a few percent of the weight and alpha = atan2(v_iz, v_ix) is the direction of a
-    breeze, not a wing state); |alpha| is used (the plant's stall blend is even in alpha), so flow
-    from behind (|alpha| near 180 deg) and from the side counts as past stall, as the plant treats it.
+    breeze, not a wing state); ``|alpha|`` is used (the plant's stall blend is even in alpha), so flow
+    from behind (``|alpha|`` near 180 deg) and from the side counts as past stall, as the plant treats it.
 ``finite_logs``
     No NaN or infinity in any controller's log of the draw.
 ``beats_pid_pd``
@@ -49,9 +49,9 @@ from ..stats import fraction_holding, median_iqr
 PRED_ERR_BOUND_G = 0.05
 """The paper's prediction-error bound (g), judged as the 95th percentile in every airspeed bin."""
 ALPHA_EXCURSION_MAX_S = 0.5
-"""Longest allowed excursion of |alpha| past the protected (or stall) angle (s)."""
+"""Longest allowed excursion of ``|alpha|`` past the protected (or stall) angle (s)."""
 ALPHA_TIME_FRACTION_MAX = 0.01
-"""Most of the wing-borne time |alpha| may spend past the protected (or stall) angle (fraction)."""
+"""Most of the wing-borne time ``|alpha|`` may spend past the protected (or stall) angle (fraction)."""
 MIN_BIN_TIME_S = 1.0
 """Least flight time in an airspeed bin for a per-bin RMS velocity error (s)."""
 TARGET_FRACTION = 0.95

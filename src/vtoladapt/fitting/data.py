@@ -1,7 +1,7 @@
 """Force-balance data: the CSV format, its reader/validator and writer.
 
 The CSV format (``read_force_balance_csv`` / ``write_force_balance_csv``)
------------------------------------------------------------------------
+-------------------------------------------------------------------------
 One row per tunnel point (a steady reading of the balance, averaged over the dwell). Lines that
 start with ``#`` and blank lines are ignored; the first other line is the header. Column order
 is free; every column named below must be spelled exactly so; any other column is an error (a
@@ -9,18 +9,18 @@ misspelled optional column must not be silently ignored).
 
 Required columns
 
-=================  ======  ===============================================================
-column             unit    meaning and allowed values
-=================  ======  ===============================================================
-``airspeed_mps``   m/s     tunnel airspeed V, ``>= 0`` (0 for static thrust runs)
-``alpha_deg``      deg     angle of attack of the body x axis, ``-90 < alpha < 90``
-``beta_deg``       deg     sideslip, ``-90 < beta < 90``
-``throttle_x_pct`` %       pusher throttle u_x, ``0 <= u_x <= 100``
-``throttle_z_pct`` %       collective throttle u_z of the lift rotors, ``0 <= u_z <= 100``
-``force_x_N``      N       measured force on the model, body FRD x (forward)
-``force_y_N``      N       measured force, body FRD y (right)
-``force_z_N``      N       measured force, body FRD z (down)
-=================  ======  ===============================================================
+==================  ======  ===============================================================
+column              unit    meaning and allowed values
+==================  ======  ===============================================================
+``airspeed_mps``    m/s     tunnel airspeed V, ``>= 0`` (0 for static thrust runs)
+``alpha_deg``       deg     angle of attack of the body x axis, ``-90 < alpha < 90``
+``beta_deg``        deg     sideslip, ``-90 < beta < 90``
+``throttle_x_pct``  %       pusher throttle u_x, ``0 <= u_x <= 100``
+``throttle_z_pct``  %       collective throttle u_z of the lift rotors, ``0 <= u_z <= 100``
+``force_x_N``       N       measured force on the model, body FRD x (forward)
+``force_y_N``       N       measured force, body FRD y (right)
+``force_z_N``       N       measured force, body FRD z (down)
+==================  ======  ===============================================================
 
 Optional columns
 

@@ -18,7 +18,7 @@ posterior of ``beta`` given ``phi`` is Gaussian in closed form and ``beta`` inte
 likelihood analytically (the marginal likelihood below), so the MCMC (emcee's affine-invariant
 ensemble with the differential-evolution move) runs over ``phi`` only: 2-4 dimensions instead of 12.
 Joint samples of ``beta`` are then drawn exactly from ``N(mu(phi), A(phi)^-1)`` at each kept
-sample of ``phi``.
+sample of ``phi``::
 
     A(phi)  = S0^-1 + X^T W X,        W = diag(sigma^-2)
     b(phi)  = S0^-1 m0 + X^T W y,     mu = A^-1 b
@@ -128,7 +128,7 @@ def _marginal_from_stats(XtWX: np.ndarray, XtWy: np.ndarray, yWy: np.ndarray,
 
 
 def stats_from_design(design_and_sigma, y: np.ndarray):
-    """A sufficient-statistics function (see :class:`MarginalProblem`) from a dense design."""
+    """A sufficient-statistics function (see :class:`~vtoladapt.fitting.sampler.MarginalProblem`) from a dense design."""
     y = np.asarray(y, float)
 
     def stats(phi):

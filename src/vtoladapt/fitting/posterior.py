@@ -1,7 +1,7 @@
 """The posterior file (``posterior.json``) and how a controller starts from it.
 
 File format (``format = "vtoladapt.posterior"``, ``format_version = 1``)
------------------------------------------------------------------------
+------------------------------------------------------------------------
 A JSON object with
 
 * ``parameters``: for each of ``CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1, k1, k2`` an object

@@ -209,7 +209,7 @@ def validation_report(out_dir, vehicle: Vehicle, *, seed: int = 0, n_seeds: int 
 
     1. One fixed seed: tunnel with Table I means as the truth, full fit, z-scores, fit time,
        convergence.
-    2. ``n_seeds`` seeds with the truth drawn from Table I's spread: the fraction of |z| < 2.
+    2. ``n_seeds`` seeds with the truth drawn from Table I's spread: the fraction of ``|z| < 2``.
     3. 1/sqrt(N): fits at N, 4N, 16N rows.
 
     ``progress``, if given, is called with a few words before each of the

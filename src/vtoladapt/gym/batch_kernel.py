@@ -76,7 +76,7 @@ ROW_BLOCKS: tuple[Field, ...] = (
     Field("FAULT_STATE", 0, "-", "the fault schedule's state"),
 )
 """The blocks of an environment's row, in order (their sizes, 0 here, are the batch's: see
-:func:`vtoladapt.gym.batch.row_layout`): the plant state and the scratch of a tick first (touched by
+:func:`vtoladapt.gym.batch.row_layouts`): the plant state and the scratch of a tick first (touched by
 every step), then the parameters and states of :class:`vtoladapt.sim.driver.PreparedRun`."""
 SHARED_BLOCKS: tuple[Field, ...] = (
     Field("MIXER_PARAMS", 0, "-", "the mixer's parameters"),

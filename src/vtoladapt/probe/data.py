@@ -5,7 +5,7 @@ The container, :class:`~vtoladapt.probe.points.ProbeCalibrationData`, is in
 :mod:`vtoladapt.probe.nasa`.
 
 The CSV format (``read_probe_csv`` / ``write_probe_csv``)
---------------------------------------------------------
+---------------------------------------------------------
 A plain comma-separated file for a user's own probe calibration, one row per tunnel point:
 
 * lines starting with ``#`` and blank lines are ignored; the first other line is the header;

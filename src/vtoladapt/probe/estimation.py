@@ -6,12 +6,12 @@ element of the calibration array:
 ``single_k`` (kind 1.0), the paper's eq:aoa
     ``[1.0, k, q_inf_min_Pa, angle_limit_rad]``
 
-``calibrated`` (kind 2.0), our calibration sampled on a grid of the non-dimensional pressure
-coefficients ``C_alpha = q_alpha / q_inf``, ``C_beta = q_beta / q_inf`` (scaled by ``c_scale``)
+``calibrated`` (kind 2.0), our calibration sampled on a grid of the non-dimensional pressure coefficients
     ``[2.0, q_inf_min_Pa, angle_limit_rad, c_scale, radius_limit, n, x0, h,``
     ``alpha_rad table (n*n), beta_rad table (n*n), C_q table (n*n)]``
 
-    Node ``(i, j)`` is at ``x = x0 + i h`` (scaled ``C_alpha``), ``y = x0 + j h`` (scaled
+    The coefficients are ``C_alpha = q_alpha / q_inf`` and ``C_beta = q_beta / q_inf``, scaled by
+    ``c_scale``. Node ``(i, j)`` is at ``x = x0 + i h`` (scaled ``C_alpha``), ``y = x0 + j h`` (scaled
     ``C_beta``), stored row-major ``i * n + j``. Values between nodes are interpolated with
     Keys' cubic convolution (``a = -1/2``, third-order accurate, continuous slope). The airspeed
     is ``V = sqrt(2 q_inf / (rho C_q))``.

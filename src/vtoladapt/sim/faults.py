@@ -9,27 +9,27 @@ them every tick (:mod:`vtoladapt.sim.loop`):
 * :func:`apply_actuator_faults`, between the mixer and the plant, on the five motor commands
   (the log's ``motor*_cmd_frac`` columns record what reached the motors).
 
-Kinds (:data:`FAULT_KINDS`):
+Kinds (:data:`FAULT_KINDS`)::
 
-``probe_dropout``      airflow probe reads NaN and flags itself invalid.
-``probe_stuck``        probe repeats the reading (and validity) it had when the fault began.
-``probe_nan``          probe reads NaN but still flags itself valid (a corrupt frame).
-``probe_blocked_port`` one pressure port blocked (``port = "alpha"`` or ``"beta"``): that port pair's
-                       differential pressure reads zero, so the calibration infers a zero flow
-                       angle. Modelled on the incident velocity for either probe model: the body-z
-                       (alpha) or body-y (beta) component is folded into body-x, keeping the speed.
-                       This is the first-order effect of the pressure fault, not the pressure
-                       model's own port-level simulation.
-``imu_spike``          gyro x reads ``spike_gyro_radps`` more and accelerometer z ``spike_accel_mps2``
-                       more (a vibration or EMI burst).
-``imu_nan``            gyro and accelerometer read NaN.
-``mocap_dropout``      motion-capture position and velocity read NaN (tracking lost).
-``mocap_latency``      motion capture arrives ``extra_latency_s`` later (a latency jump; up to
-                       :data:`LATENCY_RING_TICKS` - 1 ticks).
-``lift_motor_loss``    lift motor ``motor`` (1-4) gives ``thrust_loss_fraction`` less thrust at any
-                       command (thrust ~ u^2, so its command is scaled by sqrt(1 - loss)).
-``pusher_saturated``   the pusher runs at full throttle (the throttle limit) whatever is commanded.
-``stuck_throttle``     motor ``motor`` (1-4 lift, 5 pusher) holds the command it had at the start.
+    probe_dropout          airflow probe reads NaN and flags itself invalid.
+    probe_stuck            probe repeats the reading (and validity) it had when the fault began.
+    probe_nan              probe reads NaN but still flags itself valid (a corrupt frame).
+    probe_blocked_port     one pressure port blocked (port = "alpha" or "beta"): that port pair's
+                           differential pressure reads zero, so the calibration infers a zero flow
+                           angle. Modelled on the incident velocity for either probe model: the body-z
+                           (alpha) or body-y (beta) component is folded into body-x, keeping the speed.
+                           This is the first-order effect of the pressure fault, not the pressure
+                           model's own port-level simulation.
+    imu_spike              gyro x reads spike_gyro_radps more and accelerometer z spike_accel_mps2
+                           more (a vibration or EMI burst).
+    imu_nan                gyro and accelerometer read NaN.
+    mocap_dropout          motion-capture position and velocity read NaN (tracking lost).
+    mocap_latency          motion capture arrives extra_latency_s later (a latency jump; up to
+                           LATENCY_RING_TICKS - 1 ticks).
+    lift_motor_loss        lift motor motor (1-4) gives thrust_loss_fraction less thrust at any
+                           command (thrust ~ u^2, so its command is scaled by sqrt(1 - loss)).
+    pusher_saturated       the pusher runs at full throttle (the throttle limit) whatever is commanded.
+    stuck_throttle         motor motor (1-4 lift, 5 pusher) holds the command it had at the start.
 
 Every entry is validated like every other table (one-line errors naming the file, the entry and
 the key).

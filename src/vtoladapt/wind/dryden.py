@@ -126,7 +126,7 @@ class TurbulenceConfig(Validated):
     """Dryden turbulence (MIL-F-8785C); give exactly one intensity and at most one length source.
 
     Intensity: ``w20_mps`` (low-altitude model with ``altitude_m``), ``sigma_mps`` directly, or
-    ``mean_wind_fraction`` (sigma = fraction x |mean wind|, a wind tunnel's turbulence
+    ``mean_wind_fraction`` (sigma = fraction x ``|mean wind|``, a wind tunnel's turbulence
     intensity). Length scales: ``length_scale_m`` directly, else the low-altitude model at
     ``altitude_m``.
     """

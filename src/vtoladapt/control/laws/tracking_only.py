@@ -22,12 +22,12 @@ paper's gain is stable with that margin (hover, low wind) ``k = 1`` is the paper
 this is the normalised gradient law of robust adaptive control (Ioannou & Sun, *Robust Adaptive
 Control*, sec. 4.3), normalised by the loop gain the motor lag allows. ``"paper"``: ``k = 1``.
 
-Measured (plant equal to the model, 40 ms pusher, max |v~| over the last 5 s of a 20 s hold):
+Measured (plant equal to the model, 40 ms pusher, max ``|v~|`` over the last 5 s of a 20 s hold):
 the paper's gain 0.20 m/s at 9 m/s and 0.23 m/s at 12 m/s (limit cycles); the rule 5e-5 and 6e-5
-m/s. On paper_comparison (5 seeds) RMS |v~| 0.058 m/s against the paper gain's 0.063.
+m/s. On paper_comparison (5 seeds) RMS ``|v~|`` 0.058 m/s against the paper gain's 0.063.
 
 Sigma (``[controller.tracking_only] sigma``, default 0): the paper's law III has none, and it is
-off by default. With ``sigma = 1e-4`` (the composite law's value) the RMS |v~| on
+off by default. With ``sigma = 1e-4`` (the composite law's value) the RMS ``|v~|`` on
 paper_comparison changes by -0.7 % (5 seeds): a negligible effect either way.
 """
 from __future__ import annotations
