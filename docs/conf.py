@@ -52,6 +52,7 @@ exclude_patterns = ["_build", "_generated", "Thumbs.db", ".DS_Store", "measure_*
 myst_enable_extensions = ["colon_fence", "deflist"]
 myst_heading_anchors = 4  # `page.md#a-heading` links resolve and are checked
 suppress_warnings: list[str] = []
+smartquotes = False  # "--out" in a help text or a page stays two hyphens, quotes stay as typed
 
 templates_path = ["_templates"]
 
