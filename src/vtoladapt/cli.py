@@ -77,7 +77,7 @@ def load_run_scenario(path, duration_s=None, seed=None, controller=None):
     """
     from dataclasses import replace
 
-    from .control.config import ControllerConfig
+    from .control.settings import ControllerConfig
     from .sim.limits import check_run_size
     from .sim.scenario import Scenario, load_scenario
 

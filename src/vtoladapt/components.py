@@ -168,6 +168,7 @@ class Registry(Mapping):
 
 KIND_HOMES: dict[str, str] = {
     "law": "vtoladapt.control.registry",
+    "basis": "vtoladapt.bases",
 }
 """The module that declares each kind (imported by :func:`registry` on first use of the kind)."""
 

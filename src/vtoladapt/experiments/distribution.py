@@ -23,7 +23,7 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from ..control.registry import COMPOSITE_IDS
+from ..control.registry import composite_ids
 from ..sim.run_metrics import run_metrics
 from ..sim.scenario import Scenario
 from ..stats import fraction_holding, median_iqr
@@ -83,7 +83,7 @@ def comparison_variant(scenario: Scenario, progress: Progress = None) -> dict:
         if len(res.time_s) not in fan:
             fan[len(res.time_s)] = fan_throttle_series(scenario, res.time_s)
         out = run_metrics(res, fan[len(res.time_s)])
-        if cid not in COMPOSITE_IDS:
+        if cid not in composite_ids():
             for key in ("pred_err_rms_g", "pred_err_p95_g", "pred_err_p95_g_by_airspeed"):
                 out.pop(key, None)
         if progress is not None:

@@ -9,12 +9,13 @@ top).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
-from ..control.registry import COMPOSITE_IDS, CONTROLLER_IDS, CONTROLLERS
+from ..control.registry import CONTROLLERS, composite_ids, controller_ids
 from ..frames import GRAVITY_MPS2
 from ..sim.run_metrics import metric_label
 from ..sim.results import SimulationResult
@@ -23,8 +24,30 @@ from ..vehicle import PARAMETER_NAMES
 from .metrics import THETA_SCALED_UNITS, fan_speed_series, fan_throttle_series
 from .report import _save_figure
 
-CONTROLLER_LABELS = {k: c.label for k, c in CONTROLLERS.items()}
-CONTROLLER_COLORS = {k: c.colour for k, c in CONTROLLERS.items()}
+
+class _RegistryField(Mapping):
+    """``{controller id: its registry entry's field}``, read from the registry at each look-up (a law
+    registered after import has its label and colour)."""
+
+    def __init__(self, field: str):
+        self.field = field
+
+    def __getitem__(self, key: str):
+        try:
+            info = CONTROLLERS[key]
+        except KeyError:
+            raise KeyError(key) from None
+        return getattr(info, self.field)
+
+    def __iter__(self):
+        return iter(CONTROLLERS)
+
+    def __len__(self) -> int:
+        return len(CONTROLLERS)
+
+
+CONTROLLER_LABELS: Mapping[str, str] = _RegistryField("label")
+CONTROLLER_COLORS: Mapping[str, str] = _RegistryField("colour")
 PRED_ERR_COLUMNS = ("pred_err_x_mps2", "pred_err_y_mps2", "pred_err_z_mps2")
 MEAS_V_I_COLUMNS = ("meas_v_i_x_mps", "meas_v_i_y_mps", "meas_v_i_z_mps")
 PLOT_FILTER_HZ = 1.0
@@ -39,7 +62,8 @@ def controller_style(controller_id: str) -> dict:
     """Matplotlib line properties of a controller: registry colour, its own dash pattern, and a
     width that shrinks down the registry so a later controller drawn over an earlier one on the
     same curve leaves the earlier one visible around it."""
-    i = CONTROLLER_IDS.index(controller_id) if controller_id in CONTROLLER_IDS else len(CONTROLLER_IDS)
+    ids = controller_ids()
+    i = ids.index(controller_id) if controller_id in ids else len(ids)
     return {"color": CONTROLLER_COLORS.get(controller_id, f"C{i % 10}"),
             "ls": _LINESTYLES[i % len(_LINESTYLES)], "lw": max(0.9, 2.2 - 0.2 * i),
             "label": CONTROLLER_LABELS.get(controller_id, controller_id), "zorder": 2 + i}
@@ -143,7 +167,7 @@ def plot_tracking_comparison(scenario: Scenario, results: dict[str, SimulationRe
     for cid, res in results.items():
         axes[1].plot(t, np.linalg.norm(res.velocity_error_W, axis=1), **controller_style(cid))
     axes[1].set_ylabel("‖velocity error‖ [m/s]")
-    for cid in COMPOSITE_IDS:
+    for cid in composite_ids():
         if cid in results:
             e = np.linalg.norm(results[cid].columns_like(PRED_ERR_COLUMNS), axis=1) / GRAVITY_MPS2
             axes[2].plot(t, _lowpass(e, dt, PLOT_FILTER_HZ), **controller_style(cid))
@@ -177,7 +201,7 @@ def plot_tracking_axes(scenario: Scenario, results: dict[str, SimulationResult])
             ax.plot(t, res.velocity_error_W[:, j], **controller_style(cid))
         ax.set_ylabel(f"velocity error {axis} [m/s]")
         ax = axes[j, 1]
-        for cid in COMPOSITE_IDS:
+        for cid in composite_ids():
             if cid in results:
                 e = results[cid][PRED_ERR_COLUMNS[j]] / GRAVITY_MPS2
                 ax.plot(t, _lowpass(e, dt, PLOT_FILTER_HZ), **controller_style(cid))

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ..control.registry import COMPOSITE_IDS
+from ..control.registry import composite_ids
 from ..sim.run_metrics import run_metrics
 from ..sim.results import SimulationResult
 from ..sim.scenario import Scenario
@@ -44,7 +44,7 @@ def comparison_metrics(scenario: Scenario, results: dict[str, SimulationResult])
         if fan is None or len(fan) != len(res.time_s):
             fan = fan_throttle_series(scenario, res.time_s)
         m = run_metrics(res, fan)
-        if cid not in COMPOSITE_IDS:
+        if cid not in composite_ids():
             for key in ("pred_err_rms_g", "pred_err_p95_g", "pred_err_p95_g_by_airspeed"):
                 m.pop(key, None)
         out[cid] = m

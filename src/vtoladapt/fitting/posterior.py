@@ -232,7 +232,7 @@ def controller_prior(posterior: Posterior, vehicle: Vehicle, *, P0_diag=None,
         raise PosteriorError("controller_prior: bound_fraction and bound_sigmas must be >= 0")
     theta0 = theta_to_scaled(posterior.theta_table, posterior.k1)
     std = theta_to_scaled(posterior.std_table, posterior.k1)
-    from ..control.kernel import theta_bound_half_widths  # the controller's own rule, one place
+    from ..control.step import theta_bound_half_widths  # the controller's own rule, one place
 
     half = theta_bound_half_widths(theta0, std, frac, n_sigma)
     return ControllerPrior(theta0, P0.copy(), theta0 - half, theta0 + half)

@@ -28,7 +28,8 @@ from typing import Optional
 import numpy as np
 from numba import typed
 
-from ..control.kernel import DIAG_SIZE, P_TAU_MAX, P_U_MAX
+from ..control.blocks import P_TAU_MAX, P_U_MAX
+from ..control.step import controller_functions, diagnostics_size, function_addresses
 from ..control.trajectory import trajectory_from_reference
 from ..layout import CMD_SIZE, MEAS_SIZE, N_MOTORS, X_SIZE
 from ..sim.plant import RK4_WORK_SIZE
@@ -50,7 +51,8 @@ MIN_CHUNK_ENVS = 16
 _PER_RUN = BLOCKS[BLOCKS.index("plant_params"):] + SHARED_BLOCKS
 """The blocks loaded from a :class:`~vtoladapt.sim.driver.PreparedRun` (attributes of that name)."""
 _SCRATCH_SIZES = {"x": X_SIZE, "v_wind": 3, "f_B": 3, "v_i": 3, "meas": MEAS_SIZE, "cmd": CMD_SIZE,
-                  "base": CMD_SIZE, "diag": DIAG_SIZE, "motor": N_MOTORS, "work": RK4_WORK_SIZE}
+                  "base": CMD_SIZE, "motor": N_MOTORS, "work": RK4_WORK_SIZE}
+"""Sizes of the scratch blocks; the controller's diagnostics (``diag``) are as long as its law and basis make them."""
 
 # The sensor state ends in the motion-capture delay ring, of which a step touches two entries:
 # the prefetch stops where the ring begins.
@@ -60,7 +62,8 @@ _SENSOR_RING = SENSOR_STATE.offset("RING")
 def block_offsets(template: PreparedRun) -> np.ndarray:
     """Column where each block of :data:`~vtoladapt.gym.kernel.BLOCKS` starts and the row width, then
     the same for the shared table's :data:`~vtoladapt.gym.kernel.SHARED_BLOCKS` (from index ``O_SHARED``)."""
-    sizes = [_SCRATCH_SIZES[b] if b in _SCRATCH_SIZES else getattr(template, b).size for b in BLOCKS]
+    scratch = dict(_SCRATCH_SIZES, diag=diagnostics_size(template.controller_params))
+    sizes = [scratch[b] if b in scratch else getattr(template, b).size for b in BLOCKS]
     shared = [getattr(template, b).size for b in SHARED_BLOCKS]
     return np.concatenate([[0], np.cumsum(sizes), [0], np.cumsum(shared)]).astype(np.int64)
 
@@ -96,10 +99,12 @@ class _Chunk:
         self.settings = batch.settings.copy()
         self.settings[SET_PREFETCH_END] = self.off[B_SENS_S] + min(_SENSOR_RING, self.off[B_SENS_S + 1]
                                                                     - self.off[B_SENS_S])
+        # the controller's law and basis functions, kept alive here while the kernel calls them by address
+        self.ctrl_fns = controller_functions(template.controller_params)
         # every array is updated in place, so the arguments are bound once
         self.args = (self.rngs, self.op, self.actions, self.settings, batch.tau_max.copy(), batch.ref_table.copy(),
                      self.S, self.off, self.P, self.pidx, self.K, self.obs, self.reward, self.terminated,
-                     self.truncated, np.empty(0))
+                     self.truncated, np.empty(0), function_addresses(self.ctrl_fns))
 
     def block(self, j: int, name: str) -> np.ndarray:
         """Row ``j``'s block ``name`` (a view; a shared block's is the table row it uses)."""

@@ -33,7 +33,7 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 from ..sim.loop import tick_actuate, tick_sense
-from ..control.kernel import set_last_command
+from ..control.step import functions_at, set_last_command
 from ..layout import CMD_SIZE, CMD_TAU_B, CMD_U_X, CMD_U_Z, MEAS_OMEGA_B, MEAS_P_W, MEAS_Q_WB, MEAS_V_I_B, \
     MEAS_V_I_VALID, MEAS_V_W, REF_P_W, X_P_W, X_Q_WB, X_SIZE
 from .spaces import OBS_CMD, OBS_HIGH, OBS_LOW, OBS_OMEGA, OBS_P_ERR, OBS_Q, OBS_V, OBS_V_I, OBS_V_I_VALID
@@ -149,7 +149,7 @@ def _observe(meas, ref, base, u_max, tau_max, obs) -> None:
 
 @njit(cache=True, nogil=True, _nrt=False)
 def _step_env(rng, i, o, actions, settings, tau_max, ref_table, S, off, P, pidx, K, obs, reward, terminated,
-              truncated, empty) -> None:
+              truncated, empty, ctrl_fns) -> None:
     """Environment ``i`` of :func:`step_batch`, operation ``o`` (not :data:`OP_SKIP`), its generator
     ``rng``. Allocates nothing (compiled without reference counting)."""
     no_row = empty  # no log row, no theta_true: the environment logs nothing
@@ -196,7 +196,7 @@ def _step_env(rng, i, o, actions, settings, tau_max, ref_table, S, off, P, pidx,
         if residual:
             # the adaptation's regressor must see the throttles actually applied
             set_last_command(ctrl_s, cmd[CMD_U_X], cmd[CMD_U_Z])
-        tick_actuate(x, plant_p, mixer_p, ctrl_s, ref_table[k], k * dt, dt, n_sub,
+        tick_actuate(x, plant_p, mixer_p, ctrl_p, ctrl_s, ref_table[k], k * dt, dt, n_sub,
                      v_wind, f_B, v_i, meas, cmd, diag, row[off[B_MOTOR]:off[B_MOTOR + 1]], work, no_theta,
                      0.0, no_row)
         k += 1
@@ -234,7 +234,7 @@ def _step_env(rng, i, o, actions, settings, tau_max, ref_table, S, off, P, pidx,
             truncated[i] = False
             return
     t = k * dt
-    tick_sense(x, plant_p, ctrl_p, ctrl_s, row[off[B_WIND_P]:off[B_WIND_P + 1]],
+    tick_sense(x, plant_p, ctrl_fns, ctrl_p, ctrl_s, row[off[B_WIND_P]:off[B_WIND_P + 1]],
                row[off[B_WIND_S]:off[B_WIND_S + 1]], row[off[B_SENS_P]:off[B_SENS_P + 1]],
                row[off[B_SENS_S]:off[B_SENS_S + 1]], ref_table[k], t, dt, rng, residual, v_wind, f_B, v_i,
                meas, base if residual else cmd, diag, work)
@@ -246,7 +246,7 @@ def _step_env(rng, i, o, actions, settings, tau_max, ref_table, S, off, P, pidx,
 
 @njit(cache=True, nogil=True)
 def step_batch(rngs, op, actions, settings, tau_max, ref_table, S, off, P, pidx, K, obs, reward, terminated,
-               truncated, empty) -> None:
+               truncated, empty, ctrl_addresses) -> None:
     """Advance every environment ``i`` of a chunk by ``op[i]`` (:data:`OP_STEP`, :data:`OP_BEGIN`, :data:`OP_SKIP`).
 
     ``S`` holds one row per environment, block ``b`` of :data:`BLOCKS` in columns
@@ -259,7 +259,9 @@ def step_batch(rngs, op, actions, settings, tau_max, ref_table, S, off, P, pidx,
     (float32 rows), ``reward``, ``terminated`` (true position outside ``max_err_m`` of the
     reference on any NED axis, tilt beyond ``acos(cos_tilt_max)``, or a non-finite state),
     ``truncated`` (the scenario's last tick reached, not terminated). ``empty`` is an empty
-    float array (the log row and true theta the environment does not keep).
+    float array (the log row and true theta the environment does not keep). ``ctrl_addresses`` are the
+    addresses of the controller's law and basis functions (:func:`vtoladapt.control.step.function_addresses`
+    of :func:`~vtoladapt.control.step.controller_functions`), shared by the chunk.
 
     Each environment steps in :func:`_step_env`, compiled without Numba's reference counting as
     the tick's kernels are (:mod:`vtoladapt.sim.loop`): its twenty-odd row slices would
@@ -267,8 +269,9 @@ def step_batch(rngs, op, actions, settings, tau_max, ref_table, S, off, P, pidx,
     generator out of the typed list.
     """
     n = S.shape[0]
+    ctrl_fns = functions_at(ctrl_addresses)
     for i in range(n):
         if op[i] == OP_SKIP:
             continue
         _step_env(rngs[i], i, op[i], actions, settings, tau_max, ref_table, S, off, P, pidx, K, obs, reward,
-                  terminated, truncated, empty)
+                  terminated, truncated, empty, ctrl_fns)

@@ -53,6 +53,7 @@ class PreparedRun:
     rng: np.random.Generator
     prior_description: str
     plant_coefficients: dict
+    basis_id: str = "paper"
 
 
 def prepare(scenario: Scenario) -> PreparedRun:
@@ -63,10 +64,13 @@ def prepare(scenario: Scenario) -> PreparedRun:
     from ..sensors import draw_probe_offsets, sensors_initial_state
     from ..wind import wind_initial_state
 
+    from ..bases import truth_of
+
     vehicle = scenario.load_vehicle()
     plant = scenario.plant.resolved(vehicle, scenario.seed)
     rng = np.random.default_rng(scenario.seed)
     ctrl_vehicle, theta0, P0_diag, lower, upper, prior_description = controller_prior(scenario, vehicle)
+    basis = controller_basis(scenario, ctrl_vehicle)
     theta_init = None
     if scenario.controller_prior.initial_theta == "random":
         frac = scenario.controller_prior.random_fraction
@@ -77,7 +81,7 @@ def prepare(scenario: Scenario) -> PreparedRun:
     try:
         ctrl_params, ctrl_state = controller_arrays(
             ctrl_vehicle, scenario.controller, theta_0=theta0, P0_diag=P0_diag, theta_lower=lower,
-            theta_upper=upper, theta_init=theta_init)
+            theta_upper=upper, theta_init=theta_init, basis=basis)
     except ConfigError as exc:  # a rule needing the prior (the sigma step's P0): the scenario's mistake
         raise ConfigError(f"{where}: {exc}") from None
     ic = scenario.initial
@@ -94,6 +98,9 @@ def prepare(scenario: Scenario) -> PreparedRun:
     if probe.model == "pressure" and not probe.ideal:
         draw_probe_offsets(sensor_params, probe.sdp33_offset_std_Pa, rng)
     fault_schedule, fault_state = faults_to_kernel(scenario.faults, scenario.dt_control_s)
+    # the plant's truth in the controller's basis, for the logged Lyapunov function only (empty where the
+    # basis has none: the function's parameter term is then left out)
+    theta_true = truth_of(basis, plant.true_coefficients(vehicle))
     return PreparedRun(
         scenario=scenario, vehicle=vehicle, x0=x0, fault_schedule=fault_schedule, fault_state=fault_state,
         envelope=scenario.envelope.to_kernel(),
@@ -101,30 +108,44 @@ def prepare(scenario: Scenario) -> PreparedRun:
         controller_params=ctrl_params, controller_state=ctrl_state,
         wind_params=wind_params, wind_state=wind_initial_state(wind_params),
         sensor_params=sensor_params, sensor_state=sensor_state,
-        reference_table=reference, theta_true=plant.theta_true_scaled(vehicle),
+        reference_table=reference, theta_true=np.zeros(0) if theta_true is None else theta_true,
         gamma=scenario.controller.gamma, rng=rng, prior_description=prior_description,
-        plant_coefficients=plant.true_coefficients(vehicle))
+        plant_coefficients=plant.true_coefficients(vehicle), basis_id=basis.id)
+
+
+def controller_basis(scenario: Scenario, vehicle: Vehicle):
+    """The force-model basis the controller adapts (:class:`vtoladapt.bases.BasisSpec`): the scenario's
+    ``[controller] basis``, else the vehicle's; an unknown id is the scenario file's mistake."""
+    from ..bases import describe_basis
+
+    try:
+        return describe_basis(vehicle, scenario.controller.basis)
+    except ConfigError as exc:
+        where = scenario.source_path or f"scenario {scenario.name!r}"
+        raise ConfigError(f"{where}: {exc}") from None
 
 
 def controller_prior(scenario: Scenario, vehicle: Vehicle):
     """The flight computer's model: ``(vehicle, theta_0, P0 diagonal, lower, upper, description)``.
 
-    Without a posterior it is the vehicle file (Table I, Table III). With one, the vehicle's force
-    model becomes the posterior's (its k1, k2 too, so the regressor and theta_0 agree) and P0 and
-    the theta-hat bounds follow :func:`vtoladapt.fitting.controller_prior`. The plant keeps its
-    own truth either way.
+    Without a posterior it is the basis's prior for the vehicle (the paper's: Table I, Table III).
+    With one, the vehicle's force model becomes the posterior's (its k1, k2 too, so the regressor
+    and theta_0 agree) and P0 and the theta-hat bounds follow
+    :func:`vtoladapt.fitting.controller_prior`; the posterior must be of the controller's basis. The
+    plant keeps its own truth either way.
     """
-    from ..control.kernel import default_theta_bounds
+    from ..control.step import default_theta_bounds
 
     path = scenario.posterior_path()
     if path is None:
-        theta0 = vehicle.theta_scaled.copy()
-        lower, upper = default_theta_bounds(vehicle, theta0)
-        return vehicle, theta0, np.array(vehicle.adaptation.P0_diag), lower, upper, \
-            f"Table I of {vehicle.name} (published means)"
+        basis = controller_basis(scenario, vehicle)
+        theta0 = basis.theta_scaled.copy()
+        lower, upper = default_theta_bounds(vehicle, theta0, basis=basis)
+        return vehicle, theta0, np.array(basis.P0_diag), lower, upper, \
+            f"{basis.source} (published means)"
     from ..fitting import apply_posterior
 
-    ctrl_vehicle, (theta0, P0, lower, upper) = apply_posterior(vehicle, path)
+    ctrl_vehicle, (theta0, P0, lower, upper) = apply_posterior(vehicle, path, basis=scenario.controller.basis)
     return ctrl_vehicle, theta0, P0, lower, upper, f"posterior {path}"
 
 
@@ -135,12 +156,14 @@ def run_chunk(run: PreparedRun, x: np.ndarray, k0: int, k1: int, log: np.ndarray
     KeyboardInterrupt first if Ctrl-C was pressed (:func:`vtoladapt.errors.check_interrupt`): a
     Ctrl-C Python dropped inside a C callback still stops every caller's run at its next chunk.
     """
+    from ..control.step import controller_functions
     from .loop import run_closed_loop
 
     check_interrupt()
     sc = run.scenario
     done, reason = run_closed_loop(
-        x, run.plant_params, run.mixer_params, run.controller_params, run.controller_state,
+        x, run.plant_params, run.mixer_params, controller_functions(run.controller_params), run.controller_params,
+        run.controller_state,
         run.wind_params, run.wind_state, run.sensor_params, run.sensor_state, run.reference_table[k0:k1],
         k0 * sc.dt_control_s, sc.dt_control_s, sc.plant_substeps, run.rng, run.theta_true, run.gamma,
         run.fault_schedule, run.fault_state, run.envelope, log)
@@ -154,14 +177,15 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
     ticks before it, and ``result.diverged_at_s`` / ``result.divergence_reason`` say when and why
     (:mod:`vtoladapt.sim.monitor`); nothing is raised (``result.raise_if_diverged()`` does).
     """
-    from .loop import LOG_COLUMNS, N_LOG
-    from ..control.kernel import information_sum
+    from .loop import log_columns
+    from ..control.step import basis_names, diagnostics_columns, information_sum
     from .limits import check_in_memory_runs
 
     check_in_memory_runs([scenario], scenario.source_path or f"scenario {scenario.name!r}")
     run = prepare(scenario)
     n = scenario.n_ticks
-    log = np.empty((n, N_LOG))
+    columns = log_columns(diagnostics_columns(run.controller_params))
+    log = np.empty((n, len(columns)))
     x = run.x0.copy()
     chunk = max(1, int(round(CHUNK_S / scenario.dt_control_s)))
     wall0 = time.perf_counter()
@@ -187,6 +211,7 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
     metadata = {
         "scenario": scenario.name, "scenario_path": scenario.source_path, "vehicle": run.vehicle.name,
         "controller": scenario.controller.kind, "seed": scenario.seed,
+        "basis": run.basis_id, "theta_names": list(basis_names(run.controller_params)),
         "dt_control_s": scenario.dt_control_s, "plant_substeps": scenario.plant_substeps,
         "duration_s": scenario.duration_s, "wall_time_s": wall,
         "controller_prior": run.prior_description,
@@ -198,9 +223,9 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
         "faults": [dataclasses.asdict(f) for f in scenario.faults],
         "plant_coefficients": run.plant_coefficients,
         # the adaptation's un-forgotten information sum (identifiability; zero for non-adaptive laws)
-        "information_sum": information_sum(run.controller_state).tolist(),
+        "information_sum": information_sum(run.controller_params, run.controller_state).tolist(),
     }
-    return SimulationResult(LOG_COLUMNS, log, metadata)
+    return SimulationResult(columns, log, metadata)
 
 
 def simulate_many(scenarios: Sequence[Scenario], workers: Optional[int] = None,
@@ -249,15 +274,16 @@ def _has_disk_cache(dispatcher) -> bool:
 
 def _controller_step_compiled() -> None:
     """Compile (or load) the controller step for the simulator loop's argument types."""
-    from ..control.kernel import DIAG_SIZE, controller_step
+    from ..control.step import controller_functions, controller_step, diagnostics_size
     from .scenario import scenario_from_mapping
 
     run = prepare(scenario_from_mapping({"name": "warm-up", "vehicle": "caltech_vtol", "duration_s": 0.004},
                                         "<warm-up>"))
     meas = np.zeros(layout.MEAS_SIZE)
     meas[layout.MEAS_Q_WB] = 1.0
-    controller_step(run.controller_params, run.controller_state, meas, run.reference_table[0], 0.004,
-                    np.zeros(layout.CMD_SIZE), np.zeros(DIAG_SIZE))
+    p = run.controller_params
+    controller_step(controller_functions(p), p, run.controller_state, meas, run.reference_table[0], 0.004,
+                    np.zeros(layout.CMD_SIZE), np.zeros(diagnostics_size(p)))
 
 
 def _plant_wind_sensors_compiled(run: PreparedRun) -> None:
@@ -287,7 +313,7 @@ def load_kernels(scenario: Scenario) -> None:
     and sensors; the loop, compiled last, loads the controller from the cache the other process
     wrote. On a warm cache nothing is started and only the loop's cached code is loaded.
     """
-    from ..control.kernel import controller_step
+    from ..control.step import controller_step
     from .loop import run_closed_loop
 
     helper = None

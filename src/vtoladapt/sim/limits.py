@@ -24,11 +24,21 @@ CAMPAIGN_ROW_BYTES = 4096
 """A campaign row (about forty metrics in a dict) and its Dask task record, generously."""
 
 
-def log_columns() -> int:
-    """Columns of a simulation log (one float64 each per control tick)."""
-    from .loop import N_LOG
+def log_columns(scenario=None) -> int:
+    """Columns of a simulation log (one float64 each per control tick): of ``scenario``'s controller (its
+    basis's n, the widest diagnostics of the registered laws), or of the paper's eight-parameter basis."""
+    from .loop import log_size
+    from ..control.step import diagnostics_size_for
 
-    return N_LOG
+    n = 8
+    if scenario is not None:
+        from ..bases import describe_basis
+
+        try:
+            n = describe_basis(scenario.load_vehicle(), scenario.controller.basis).n
+        except ConfigError:
+            pass  # an unknown basis is refused, naming the file, when the run is prepared
+    return log_size(diagnostics_size_for(n))
 
 
 def experiment_runs(scenario) -> int:
@@ -49,7 +59,7 @@ def check_run_size(scenario, where: str, n_runs: int | None = None) -> None:
         raise ConfigError(f"{where}: duration_s = {scenario.duration_s:g} s at dt_control_s = "
                           f"{scenario.dt_control_s:g} s is {ticks} control ticks; a run needs at "
                           "least 2")
-    cols = log_columns()
+    cols = log_columns(scenario)
     check_memory(f"{n_runs} run(s) x {ticks} log rows x {cols} columns x {FLOAT_BYTES} bytes",
                  float(n_runs) * ticks * cols * FLOAT_BYTES, where,
                  "shorten duration_s, lengthen dt_control_s or fly fewer runs at once")
@@ -60,7 +70,7 @@ def in_memory_run_bytes(scenario) -> float:
     the tick times, one float64 each per control tick (``log_columns() + REF_SIZE + 1`` per tick)."""
     from ..layout import REF_SIZE
 
-    return float(scenario.n_ticks) * (log_columns() + REF_SIZE + 1) * FLOAT_BYTES
+    return float(scenario.n_ticks) * (log_columns(scenario) + REF_SIZE + 1) * FLOAT_BYTES
 
 
 def check_in_memory_runs(scenarios, where: str) -> None:
@@ -70,14 +80,15 @@ def check_in_memory_runs(scenarios, where: str) -> None:
 
     scenarios = list(scenarios)
     ticks = sum(sc.n_ticks for sc in scenarios)
-    check_memory(f"{len(scenarios)} run(s), {ticks} ticks in all x ({log_columns()} log + {REF_SIZE} reference "
+    cols = max((log_columns(sc) for sc in scenarios), default=log_columns())
+    check_memory(f"{len(scenarios)} run(s), {ticks} ticks in all x ({cols} log + {REF_SIZE} reference "
                  f"+ 1 time) columns x {FLOAT_BYTES} bytes", sum(in_memory_run_bytes(sc) for sc in scenarios),
                  where, "shorten duration_s, lengthen dt_control_s or fly fewer runs at once")
 
 
 def max_duration_s(scenario, n_runs: int = 1) -> float:
     """The longest duration whose logs fit the budget at the scenario's control period."""
-    return MEMORY_BUDGET_BYTES / (n_runs * log_columns() * FLOAT_BYTES) * scenario.dt_control_s
+    return MEMORY_BUDGET_BYTES / (n_runs * log_columns(scenario) * FLOAT_BYTES) * scenario.dt_control_s
 
 
 def check_campaign_runs(runs: int, base_mapping: dict, where: str = "--runs") -> None:

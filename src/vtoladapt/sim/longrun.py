@@ -75,8 +75,8 @@ def stream_run(scenario: Scenario, out: str | Path, chunk_s: float = 60.0) -> Lo
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from .loop import LOG_COLUMNS, N_LOG
-    from ..control.kernel import state_P_inv, state_theta_hat
+    from .loop import log_columns
+    from ..control.step import diagnostics_columns, state_P_inv, state_theta_hat
     from .driver import controller_prior, prepare, run_chunk
 
     run = prepare(scenario)
@@ -85,8 +85,9 @@ def stream_run(scenario: Scenario, out: str | Path, chunk_s: float = 60.0) -> Lo
     n = scenario.n_ticks
     chunk = max(1, int(round(chunk_s / dt)))
     x = run.x0.copy()
-    log = np.empty((chunk, N_LOG))
-    schema = pa.schema([(c, pa.float64()) for c in LOG_COLUMNS])
+    columns = log_columns(diagnostics_columns(run.controller_params))
+    log = np.empty((chunk, len(columns)))
+    schema = pa.schema([(c, pa.float64()) for c in columns])
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     R_err = P_sym = theta_out = 0.0
@@ -100,16 +101,16 @@ def stream_run(scenario: Scenario, out: str | Path, chunk_s: float = 60.0) -> Lo
             done, reason = run_chunk(run, x, k0, k1, log[:k1 - k0])
             rows = log[:done]
             if done:
-                writer.write_table(pa.Table.from_arrays([pa.array(rows[:, i]) for i in range(N_LOG)],
+                writer.write_table(pa.Table.from_arrays([pa.array(rows[:, i]) for i in range(len(columns))],
                                                         schema=schema))
                 groups += 1
                 q = rows[:, 1 + X_Q_WB:1 + X_Q_WB + 4]
                 R_err = max(R_err, float(rotation_orthonormality_error(q).max()))
-            P = np.linalg.inv(state_P_inv(run.controller_state))
+            P = np.linalg.inv(state_P_inv(run.controller_params, run.controller_state))
             P_sym = max(P_sym, float(np.linalg.norm(P - P.T) / np.linalg.norm(P)))
             eig = np.linalg.eigvalsh(0.5 * (P + P.T))
             eig_min, eig_max = min(eig_min, float(eig[0])), max(eig_max, float(eig[-1]))
-            th = state_theta_hat(run.controller_state)
+            th = state_theta_hat(run.controller_params, run.controller_state)
             theta_out = max(theta_out, float(np.max(np.maximum(lower - th, 0.0))),
                             float(np.max(np.maximum(th - upper, 0.0))))
             rss = _rss_MB()

@@ -32,16 +32,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..control.adaptation import lyapunov_at
-from ..control.kernel import (
-    CONTROLLER_DIAG_COLUMNS,
-    DIAG_Q_TILDE,
-    DIAG_V_TILDE,
-    S_GAMMA,
-    S_THETA,
-    controller_step,
-    set_last_command,
-)
+from ..control.step import controller_lyapunov, controller_step, set_last_command
 from ..forces import airflow_angles
 from ..layout import (
     CMD_SIZE,
@@ -64,19 +55,26 @@ from .plant import RK4_WORK_SIZE, plant_advance, plant_first_stage
 from ..sensors import sensors_step
 from ..wind import wind_step
 
-N_DIAG = len(CONTROLLER_DIAG_COLUMNS)
-
-LOG_COLUMNS: tuple[str, ...] = (
+_LOG_HEAD: tuple[str, ...] = (
     ("t_s",) + STATE_COLUMNS + WIND_COLUMNS
     + ("v_i_x_mps", "v_i_y_mps", "v_i_z_mps", "airspeed_mps", "alpha_rad", "beta_rad",
        "f_B_x_mps2", "f_B_y_mps2", "f_B_z_mps2")
     + MEASUREMENT_COLUMNS + REFERENCE_COLUMNS + COMMAND_COLUMNS
     + ("motor1_cmd_frac", "motor2_cmd_frac", "motor3_cmd_frac", "motor4_cmd_frac", "pusher_cmd_frac",
-       "mixer_saturated")
-    + tuple(CONTROLLER_DIAG_COLUMNS)
-    + ("lyapunov_V", "faults_active")
-)
-"""Names of the log columns, in order; units are in the names (see README, "Log columns")."""
+       "mixer_saturated"))
+_LOG_TAIL: tuple[str, ...] = ("lyapunov_V", "faults_active")
+
+
+def log_columns(diag_columns) -> tuple[str, ...]:
+    """Names of a run's log columns, in order, units in the names (README, "Log columns"): the controller's
+    diagnostics (``vtoladapt.control.step.diagnostics_columns`` of its parameters) are the run's law's and basis's."""
+    return _LOG_HEAD + tuple(diag_columns) + _LOG_TAIL
+
+
+def log_size(n_diag: int) -> int:
+    """The log row's length for ``n_diag`` diagnostics columns."""
+    return len(_LOG_HEAD) + n_diag + len(_LOG_TAIL)
+
 
 _C_STATE = 1
 _C_WIND = _C_STATE + X_SIZE
@@ -87,14 +85,11 @@ _C_REF = _C_MEAS + MEAS_SIZE
 _C_CMD = _C_REF + REF_SIZE
 _C_MOTOR = _C_CMD + CMD_SIZE
 _C_DIAG = _C_MOTOR + N_MOTORS + 1
-_C_LYAP = _C_DIAG + N_DIAG
-_C_FAULTS = _C_LYAP + 1
-N_LOG = _C_FAULTS + 1
-assert N_LOG == len(LOG_COLUMNS)
+assert _C_DIAG == len(_LOG_HEAD)
 
 
 @njit(cache=True, nogil=True, _nrt=False)
-def tick_sense(x, plant_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state, ref, t, dt, rng,
+def tick_sense(x, plant_p, ctrl_fns, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state, ref, t, dt, rng,
                run_controller, v_wind, f_B, v_i, meas, cmd, diag, work) -> None:
     """First half of controller tick at time ``t``: steps 1-3 of the module docstring.
 
@@ -108,7 +103,7 @@ def tick_sense(x, plant_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_
     plant_first_stage(x, v_wind, plant_p, f_B, v_i, work)
     sensors_step(sens_p, sens_state, t, dt, x, f_B, v_i, rng, meas)
     if run_controller:
-        controller_step(ctrl_p, ctrl_state, meas, ref, dt, cmd, diag)
+        controller_step(ctrl_fns, ctrl_p, ctrl_state, meas, ref, dt, cmd, diag)
 
 
 @njit(cache=True, nogil=True, _nrt=False)
@@ -126,22 +121,22 @@ def report_mixed(ctrl_state, motor_cmd, saturated) -> None:
 
 
 @njit(cache=True, nogil=True, _nrt=False)
-def tick_actuate(x, plant_p, mixer_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag,
+def tick_actuate(x, plant_p, mixer_p, ctrl_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag,
                  motor_cmd, work, theta_true, gamma, row) -> None:
     """Second half of the tick at time ``t``: steps 4-6 (mix ``cmd``, log, advance the plant by ``dt``).
 
-    ``row`` is the tick's log row (length :data:`N_LOG`), or an empty array to skip logging.
+    ``row`` is the tick's log row (length :func:`log_size`), or an empty array to skip logging.
     ``work`` must hold the first RK4 stage :func:`tick_sense` evaluated at this ``x``.
     """
     saturated = mix(cmd, mixer_p, motor_cmd)
     report_mixed(ctrl_state, motor_cmd, saturated)
-    tick_log_advance(x, plant_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag, motor_cmd,
+    tick_log_advance(x, plant_p, ctrl_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag, motor_cmd,
                      saturated, 0.0, work, theta_true, gamma, row)
 
 
 @njit(cache=True, nogil=True, _nrt=False)
-def tick_log_advance(x, plant_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag, motor_cmd,
-                     saturated, faults_active, work, theta_true, gamma, row) -> None:
+def tick_log_advance(x, plant_p, ctrl_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag,
+                     motor_cmd, saturated, faults_active, work, theta_true, gamma, row) -> None:
     """Steps 5-6 of the tick: log the tick into ``row`` (unless empty), advance the plant with ``motor_cmd``."""
     if row.shape[0] > 0:
         row[0] = t
@@ -164,16 +159,16 @@ def tick_log_advance(x, plant_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i
         for i in range(N_MOTORS):
             row[_C_MOTOR + i] = motor_cmd[i]
         row[_C_MOTOR + N_MOTORS] = 1.0 if saturated else 0.0
-        for i in range(N_DIAG):
+        n_diag = diag.shape[0]
+        for i in range(n_diag):
             row[_C_DIAG + i] = diag[i]
-        row[_C_LYAP] = lyapunov_at(diag[DIAG_V_TILDE], diag[DIAG_V_TILDE + 1], diag[DIAG_V_TILDE + 2],
-                                   diag[DIAG_Q_TILDE], ctrl_state, S_THETA, ctrl_state, S_GAMMA, theta_true, gamma)
-        row[_C_FAULTS] = faults_active
+        row[_C_DIAG + n_diag] = controller_lyapunov(ctrl_p, ctrl_state, diag, theta_true, gamma)
+        row[_C_DIAG + n_diag + 1] = faults_active
     plant_advance(x, motor_cmd, v_wind, plant_p, dt / n_sub, n_sub, True, work)
 
 
 @njit(cache=True, nogil=True)
-def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state,
+def run_closed_loop(x, plant_p, mixer_p, ctrl_fns, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state,
                     ref_table, t0, dt, n_sub, rng, theta_true, gamma, faults, fault_state, envelope,
                     log) -> tuple:
     """Simulate up to ``ref_table.shape[0]`` controller ticks from time ``t0``, one row of ``log`` per tick.
@@ -182,7 +177,8 @@ def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state,
     ``envelope`` (:func:`vtoladapt.sim.monitor.check_envelope`), the ticks completed before it and the
     reason code; ``x`` is then the offending state and only ``log[:ticks_done]`` is written.
     ``faults`` is the fault schedule (``(n, FAULT_ROW_SIZE)``, possibly empty) and ``fault_state``
-    its state (:mod:`vtoladapt.sim.faults`).
+    its state (:mod:`vtoladapt.sim.faults`). ``ctrl_fns`` are the controller's law and basis functions
+    (:func:`vtoladapt.control.step.controller_functions` of ``ctrl_p``).
 
     ``x``, ``ctrl_state``, ``wind_state``, ``sens_state`` and ``fault_state`` are advanced in
     place, so a run can be continued. The loop releases the GIL: runs with their own arrays and
@@ -198,7 +194,7 @@ def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state,
     v_i = np.empty(3)
     meas = np.empty(MEAS_SIZE)
     cmd = np.zeros(CMD_SIZE)
-    diag = np.zeros(N_DIAG)
+    diag = np.zeros(log.shape[1] - _C_DIAG - len(_LOG_TAIL))
     motor_cmd = np.zeros(N_MOTORS)
     work = np.empty(RK4_WORK_SIZE)
     u_max = mixer_p[MX_U_MAX]
@@ -208,13 +204,13 @@ def run_closed_loop(x, plant_p, mixer_p, ctrl_p, ctrl_state, wind_p, wind_state,
         if reason != REASON_OK:
             return k, reason
         t = t0 + k * dt
-        tick_sense(x, plant_p, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state, ref, t, dt, rng,
-                   False, v_wind, f_B, v_i, meas, cmd, diag, work)
+        tick_sense(x, plant_p, ctrl_fns, ctrl_p, ctrl_state, wind_p, wind_state, sens_p, sens_state, ref, t, dt,
+                   rng, False, v_wind, f_B, v_i, meas, cmd, diag, work)
         apply_measurement_faults(faults, fault_state, t, dt, meas)
-        controller_step(ctrl_p, ctrl_state, meas, ref, dt, cmd, diag)
+        controller_step(ctrl_fns, ctrl_p, ctrl_state, meas, ref, dt, cmd, diag)
         saturated = mix(cmd, mixer_p, motor_cmd)
         report_mixed(ctrl_state, motor_cmd, saturated)
         apply_actuator_faults(faults, fault_state, t, u_max, motor_cmd)
-        tick_log_advance(x, plant_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag,
+        tick_log_advance(x, plant_p, ctrl_p, ctrl_state, ref, t, dt, n_sub, v_wind, f_B, v_i, meas, cmd, diag,
                          motor_cmd, saturated, active_mask(faults, t), work, theta_true, gamma, log[k])
     return n_ticks, check_envelope(x, envelope, ref_table[n_ticks - 1])
