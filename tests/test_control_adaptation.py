@@ -5,14 +5,18 @@ The adaptation kernel is driven directly with synthetic regressors and a known t
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from numba import njit
 from scipy.integrate import solve_ivp
-from scipy.optimize import minimize
+from scipy.linalg import expm
+from scipy.optimize import lsq_linear, minimize
 
 from vtoladapt import forces
 from vtoladapt.control import adaptation as ad
+from vtoladapt.control import exact_step
 from vtoladapt.control.kernel import default_theta_bounds
 
 DT = 0.004
@@ -358,3 +362,207 @@ def test_lyapunov_function_matches_its_definition(rng):
     gamma = 2.5
     expected = 0.5 * v @ v + (2 - 2 * q0) / gamma + 0.5 * (th - tt) @ Pinv @ (th - tt)
     assert ad.lyapunov_function(v, q0, th, Pinv, tt, gamma) == pytest.approx(expected, rel=1e-13)
+
+
+# --- the tracking mode's gain k P0 under the projection (issue #25) --------------------------------
+
+def _tracking_step(P0, theta, lo, hi, Phi, v_tilde, k, dt=DT):
+    """One tick of the tracking mode (gain ``k P0``, sigma 0): ``(theta' = step / dt, bounds held)``."""
+    x = np.zeros(ad.MEM_SIZE + ad.WORK_SIZE)
+    prior = np.zeros(ad.PRIOR_SIZE)
+    x[ad.MEM_THETA:ad.MEM_THETA + N] = theta
+    prior[ad.PRIOR_THETA0:ad.PRIOR_THETA0 + N] = theta
+    prior[ad.PRIOR_LOWER:ad.PRIOR_LOWER + N] = lo
+    prior[ad.PRIOR_UPPER:ad.PRIOR_UPPER + N] = hi
+    prior[ad.PRIOR_GAMMA0:ad.PRIOR_GAMMA0 + N * N] = np.linalg.inv(P0).ravel()
+    prior[ad.PRIOR_P0:ad.PRIOR_P0 + N * N] = P0.ravel()
+    R = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    n_act, _, _ = ad.weighted_adaptation_step(ad.ADAPT_TRACKING, x, 0, ad.MEM_SIZE, prior, 0,
+                                              tuple(tuple(r) for r in Phi), R, tuple(v_tilde), dt, 1.0, dt, 0.0,
+                                              np.inf, 0, 1.0, 1.0, False, k)
+    return (x[ad.MEM_THETA:ad.MEM_THETA + N] - theta) / dt, n_act
+
+
+def test_tracking_gain_scale_survives_the_projection_with_any_number_of_bounds_held(rng):
+    """The tracking law's gain is ``k P0``: its projected step is ``k`` times P0's, whatever the bounds held.
+
+    Reference: the projection of ``k P0 tau`` onto the box's tangent cone in the metric
+    ``(k P0)^-1``, from SciPy's SLSQP. Before the fix the free step of a projection holding five
+    or more bounds was P0's whatever ``k`` (ratio 1.0 instead of 0.1).
+    """
+    lo, hi = -np.ones(N), np.ones(N)
+    held_counts = set()
+    for trial in range(80):
+        P0 = _random_spd(rng)
+        Phi = rng.normal(size=(3, N))
+        v_tilde = rng.normal(size=3)
+        d_unit = P0 @ (Phi.T @ v_tilde)
+        theta = rng.uniform(-0.5, 0.5, N)
+        at = rng.choice(N, size=rng.integers(0, N + 1), replace=False)
+        theta[at] = np.where(d_unit[at] > 0, hi[at], lo[at])           # parked where the law points out
+        step_1, n1 = _tracking_step(P0, theta, lo, hi, Phi, v_tilde, 1.0)
+        for k in (0.1, 0.37):
+            step_k, nk = _tracking_step(P0, theta, lo, hi, Phi, v_tilde, k)
+            assert nk == n1 >= 0
+            np.testing.assert_allclose(step_k, k * step_1, rtol=1e-9, atol=1e-12 * np.abs(step_1).max())
+        held_counts.add(n1)
+        K = 0.1 * P0
+        d0 = K @ (Phi.T @ v_tilde)
+        C = np.linalg.cholesky(np.linalg.inv(K))            # metric K^-1 = C C^T: min |C^T (d - d0)|^2
+        upper = np.where(theta >= hi, 0.0, np.inf)
+        lower = np.where(theta <= lo, 0.0, -np.inf)
+        sol = lsq_linear(C.T, C.T @ d0, bounds=(lower, upper), method="bvls", tol=1e-14)
+        assert sol.success
+        step_k, _ = _tracking_step(P0, theta, lo, hi, Phi, v_tilde, 0.1)
+        np.testing.assert_allclose(step_k, sol.x, rtol=1e-7, atol=1e-9 * np.abs(d0).max())
+    assert {0, 1, 2, 3, 4, 5, 6} <= held_counts                # both of the projection's systems exercised
+
+
+# --- bounds that respect the signs physics gives (issue #25) ---------------------------------------
+
+KNOWN_SIGNS = {"CTx": 1, "CTz": 1, "CS": 1, "CD0": 1, "CD1": 0, "CD2": 1, "CL0": 0, "CL1": 1}
+"""From physics, not from the code: thrust is along the rotor axis (C_T > 0); the rotor's in-plane
+force opposes the flow (C_S >= 0); drag at zero alpha and its quadratic growth are >= 0; the lift
+slope is > 0; the linear drag term and the zero-alpha lift of a cambered or symmetric wing have
+either sign."""
+
+
+def test_theta_bounds_respect_the_signs_physics_gives(any_vehicle):
+    """No bound lets a coefficient of known sign change it (before: C_S's lower bound was -0.5 theta_0,
+    a rotor side force along the flow, with the caltech_vtol's bound_fraction 1.5)."""
+    from vtoladapt.vehicle import PARAMETER_NAMES, parameter_signs
+
+    assert dict(zip(PARAMETER_NAMES, parameter_signs())) == KNOWN_SIGNS
+    th0 = any_vehicle.theta_scaled
+    lo, hi = default_theta_bounds(any_vehicle, th0)
+    for i, name in enumerate(PARAMETER_NAMES):
+        if KNOWN_SIGNS[name] > 0:
+            assert lo[i] >= 0.0, name
+        assert lo[i] <= th0[i] <= hi[i]
+    # the rule is general: with every bound at 5 |theta_0| each known-positive coefficient stops
+    # at 0 and the others keep their symmetric room
+    wide = any_vehicle.replace(adaptation=replace(any_vehicle.adaptation, bound_fraction=(5.0,) * N))
+    lo, hi = default_theta_bounds(wide, th0)
+    for i, name in enumerate(PARAMETER_NAMES):
+        half = max(5.0 * abs(th0[i]), 3.0 * any_vehicle.theta_std_scaled[i])
+        assert hi[i] == pytest.approx(th0[i] + half, rel=1e-12)
+        expected_lo = 0.0 if KNOWN_SIGNS[name] > 0 else th0[i] - half
+        assert lo[i] == pytest.approx(expected_lo, rel=1e-12, abs=0.0)
+
+
+def test_posterior_bounds_respect_the_signs_physics_gives(caltech):
+    """A fitted posterior's bounds follow the same rule (one place for it)."""
+    from vtoladapt.fitting.posterior import Posterior, controller_prior
+
+    theta = caltech.force_model.as_table_theta()
+    std = caltech.force_model_std.as_table_theta() * 4.0       # a wide posterior: 3 std reach past zero
+    post = Posterior(theta_table=theta, std_table=std, k1=caltech.force_model.k1, k2=caltech.force_model.k2,
+                     k1_std=0.01, k2_std=0.05, ci95={}, covariance=None, diagnostics={}, reference={}, raw={},
+                     source="test")
+    lower = controller_prior(post, caltech).lower_bounds_scaled
+    for i, name in enumerate(KNOWN_SIGNS):
+        if KNOWN_SIGNS[name] > 0:
+            assert lower[i] >= 0.0, name
+    assert lower[4] < 0.0                                       # CD1 (either sign) may still cross zero
+
+
+# --- the constant-P law holds P at P0 (issue #25) ---------------------------------------------------
+
+def _pconst_steps(P0, theta, W, a_m, Phi, v_tilde, sigma, w_pred, dt, n):
+    """``n`` ticks of the constant-P mode with everything held; theta-hat after them (bounds far away)."""
+    x = np.zeros(ad.MEM_SIZE + ad.WORK_SIZE)
+    prior = np.zeros(ad.PRIOR_SIZE)
+    x[ad.MEM_THETA:ad.MEM_THETA + N] = theta
+    x[ad.MEM_W:ad.MEM_W + 3 * N] = W.ravel()
+    x[ad.MEM_A_M:ad.MEM_A_M + 3] = a_m
+    x[ad.MEM_GAMMA:ad.MEM_GAMMA + N * N] = np.linalg.inv(P0).ravel()
+    prior[ad.PRIOR_THETA0:ad.PRIOR_THETA0 + N] = 0.0
+    prior[ad.PRIOR_LOWER:ad.PRIOR_LOWER + N] = -1e9
+    prior[ad.PRIOR_UPPER:ad.PRIOR_UPPER + N] = 1e9
+    prior[ad.PRIOR_GAMMA0:ad.PRIOR_GAMMA0 + N * N] = np.linalg.inv(P0).ravel()
+    prior[ad.PRIOR_P0:ad.PRIOR_P0 + N * N] = P0.ravel()
+    R = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    for _ in range(n):
+        ad.weighted_adaptation_step(ad.ADAPT_PCONST, x, 0, ad.MEM_SIZE, prior, 0, tuple(tuple(r) for r in Phi), R,
+                                    tuple(v_tilde), dt, 1.0, dt, sigma, np.inf, 0, 1.0, w_pred, False, 1.0)
+    return x[ad.MEM_THETA:ad.MEM_THETA + N].copy()
+
+
+def _pconst_exact(P0, theta, W, a_m, Phi, v_tilde, sigma, w_pred, dt):
+    """The continuous law with P = P0 over one tick, inputs held, sigma's term frozen at its start:
+    ``theta' = P0 (Phi^T v~ - w W^T (W theta - a_m) - sigma theta_k)``, from scipy's expm."""
+    A = w_pred * W.T @ W
+    c = Phi.T @ v_tilde + w_pred * W.T @ a_m - sigma * theta
+    M = np.zeros((N + 1, N + 1))
+    M[:N, :N] = -P0 @ A
+    M[:N, N] = P0 @ c
+    return (expm(M * dt) @ np.append(theta, 1.0))[:N]
+
+
+def test_constant_p_step_is_the_exact_solution_of_the_law_with_p0(rng, caltech):
+    """One tick of composite_pconst is the continuous law ``theta' = P0 tau`` solved exactly over the
+    tick. Before, the backward-Euler step had the gain ``(P0^-1 + dt W^T W)^-1``: 183 instead of 200
+    along C_Tz in hover, and its step 4 % short of the exact one there."""
+    for trial in range(20):
+        P0 = _random_spd(rng) * 10.0 ** rng.uniform(-1, 2)
+        W = rng.normal(size=(3, N)) * 10.0 ** rng.uniform(-2, 1)
+        theta = rng.normal(size=N)
+        a_m, Phi, v_t = rng.normal(size=3), rng.normal(size=(3, N)), rng.normal(size=3)
+        sigma, w_pred = rng.uniform(0, 1e-3), rng.uniform(0.2, 1.0)
+        exact = _pconst_exact(P0, theta, W, a_m, Phi, v_t, sigma, w_pred, DT)
+        got = _pconst_steps(P0, theta, W, a_m, Phi, v_t, sigma, w_pred, DT, 1)
+        np.testing.assert_allclose(got - theta, exact - theta, rtol=1e-8, atol=1e-12 * np.abs(exact - theta).max())
+    # hover: C_Tz alone is excited; P stays 200 along it, the tick's step is 200's exact one
+    W = np.empty((3, N))
+    forces.regressor(np.zeros(3), 0.0, 0.585, caltech.model_kernel, W)
+    P0 = np.diag(caltech.adaptation.P0_diag)
+    theta = caltech.theta_scaled.copy()
+    a_m = W @ theta + np.array([0.0, 0.0, -0.5])       # 0.5 m/s^2 more lift than the model's
+    zero = np.zeros((3, N))
+    got = _pconst_steps(P0, theta, W, a_m, zero, np.zeros(3), 0.0, 1.0, DT, 1)
+    exact = _pconst_exact(P0, theta, W, a_m, zero, np.zeros(3), 0.0, 1.0, DT)
+    np.testing.assert_allclose(got, exact, rtol=1e-12, atol=1e-14)
+    euler_gain = 1.0 / (1.0 / 200.0 + DT * W[2, 1] ** 2)
+    assert euler_gain == pytest.approx(183.0, abs=0.5)               # the reviewer's number
+    gain = (got[1] - theta[1]) / (DT * -W[2, 1] * 0.5)               # step / (dt tau_CTz), tau = -W^T e
+    x = DT * 200.0 * W[2, 1] ** 2
+    assert gain == pytest.approx(200.0 * -np.expm1(-x) / x, rel=1e-10)   # P0 phi(dt P0 W^T W): 191
+
+
+def test_constant_p_law_does_not_depend_on_the_tick(rng, caltech):
+    """With P = P0 and the inputs held, one second of the law is the same at 250 Hz and at 2 kHz
+    (the exact step); the backward-Euler step's gain fell with dt P0 W^T W (1 % apart here)."""
+    W = np.empty((3, N))
+    forces.regressor(np.array([9.0, 0.0, 1.5]), 0.4, 0.4, caltech.model_kernel, W)
+    P0 = np.diag(caltech.adaptation.P0_diag)
+    theta = caltech.theta_scaled.copy()
+    a_m = W @ (theta * 1.1)
+    zero = np.zeros((3, N))
+    slow = _pconst_steps(P0, theta, W, a_m, zero, np.zeros(3), 0.0, 1.0, 0.004, 25)
+    fast = _pconst_steps(P0, theta, W, a_m, zero, np.zeros(3), 0.0, 1.0, 0.0005, 200)
+    assert np.abs(slow - theta).max() > 1e-3
+    np.testing.assert_allclose(slow, fast, rtol=1e-10, atol=1e-13)
+
+
+def test_symmetric_eigen3_and_phi_psi_against_numpy(rng):
+    for A in [np.diag([3.0, 1.0, 2.0]), np.zeros((3, 3)), np.ones((3, 3)), np.eye(3) * 5.0]\
+            + [(lambda B: B @ B.T)(rng.normal(size=(3, 3)) * 10.0 ** rng.uniform(-8, 8)) for _ in range(30)]:
+        a = A.ravel().copy()
+        Q = np.empty(9)
+        exact_step.symmetric_eigen3(a, 0, Q, 0)
+        Q = Q.reshape(3, 3)
+        lam = np.diag(a.reshape(3, 3))
+        np.testing.assert_allclose(np.sort(lam), np.linalg.eigvalsh(A), rtol=1e-12, atol=1e-13 * np.abs(A).max())
+        np.testing.assert_allclose(Q @ Q.T, np.eye(3), atol=1e-14)
+        np.testing.assert_allclose(Q @ np.diag(lam) @ Q.T, A, rtol=1e-12, atol=1e-13 * np.abs(A).max())
+    for x in np.concatenate([[0.0], np.logspace(-12, 3, 200)]):
+        phi, psi = exact_step.phi_psi(x)
+        ref_phi = 1.0 if x == 0 else float(-np.expm1(-x) / x)
+        # psi = sum_k (-x)^k / (k+2)!, summed in extended precision where the closed form cancels
+        if x < 2.0:
+            xl = np.longdouble(x)
+            ref_psi = float(sum((-xl) ** k / np.prod(np.arange(1, k + 3, dtype=np.longdouble)) for k in range(60)))
+        else:
+            ref_psi = (x + np.expm1(-x)) / x ** 2
+        assert phi == pytest.approx(ref_phi, rel=1e-14)
+        assert psi == pytest.approx(ref_psi, rel=1e-12)

@@ -13,7 +13,8 @@ from vtoladapt.fitting.posterior import (POSTERIOR_FORMAT, POSTERIOR_NAMES, Post
                                          apply_posterior, controller_prior, load_posterior,
                                          posterior_dict_from_fit, posterior_from_dict,
                                          vehicle_with_posterior, write_posterior)
-from vtoladapt.vehicle import PARAMETER_NAMES
+from vtoladapt.control.kernel import default_theta_bounds
+from vtoladapt.vehicle import PARAMETER_NAMES, parameter_signs
 
 
 @pytest.fixture(scope="module")
@@ -92,7 +93,10 @@ def test_controller_prior_of_table1_is_the_vehicles_own_prior(veh):
     np.testing.assert_array_equal(cp.P0_diag_scaled, veh.adaptation.P0_diag)
     half = np.maximum(3.0 * veh.theta_std_scaled, np.array(veh.adaptation.bound_fraction) * np.abs(veh.theta_scaled))
     np.testing.assert_allclose(cp.upper_bounds_scaled - cp.theta_0_scaled, half, rtol=1e-12)
-    np.testing.assert_allclose(cp.theta_0_scaled - cp.lower_bounds_scaled, half, rtol=1e-12)
+    # below, cut at zero where physics gives the sign (C_S's 1.5 |theta_0| would reach -0.5 theta_0)
+    lower = np.where(parameter_signs() > 0, np.maximum(veh.theta_scaled - half, 0.0), veh.theta_scaled - half)
+    np.testing.assert_allclose(cp.lower_bounds_scaled, lower, rtol=1e-12, atol=0.0)
+    np.testing.assert_array_equal(cp.lower_bounds_scaled, default_theta_bounds(veh)[0])
 
 
 @settings(max_examples=examples(60), deadline=None)
@@ -102,7 +106,8 @@ def test_controller_prior_of_table1_is_the_vehicles_own_prior(veh):
 # a subnormal n_sigma makes every half-width vanish below rounding: the box must still open
 @example(scale=[1.0] * 10, rel_sd=[1.0] * 10, n_sigma=2.225073858507203e-309, frac=0.0)
 def test_controller_prior_rule(scale, rel_sd, n_sigma, frac):
-    """Bounds contain theta_0 and are exactly theta_0 -+ max(n_sigma std, fraction |theta_0|)."""
+    """Bounds contain theta_0 and are exactly theta_0 -+ max(n_sigma std, fraction |theta_0|), the lower
+    one cut at 0 for a coefficient physics makes non-negative."""
     veh = vtoladapt.load_vehicle("caltech_vtol")
     means, _ = table1(veh)
     means = {n: means[n] * s for n, s in zip(POSTERIOR_NAMES, scale)}
@@ -118,7 +123,9 @@ def test_controller_prior_rule(scale, rel_sd, n_sigma, frac):
     half = np.maximum(n_sigma * sd, frac * np.abs(th0))
     # up to the rounding of (theta_0 + half) - theta_0
     assert np.all(np.abs((cp.upper_bounds_scaled - th0) - half) <= 1e-12 * (half + np.abs(th0)))
-    assert np.all(np.abs((th0 - cp.lower_bounds_scaled) - half) <= 1e-12 * (half + np.abs(th0)))
+    cut = (parameter_signs() > 0) & (th0 - half < 0.0)
+    assert np.all(cp.lower_bounds_scaled[cut] == 0.0)
+    assert np.all(np.abs((th0 - cp.lower_bounds_scaled) - half)[~cut] <= 1e-12 * (half + np.abs(th0))[~cut])
     if n_sigma > 0:
         assert np.all(cp.upper_bounds_scaled > th0)
 

@@ -114,6 +114,27 @@ class ForceModelCoefficients(Validated):
         return np.array([getattr(self, n) for n in PARAMETER_NAMES])
 
 
+def parameter_signs() -> np.ndarray:
+    """The sign physics gives each adapted parameter (:data:`PARAMETER_NAMES` order): +1 never negative,
+    -1 never positive, 0 either.
+
+    Read from the ranges :class:`ForceModelCoefficients` declares (a lower limit ``gt`` or ``ge`` of
+    0 or more: +1; an upper limit ``lt`` or ``le`` of 0 or less: -1), the one place they are
+    stated: thrust along the rotor axis (C_Tx, C_Tz > 0), the rotor's in-plane force against the
+    flow (C_S >= 0), drag at zero alpha and its quadratic growth (C_D0, C_D2 >= 0), a positive lift
+    slope (C_L1 > 0); the linear drag term and the zero-alpha lift have either sign. The adaptation
+    scaling multiplies by positive factors only, so the signs hold for theta-hat too.
+    """
+    fields = {f.name: f.metadata for f in dataclasses.fields(ForceModelCoefficients)}
+    signs = []
+    for name in PARAMETER_NAMES:
+        m = fields[name]
+        low = m["gt"] if m["gt"] is not None else m["ge"]
+        high = m["lt"] if m["lt"] is not None else m["le"]
+        signs.append(1 if low is not None and low >= 0.0 else -1 if high is not None and high <= 0.0 else 0)
+    return np.array(signs)
+
+
 @dataclass(frozen=True)
 class ForceModelStd(Validated):
     """Posterior standard deviations of the force model (Table I), same units as the means."""

@@ -384,9 +384,12 @@ def evaluate(spec: BasisSpec, x: np.ndarray) -> np.ndarray:
 
 
 def physics_signs() -> np.ndarray:
-    """Known signs of the paper's eight parameters from their physics (``CTx, CTz, CL1 > 0``; ``CS, CD0,
-    CD2 >= 0``; ``CD1``, ``CL0`` either sign): the first :data:`N_PHYSICS` entries of every basis's ``sign``."""
-    return np.array([1.0, 1.0, 1.0, 1.0, 0.0, 1.0, 0.0, 1.0])
+    """Known signs of the paper's eight parameters from their physics (:func:`vtoladapt.vehicle.parameter_signs`:
+    ``CTx, CTz, CL1 > 0``; ``CS, CD0, CD2 >= 0``; ``CD1``, ``CL0`` either sign): the first :data:`N_PHYSICS`
+    entries of every basis's ``sign``."""
+    from ..vehicle import parameter_signs
+
+    return parameter_signs().astype(float)
 
 
 __all__ = ["BASES", "DEFAULT_BASIS", "INPUT", "INPUT_SIZE", "MAX_PARAMETERS", "N_PHYSICS", "REGRESSOR_SIGNATURE", "REQUIRED",

@@ -48,14 +48,20 @@ III's P0 it is). The step is therefore implicit in the terms linear in theta-hat
 
     theta_k+1 = theta_k + dt K tau_k,
     K = Gamma_k+1^-1 = P_k+1                  (composite: Gamma_k+1 already holds b W^T W)
-      = (Gamma_0 + dt W^T W)^-1               (composite_pconst)
+      = phi(dt P_0 W^T W) P_0                 (composite_pconst, phi(X) = X^-1 (I - e^-X))
       = P_0                                   (tracking_only: no W term)
 
-(``Gamma_k+1`` before the trace cap), i.e. backward Euler in the prediction-error term. It is
-stable for any W and dt, equals the continuous law to first order in dt, has the same stationary
-points (``tau = 0``), and for the composite law is the exact recursive-least-squares update. The
-sigma term stays explicit (stable while ``dt sigma lambda_max(P0) < 2``, checked when the
-parameters are built), so that the composite law's gain is exactly P.
+(``Gamma_k+1`` before the trace cap). For the composite law this is backward Euler in the
+prediction-error term, the exact recursive-least-squares update. For the constant-P law it is the
+exact solution over the tick of ``theta' = P_0 tau`` with W, a_m and the tracking term held: P is
+P_0, and the tick's ``K`` is what the continuous law does in ``dt`` (191 along C_Tz in hover with
+Table III's 200, ``dt P_0 W^T W`` = 0.094). (Backward Euler there, ``K = (Gamma_0 + dt W^T W)^-1``,
+had put 183 and made the law depend on the tick.) Both are stable for any W and dt, equal the
+continuous law to first order in dt and have its stationary points (``tau = 0``). The sigma term
+stays explicit (stable while ``dt sigma lambda_max(P0) < 2``, checked when the parameters are
+built), so that the composite law's gain is exactly P.
+
+The constant-P law's ``K`` is formed as its inverse through the 3 x 3 ``W P_0 W^T`` (:mod:`.exact_step`).
 
 Extensions (not in the paper; off in :func:`adaptation_step`)
 --------------------------------------------------------------
@@ -86,6 +92,7 @@ from numba import njit
 
 from ..frames import rows_transpose_times
 from ..layout import BlockLayout, Field
+from .exact_step import EXACT_WORK, constant_gain_inverse
 
 SPECIALISED_N = 8
 """The number of parameters the hot kernels are also compiled for with constant loop lengths: the paper's
@@ -145,7 +152,7 @@ def work_layout(n: int) -> BlockLayout:
     """
     m = (n // 2) ** 2
     return BlockLayout("adaptation scratch", [
-        Field("WTW", n * n, "-", "W^T W, then (composite_pconst) the gain's inverse"),
+        Field("WTW", n * n, "-", "W^T W (composite), or the constant-P gain's inverse"),
         Field("M", n * n, "-", "L^-1 for the Cholesky factor L of the gain's inverse"),
         Field("L", n * n, "-", "L"),
         Field("K", n * n, "-", "the gain K, formed only to project"),
@@ -161,6 +168,8 @@ def work_layout(n: int) -> BlockLayout:
         Field("SWD", 3 * n, "-", "directional forgetting: (S^-1 W D)^T (n x 3)"),
         Field("S", 9, "-", "directional forgetting: S = W Gamma W^T (3 x 3)"),
         Field("S_FACTOR", 9, "-", "directional forgetting: S's Cholesky factor"),
+        Field("EXACT", EXACT_WORK.size + 3 * n, "-", "the constant-P law's exact step (exact_step.EXACT_WORK, "
+              "then W^T S, n x 3)"),
     ])
 
 
@@ -172,12 +181,12 @@ AT = BlockLayout("adaptation offsets", [
       for name in ("THETA0", "THETA_INIT", "LOWER", "UPPER", "GAMMA0", "P0")),
     *(Field(name, 1, "-", f"offset of the scratch's {name} in the memory array")
       for name in ("WTW", "M", "L", "K", "TAU", "D0", "D", "P_DIAG", "SYSTEM", "FACTOR", "RHS", "MU",
-                   "DWT", "SWD", "S", "S_FACTOR")),
+                   "DWT", "SWD", "S", "S_FACTOR", "EXACT")),
 ])
 """Where the blocks sized by n are: one slot per offset (absolute, in the arrays the kernels get)."""
 (AT_N, AT_THETA, AT_GAMMA, AT_W, AT_A_M, AT_THETA0, AT_THETA_INIT, AT_LOWER, AT_UPPER, AT_GAMMA0, AT_P0,
  AT_WTW, AT_M, AT_L, AT_K, AT_TAU, AT_D0, AT_D, AT_P_DIAG, AT_SYSTEM, AT_FACTOR, AT_RHS, AT_MU, AT_DWT,
- AT_SWD, AT_S, AT_S_FACTOR) = AT.offsets(*(f.name for f in AT.fields))
+ AT_SWD, AT_S, AT_S_FACTOR, AT_EXACT) = AT.offsets(*(f.name for f in AT.fields))
 
 
 def offsets_table(n: int, memory_at: int, prior_at: int, work_at: int) -> np.ndarray:
@@ -759,17 +768,22 @@ def _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b,
     d = int(at[a + AT_D])
     sa, sl, rhs, mu = int(at[a + AT_SYSTEM]), int(at[a + AT_FACTOR]), int(at[a + AT_RHS]), int(at[a + AT_MU])
     if mode == ADAPT_TRACKING:
-        # K = P0
+        # K = gain_scale P0. The direction P0 tau is projected with P0 and its inverse, then scaled:
+        # the projection of k P0 tau in the metric (k P0)^-1 is k times that of P0 tau in the metric
+        # P0^-1. (Projecting k P0 tau with P0's matrices mixed the two: the free-set system
+        # K^-1[F, F], solved when five or more bounds are held, gave P0's free step whatever k.)
         for i in range(n):
             x[p_diag + i] = gain_scale * prior[p0 + n * i + i]
             t = 0.0
             for j in range(n):
                 t += prior[p0 + n * i + j] * x[tau + j]
-            x[d0 + i] = gain_scale * t
+            x[d0 + i] = t
         if bounded:
-            # the projection in the P0 metric is the same for any positive multiple of P0
             n_active, active = project_direction(prior, p0, prior, gamma0, x, tau, d0, d, sa, sl, rhs, mu,
                                                  at_upper, at_lower, active_set, n)
+        scaled = d if bounded else d0
+        for i in range(n):
+            x[scaled + i] *= gain_scale
     else:
         G = int(at[a + AT_WTW])
         gram(x, wf, x, G, n)
@@ -784,11 +798,10 @@ def _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b,
                 information_update(x, gam, prior, gamma0, x, G, forget_a, w_pred * forget_b, n)
             G = gam
         else:
-            # backward Euler in the prediction term: K = (P0^-1 + dt W^T W)^-1
+            # P = P0, solved exactly over the tick: K = phi(dt P0 W^T W) P0, formed as its inverse
             for i in range(n):
                 x[p_diag + i] = prior[p0 + n * i + i]
-                for j in range(n):
-                    x[G + n * i + j] = prior[gamma0 + n * i + j] + w_pred * dt * x[G + n * i + j]
+            constant_gain_inverse(x, wf, prior, p0, gamma0, G, int(at[a + AT_EXACT]), w_pred * dt, n)
         M = int(at[a + AT_M])
         L = int(at[a + AT_L])
         if not cholesky_lower(x, G, x, L, n):

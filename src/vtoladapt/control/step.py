@@ -176,10 +176,9 @@ def _vector(name: str, value, n: int) -> np.ndarray:
 def theta_bound_half_widths(theta_0, theta_std, bound_fraction, bound_sigmas: float) -> np.ndarray:
     """Half-widths of the theta-hat box: ``max(bound_fraction |theta_0|, bound_sigmas |std|)``.
 
-    The one rule for the bounds, whether theta_0 comes from the vehicle file or a fitted posterior.
-    Never narrower than ``1e-13 |theta_0|`` (1e-13 where theta_0 = 0): well above rounding, far
-    below any real bound, so a degenerate setting cannot give a zero-width box that freezes
-    theta-hat.
+    :func:`theta_bounds` applies them (and the signs physics gives). Never narrower than
+    ``1e-13 |theta_0|`` (1e-13 where theta_0 = 0): well above rounding, far below any real bound,
+    so a degenerate setting cannot give a zero-width box that freezes theta-hat.
     """
     th0 = np.asarray(theta_0, dtype=float)
     half = np.maximum(np.asarray(bound_fraction, dtype=float) * np.abs(th0),
@@ -187,19 +186,36 @@ def theta_bound_half_widths(theta_0, theta_std, bound_fraction, bound_sigmas: fl
     return np.maximum(half, 1e-13 * np.where(th0 != 0.0, np.abs(th0), 1.0))
 
 
+def theta_bounds(theta_0, theta_std, bound_fraction, bound_sigmas: float, signs) -> tuple[np.ndarray, np.ndarray]:
+    """Box bounds of theta-hat: ``theta_0 +- max(bound_fraction |theta_0|, bound_sigmas |std|)``
+    (:func:`theta_bound_half_widths`), cut at zero where a coefficient's sign is known from physics
+    (``signs``, the basis's :attr:`~vtoladapt.bases.BasisSpec.sign`; for the paper's columns
+    :func:`vtoladapt.vehicle.parameter_signs`): a non-negative one's lower bound is at least 0, a
+    non-positive one's upper bound at most 0.
+
+    The one rule for the bounds, whether theta_0 comes from the vehicle file or a fitted posterior.
+    (Without the cut the caltech_vtol's ``bound_fraction`` 1.5 on C_S let theta-hat reach
+    ``-0.5 theta_0``: a rotor side force along the flow.)
+    """
+    th0 = np.asarray(theta_0, dtype=float)
+    half = theta_bound_half_widths(th0, theta_std, bound_fraction, bound_sigmas)
+    signs = np.asarray(signs)
+    lower = np.where(signs > 0, np.maximum(th0 - half, 0.0), th0 - half)
+    upper = np.where(signs < 0, np.minimum(th0 + half, 0.0), th0 + half)
+    return lower, upper
+
+
 def default_theta_bounds(vehicle, theta_0=None, theta_std=None, basis: BasisSpec | None = None
                          ) -> tuple[np.ndarray, np.ndarray]:
-    """Box bounds of theta-hat: ``theta_0 +- max(bound_fraction |theta_0|, bound_sigmas std)``.
+    """Box bounds of theta-hat (:func:`theta_bounds`) with the basis's ``bound_fraction``, ``bound_sigmas``
+    and signs (default: the vehicle's basis, :func:`vtoladapt.bases.describe_basis`).
 
-    ``bound_fraction``, ``bound_sigmas`` and the default ``theta_0`` and ``std`` (Table I) are the
-    basis's (default: the vehicle's basis, :func:`vtoladapt.bases.describe_basis`), all in the
-    adaptation scaling (:func:`theta_bound_half_widths`).
+    ``theta_0`` and ``std`` default to the basis's prior (Table I for the paper's), all in the adaptation scaling.
     """
     spec = describe_basis(vehicle) if basis is None else basis
     th0 = spec.theta_scaled if theta_0 is None else _vector("theta_0", theta_0, spec.n)
     std = spec.std_scaled if theta_std is None else _vector("theta_std", theta_std, spec.n)
-    half = theta_bound_half_widths(th0, std, spec.bound_fraction, spec.bound_sigmas)
-    return th0 - half, th0 + half
+    return theta_bounds(th0, std, spec.bound_fraction, spec.bound_sigmas, spec.sign)
 
 
 def initial_gain(P0_diag, n: int) -> np.ndarray:
@@ -460,4 +476,4 @@ __all__ = ["BASIS_FUNCTION", "LAW_FUNCTION", "basis_block", "basis_names", "cont
            "estimate_offsets", "function_addresses", "functions_at", "information_sum", "initial_gain", "law_of_params",
            "layout_of_params", "set_last_command", "set_state_theta_hat", "state_P", "state_P_inv",
            "state_filtered_accel", "state_filtered_regressor", "state_last_command", "state_law_field",
-           "state_theta_hat", "state_wind_estimate", "theta_bound_half_widths", "theta_hat_of_diag"]
+           "state_theta_hat", "state_wind_estimate", "theta_bound_half_widths", "theta_bounds", "theta_hat_of_diag"]

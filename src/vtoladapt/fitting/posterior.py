@@ -24,8 +24,9 @@ From a posterior to the controller (:func:`controller_prior`)
   ``k1`` (:func:`vtoladapt.models.theta_to_scaled`);
 * the theta-hat bounds are ``theta_0 -+ max(n_sigma * std, fraction * |theta_0|)`` per parameter,
   with ``std`` the posterior standard deviation (scaled the same way) and ``n_sigma``,
-  ``fraction`` the vehicle's ``[adaptation] bound_sigmas`` (3) and ``bound_fraction``: the same
-  rule the vehicle file applies to Table I's std, now with the fitted spread;
+  ``fraction`` the vehicle's ``[adaptation] bound_sigmas`` (3) and ``bound_fraction``, cut at 0
+  where physics gives the coefficient's sign: the same rule the vehicle file applies to Table I's
+  std (:func:`vtoladapt.control.step.theta_bounds`), now with the fitted spread;
 * ``P0`` = the vehicle's ``[adaptation] P0_diag`` (Table III) unless given.
 
 Fly with a posterior by using both :func:`vehicle_with_posterior` (the controller's force model
@@ -232,10 +233,11 @@ def controller_prior(posterior: Posterior, vehicle: Vehicle, *, P0_diag=None,
         raise PosteriorError("controller_prior: bound_fraction and bound_sigmas must be >= 0")
     theta0 = theta_to_scaled(posterior.theta_table, posterior.k1)
     std = theta_to_scaled(posterior.std_table, posterior.k1)
-    from ..control.step import theta_bound_half_widths  # the controller's own rule, one place
+    from ..control.step import theta_bounds  # the controller's own rule, one place
+    from ..vehicle import parameter_signs
 
-    half = theta_bound_half_widths(theta0, std, frac, n_sigma)
-    return ControllerPrior(theta0, P0.copy(), theta0 - half, theta0 + half)
+    lower, upper = theta_bounds(theta0, std, frac, n_sigma, parameter_signs())
+    return ControllerPrior(theta0, P0.copy(), lower, upper)
 
 
 def vehicle_with_posterior(vehicle: Vehicle, posterior: Posterior) -> Vehicle:

@@ -17,8 +17,8 @@ from typing import Optional
 
 from ..config import (NAME_PATTERN, PATH_PATTERN, ConfigError, Validated, build, read_toml, refuse_internal_keys,
                      setting)
-from ..control.settings import (SCENARIO_DT_DEFAULT_S, SCENARIO_DT_RANGE_S, ControllerConfig, check_rate_matches_dt,
-                             rate_from_dt)
+from ..control.settings import (SCENARIO_DT_DEFAULT_S, SCENARIO_DT_RANGE_S, ControllerConfig,
+                               check_rate_matches_dt, rate_from_dt)
 from ..control.registry import controller_ids, theta_adaptive_ids
 from .faults import FaultConfig
 from .monitor import EnvelopeConfig
@@ -28,7 +28,6 @@ from ..vehicle import Vehicle, load_vehicle
 from ..wind import WindConfig
 
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
-"""The shipped scenarios (vtoladapt/scenarios, beside the sim package)."""
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,9 @@
 """The composite law with P held at P0 (the paper's controller II).
 
-As :mod:`.composite`, with ``P' = 0``: the prediction-error term is stepped with the gain
-``(P0^-1 + dt W^T W)^-1`` (backward Euler, see :mod:`vtoladapt.control.adaptation`) and P stays P0.
+As :mod:`.composite`, with ``P' = 0``: P stays P0, and ``theta-hat' = P0 tau`` is solved exactly
+over each tick with the regressor held (gain ``phi(dt P0 W^T W) P0``, see
+:mod:`vtoladapt.control.adaptation`), so the law does not depend on the tick. (Until issue #25 a
+backward-Euler step, gain ``(P0^-1 + dt W^T W)^-1``: 183 instead of 200 along C_Tz in hover.)
 """
 from __future__ import annotations
 

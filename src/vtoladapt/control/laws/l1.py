@@ -76,12 +76,18 @@ Start-up, dt changes, faults
 * ``new_dt`` recomputes ``e^{-a_s T}``, ``Phi(T)^-1 e^{-a_s T}``, the filter gain and the bleed.
 * The law uses no accelerometer and needs no probe (the fallback incident velocity only changes
   ``f_applied``, and ``sigma-hat`` absorbs its error), so it ignores ``may_adapt`` and never
-  adapts theta-hat (``adapt_active`` is False). The interface passes no fault bits to a law: a
-  held velocity is recognised as a velocity equal, to the bit, to the last tick's (what the front
-  end's last-good-value hold produces; a real 250 Hz velocity with noise never repeats). Then
-  ``sigma-hat`` is frozen and bled (``fault_bleed_s``), the filter keeps running, and the next
-  fresh sample re-seats the predictor (one tick without an update), so that an outage is not
+  adapts theta-hat (``adapt_active`` is False). A velocity the front end holds because the
+  measurement was not plausible (``FAULT_VELOCITY`` in the tick's ``FAULTS``, the front end's fault
+  bits) freezes ``sigma-hat`` and bleeds it (``fault_bleed_s``); the filter keeps running, and the
+  next good sample re-seats the predictor (one tick without an update), so that an outage is not
   read as one tick's acceleration.
+* A velocity equal to the last tick's is not a fault: a sample-and-hold source (motion capture
+  slower than the loop, a replayed log) repeats its samples. The predictor and the
+  piecewise-constant law run on every tick against the held sample, so the estimate on a held
+  tick says "no acceleration" and the next fresh sample's tick the rest; the estimate's mean is
+  the source's slope and ``C(s)`` filters the ripple. (Until issue #25 a repeat counted as a
+  fault: with 100 Hz motion capture in a 250 Hz loop the predictor was re-seated on 60 % of the
+  ticks and the estimate never built up.)
 * Anything non-finite in the law's memory (impossible for the sanitised inputs, but guarded)
   restarts it from the measured velocity with ``sigma-hat = 0`` and sets ``FAULT_ADAPTATION``.
 """
@@ -98,8 +104,8 @@ from ...layout import BlockLayout, Field
 from .. import adaptation as ad
 from ...frames import rows_times
 from ..blocks import (
-    A_N, A_PHI, A_THETA, D_LAW, FAULT_ADAPTATION, P_ACC_MAX, P_K_V, P_LAW, S_LAW, T_DT, T_NEW_DT, T_V_R_DOT,
-    T_V_TILDE, T_V_W, law_offsets,
+    A_N, A_PHI, A_THETA, D_LAW, FAULT_ADAPTATION, FAULT_VELOCITY, P_ACC_MAX, P_K_V, P_LAW, S_LAW, T_DT, T_FAULTS,
+    T_NEW_DT, T_V_R_DOT, T_V_TILDE, T_V_W, law_offsets,
 )
 from ..tracking import force_command, limit_norm
 from . import LawContext, finish, law_update, tick3, tick_R
@@ -236,12 +242,14 @@ def model_force_W(params, state, R) -> tuple:
 
 
 @njit(cache=True, inline="always")
-def l1_estimate(params, state, v_W, f_now) -> int:
-    """Predictor, piecewise-constant adaptation and filter for one tick (module notes); returns ``FAULT_*`` bits."""
+def l1_estimate(params, state, v_W, f_now, held) -> int:
+    """Predictor, piecewise-constant adaptation and filter for one tick (module notes); returns ``FAULT_*`` bits.
+
+    ``held``: the front end is holding the last good velocity (this tick's was not plausible).
+    """
     decay = state[S_GAINS_L1 + G_DECAY]
     k_adapt = state[S_GAINS_L1 + G_ADAPT]
     phi = (1.0 - decay) / params[P_A_S]
-    held = (v_W[0] == state[S_V_HOLD] and v_W[1] == state[S_V_HOLD + 1] and v_W[2] == state[S_V_HOLD + 2])
     faults = 0
     if state[S_RUNNING] > 0.0 and not held:
         for i in range(3):
@@ -295,7 +303,8 @@ def update(params, state, tick, diag):
     """
     if tick[T_NEW_DT] > 0.0:
         update_gains(params, state, tick[T_DT])
-    faults = l1_estimate(params, state, tick3(tick, T_V_W), model_force_W(params, state, tick_R(tick)))
+    held = (int(tick[T_FAULTS]) & FAULT_VELOCITY) != 0
+    faults = l1_estimate(params, state, tick3(tick, T_V_W), model_force_W(params, state, tick_R(tick)), held)
     K_v = (params[P_K_V], params[P_K_V + 1], params[P_K_V + 2])
     f_b = force_command(tick3(tick, T_V_R_DOT), tick3(tick, T_V_TILDE), K_v)
     s = (state[S_SIGMA_LPF], state[S_SIGMA_LPF + 1], state[S_SIGMA_LPF + 2])
