@@ -16,9 +16,11 @@ import pytest
 from PIL import Image
 
 from vtoladapt.cli import format_vehicle, main
-from vtoladapt.control.registry import CONTROLLER_IDS
+from vtoladapt.control.registry import controller_ids
 from vtoladapt.sim.run_metrics import METRIC_INFO, metric_label
 from vtoladapt.vehicle import load_vehicle, vehicle_from_mapping
+
+CONTROLLER_IDS = controller_ids()
 
 SNAKE_KEY = re.compile(r"^[a-z0-9]+(_[a-z0-9]+)+$")
 

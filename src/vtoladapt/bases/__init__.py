@@ -125,7 +125,8 @@ class BasisSpec:
     """One basis for one vehicle: what :func:`describe` returns (arrays of length ``n``).
 
     ``names``: parameter names; ``units``: their Table-I units (throttle in percent); ``scale``:
-    ``theta_scaled = theta_table * scale`` (the adaptation scaling, throttle as a fraction);
+    ``theta_scaled = theta_table * scale`` (the adaptation scaling, throttle as a fraction), in which
+    the units are ``scaled_units`` (default: the Table-I unit where the scale is 1);
     ``theta_table``, ``std_table``: the prior mean and standard deviation (Table-I units);
     ``P0_diag``: the initial adaptation gain (adaptation scaling); ``bound_fraction``,
     ``bound_sigmas``: theta-hat stays within ``max(bound_fraction |theta_0|, bound_sigmas std)``
@@ -152,6 +153,7 @@ class BasisSpec:
     work_size: int = 0
     physics: str = ""
     source: str = ""
+    scaled_units: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.names)
@@ -164,6 +166,12 @@ class BasisSpec:
             raise ValueError(f"basis {self.id!r}: parameter names {list(self.names)} repeat")
         if len(self.units) != n:
             raise ValueError(f"basis {self.id!r}: {len(self.units)} units for {n} parameters")
+        if not self.scaled_units:
+            # a column the scaling leaves alone has its Table-I unit
+            object.__setattr__(self, "scaled_units", tuple(u if s == 1.0 else "adaptation units"
+                                                           for u, s in zip(self.units, np.asarray(self.scale))))
+        if len(self.scaled_units) != n:
+            raise ValueError(f"basis {self.id!r}: {len(self.scaled_units)} scaled units for {n} parameters")
         for field in ("scale", "theta_table", "std_table", "P0_diag", "bound_fraction", "sign", "wing"):
             a = np.array(getattr(self, field), dtype=bool if field == "wing" else float)
             if a.shape != (n,) or (field != "wing" and not np.all(np.isfinite(a))):

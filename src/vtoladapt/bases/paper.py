@@ -27,6 +27,12 @@ BLOCK_K1, BLOCK_K2 = 0, 1
 """The constants block: the side-force exponent ``k1`` and offset ``k2`` (eq:model_Fs)."""
 WING_COLUMNS = np.array([False, False, False, True, True, True, True, True])
 """Drag and lift are the wing's; thrust and the rotor side force are not."""
+SCALED_UNITS: dict[str, str] = {
+    "CTx": "m/s²", "CTz": "m/s²", "CS": "m^(k1−1) s^(−k1)", "CD0": "-", "CD1": "1/rad",
+    "CD2": "1/rad²", "CL0": "-", "CL1": "1/rad"}
+"""Unit of each parameter in the adaptation scaling (throttle u as a fraction in [0, 1], forces per unit
+mass), the scaling the controller adapts and the logs hold. CS multiplies ``u^k1 V^(2-k1)``
+(eq:model_Fs), so its unit, (m/s^2) / (m/s)^(2-k1), depends on k1."""
 
 PHYSICS = ("Thrust T = CT u^2 of the pusher (x) and the lift rotors (z); rotor side force CS G(alpha, V, u_z) "
            "against the in-plane flow; wing lift CL0 + CL1 alpha and drag CD0 + CD1 alpha + CD2 alpha^2 "
@@ -51,7 +57,8 @@ def describe(vehicle, settings: PaperSettings) -> BasisSpec:
     """The basis for ``vehicle``: Table I (mean and std), Table III (P0) and the vehicle's bounds rule."""
     fm = vehicle.force_model
     return BasisSpec(
-        id="paper", names=PARAMETER_NAMES, units=units(), scale=theta_scale(fm.k1),
+        id="paper", names=PARAMETER_NAMES, units=units(), scaled_units=tuple(SCALED_UNITS[n] for n in PARAMETER_NAMES),
+        scale=theta_scale(fm.k1),
         theta_table=fm.as_table_theta(), std_table=vehicle.force_model_std.as_table_theta(),
         P0_diag=np.array(vehicle.adaptation.P0_diag), bound_fraction=np.array(vehicle.adaptation.bound_fraction),
         bound_sigmas=vehicle.adaptation.bound_sigmas, sign=physics_signs(), wing=WING_COLUMNS,

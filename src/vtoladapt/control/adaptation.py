@@ -189,6 +189,14 @@ AT = BlockLayout("adaptation offsets", [
  AT_SWD, AT_S, AT_S_FACTOR, AT_EXACT) = AT.offsets(*(f.name for f in AT.fields))
 
 
+def standalone_arrays(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(at, x, prior)`` for one adaptation of n parameters outside the controller (replay, tests): the
+    offsets table, the memory followed by the scratch in ``x`` and the prior in ``prior`` (zeros; fill them
+    through :func:`memory_layout` and :func:`prior_layout`, e.g. ``memory_layout(n).view(x, "THETA")``)."""
+    memory, work, prior = memory_layout(n), work_layout(n), prior_layout(n)
+    return offsets_table(n, 0, 0, memory.size), np.zeros(memory.size + work.size), np.zeros(prior.size)
+
+
 def offsets_table(n: int, memory_at: int, prior_at: int, work_at: int) -> np.ndarray:
     """The :data:`AT` table of n parameters whose memory starts at ``memory_at`` and scratch at
     ``work_at`` (of the memory array) and prior at ``prior_at`` (of the prior array)."""
@@ -873,4 +881,4 @@ __all__ = ["ADAPT_COMPOSITE", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "A
            "factor_apply", "factor_diag", "flush_tiny", "forgetting_weights", "gram", "gram_of_factor",
            "information_update", "inverse_factor", "lowpass", "lowpass_gain", "lyapunov_at", "lyapunov_function",
            "memory_layout", "offsets_table", "prediction_error", "prior_layout", "project_direction",
-           "spd_inverse", "weighted_adaptation_step", "work_layout"]
+           "spd_inverse", "standalone_arrays", "weighted_adaptation_step", "work_layout"]

@@ -20,8 +20,7 @@ from ..frames import GRAVITY_MPS2
 from ..sim.run_metrics import metric_label
 from ..sim.results import SimulationResult
 from ..sim.scenario import Scenario
-from ..vehicle import PARAMETER_NAMES
-from .metrics import THETA_SCALED_UNITS, fan_speed_series, fan_throttle_series
+from .metrics import fan_speed_series, fan_throttle_series
 from .report import _save_figure
 
 
@@ -109,12 +108,17 @@ def new_figure(nrows: int, ncols: int, figsize: tuple, **kwargs):
 # --- convergence -----------------------------------------------------------------------------------
 def plot_parameter_convergence(scenario: Scenario, results: list[SimulationResult]):
     """theta-hat of every random-start run over time, 1-3 sigma bands across runs, fan wind."""
+    from .metrics import _basis
+
     t = results[0].time_s
+    names = results[0].theta_names
+    units = dict(zip(names, _basis(scenario).scaled_units))
     theta = np.stack([r.theta_hat for r in results])
-    truth = np.array(results[0].metadata["theta_true_scaled"])
+    truth = np.array(results[0].metadata["theta_true_scaled"])  # empty where the basis has no plant truth
     wind = fan_speed_series(scenario, t)
-    fig, axes = new_figure(4, 2, figsize=(11, 10), sharex=True)
-    for i, name in enumerate(PARAMETER_NAMES):
+    rows = (len(names) + 1) // 2
+    fig, axes = new_figure(rows, 2, figsize=(11, 2.5 * rows), sharex=True, squeeze=False)
+    for i, name in enumerate(names):
         ax = axes[i // 2, i % 2]
         mean = theta[:, :, i].mean(axis=0)
         std = theta[:, :, i].std(axis=0, ddof=1)
@@ -124,8 +128,9 @@ def plot_parameter_convergence(scenario: Scenario, results: list[SimulationResul
         for run in theta:
             ax.plot(t, run[:, i], color="C0", lw=0.4, alpha=0.5)
         ax.plot(t, mean, color="C0", lw=1.5, label="mean θ̂" if i == 0 else None)
-        ax.axhline(truth[i], color="k", ls=":", lw=1, label="plant's linear part" if i == 0 else None)
-        ax.set_ylabel(f"{name} [{THETA_SCALED_UNITS[name]}]")
+        if truth.size == len(names):
+            ax.axhline(truth[i], color="k", ls=":", lw=1, label="plant's linear part" if i == 0 else None)
+        ax.set_ylabel(f"{name} [{units[name]}]")
         ax.grid(alpha=0.3)
         ax2 = ax.twinx()
         ax2.plot(t, wind, color="0.5", lw=1.0, ls="--", label="fan wind" if i == 0 else None)
@@ -244,7 +249,7 @@ def plot_single_run(scenario: Scenario, result: SimulationResult):
     axes[1].set_ylabel("velocity error [m/s]")
     theta = result.theta_hat
     rel = theta / np.where(theta[0] != 0, theta[0], 1.0)
-    for i, name in enumerate(PARAMETER_NAMES):
+    for i, name in enumerate(result.theta_names):
         axes[2].plot(t, rel[:, i], lw=0.9, ls=_LINESTYLES[i // 4 % len(_LINESTYLES)], label=name)
     axes[2].set_ylabel("θ̂ / θ̂(0) [-]")
     if all(c in result for c in PRED_ERR_COLUMNS):

@@ -26,19 +26,22 @@ CAMPAIGN_ROW_BYTES = 4096
 
 def log_columns(scenario=None) -> int:
     """Columns of a simulation log (one float64 each per control tick): of ``scenario``'s controller (its
-    basis's n, the widest diagnostics of the registered laws), or of the paper's eight-parameter basis."""
+    basis's n parameters, its law's diagnostics; of a comparison the widest of its laws'), or without a
+    scenario of the paper's eight-parameter basis and the registered law with the most diagnostics."""
     from .loop import log_size
     from ..control.step import diagnostics_size_for
 
-    n = 8
-    if scenario is not None:
-        from ..bases import describe_basis
+    if scenario is None:
+        return log_size(diagnostics_size_for(8))
+    from ..bases import describe_basis
 
-        try:
-            n = describe_basis(scenario.load_vehicle(), scenario.controller.basis).n
-        except ConfigError:
-            pass  # an unknown basis is refused, naming the file, when the run is prepared
-    return log_size(diagnostics_size_for(n))
+    try:
+        n = describe_basis(scenario.load_vehicle(), scenario.controller.basis).n
+    except ConfigError:
+        n = 8  # an unknown basis is refused, naming the file, when the run is prepared
+    laws = (scenario.experiment.controllers if scenario.experiment.kind == "comparison"
+            else (scenario.controller.kind,))
+    return log_size(max(diagnostics_size_for(n, law) for law in laws))
 
 
 def experiment_runs(scenario) -> int:
