@@ -65,8 +65,9 @@ class Registry(Mapping):
         The package's own members. Their modules are imported on first use, not here (importing a
         kind must stay cheap).
     package : str
-        Where a relative ``module`` name (no dot) of a member is looked up, e.g.
-        ``"vtoladapt.control.laws"``.
+        Where the package's own members' ``module`` names without a dot are looked up, e.g.
+        ``"vtoladapt.control.laws"``; a member registered by a call or an entry point names its
+        module absolutely (``"my_laws"``, ``"my_package.my_law"``).
     """
 
     def __init__(self, kind: str, check: Callable[[ModuleType], None], builtins, package: str = ""):
@@ -77,9 +78,11 @@ class Registry(Mapping):
         self.package = package
         self._members: dict[str, Any] = {}
         self._checked: set[str] = set()
+        self._builtin: set[str] = set()
         self._entry_points_read = False
         for info in builtins:
             self._add(info, replace=False, check_now=False)
+            self._builtin.add(info.id)
         with _LOCK:
             _KINDS[kind] = self
 
@@ -130,9 +133,10 @@ class Registry(Mapping):
         return module
 
     def module_name(self, info) -> str:
-        """The absolute dotted name of a member's module."""
+        """The absolute dotted name of a member's module (a package member's may be relative to ``package``)."""
         name = info.module
-        return name if "." in name or not self.package else f"{self.package}.{name}"
+        relative = "." not in name and self.package and self._members.get(info.id) is info and info.id in self._builtin
+        return f"{self.package}.{name}" if relative else name
 
     # --- registration ----------------------------------------------------------------------------
     def _add(self, info, *, replace: bool, check_now: bool) -> None:
@@ -146,7 +150,8 @@ class Registry(Mapping):
                 raise ValueError(f"{self.kind} {member_id!r} is registered already (from "
                                  f"{self.module_name(self._members[member_id])}); pass replace=True to replace it")
             if check_now:
-                self.check(_import_module(self.module_name(info)))
+                self._builtin.discard(member_id)   # a member added now names its module absolutely
+                self.check(_import_module(info.module))
                 self._checked.add(member_id)
             else:
                 self._checked.discard(member_id)

@@ -15,16 +15,22 @@ from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
+from numba import njit
 
 from .. import forces
 from ..config import Validated
+from ..layout import BlockLayout, Field
 from ..scaling import theta_scale
 from ..vehicle import PARAMETER_NAMES, ForceModelCoefficients
 from . import IN_FLOW, IN_U, BasisSpec, physics_signs, regressor_kernel
 
 N_THETA = forces.N_THETA
-BLOCK_K1, BLOCK_K2 = 0, 1
-"""The constants block: the side-force exponent ``k1`` and offset ``k2`` (eq:model_Fs)."""
+BLOCK = BlockLayout("paper basis constants", [
+    Field("K1", 1, "-", "side-force exponent on rotor speed (eq:model_Fs)"),
+    Field("K2", 1, "rad", "side-force asymmetry offset (eq:model_Fs)"),
+])
+"""The constants the regressor reads (a basis with extra columns starts its block with these)."""
+BLOCK_K1, BLOCK_K2 = BLOCK.offsets("K1", "K2")
 WING_COLUMNS = np.array([False, False, False, True, True, True, True, True])
 """Drag and lift are the wing's; thrust and the rotor side force are not."""
 SCALED_UNITS: dict[str, str] = {
@@ -62,7 +68,7 @@ def describe(vehicle, settings: PaperSettings) -> BasisSpec:
         theta_table=fm.as_table_theta(), std_table=vehicle.force_model_std.as_table_theta(),
         P0_diag=np.array(vehicle.adaptation.P0_diag), bound_fraction=np.array(vehicle.adaptation.bound_fraction),
         bound_sigmas=vehicle.adaptation.bound_sigmas, sign=physics_signs(), wing=WING_COLUMNS,
-        block=np.array([fm.k1, fm.k2]), regressor=regressor, physics=PHYSICS,
+        block=BLOCK.pack(K1=fm.k1, K2=fm.k2), regressor=regressor, physics=PHYSICS,
         source=f"Table I of {vehicle.name}")
 
 
@@ -77,13 +83,21 @@ def truth(coefficients: Mapping[str, float], spec: BasisSpec) -> np.ndarray:
     return table * theta_scale(coefficients["k1"])
 
 
-@regressor_kernel
-def regressor(block, x, phi, work):
-    """:func:`vtoladapt.forces.regressor_at` on the input's flow and throttles, written row-major."""
+@njit(cache=True, inline="always")
+def paper_columns(block, x, phi, n) -> None:
+    """Write the paper's eight columns (:func:`vtoladapt.forces.regressor_at` on the input's flow and
+    throttles, ``k1``, ``k2`` at ``block[0:2]``) as the first eight of each row of ``phi`` (3 x n,
+    row-major): the physics part of every basis, which a basis with extra columns calls first."""
     f = IN_FLOW
     flow = (x[f], x[f + 1], x[f + 2], x[f + 3], x[f + 4], x[f + 5], x[f + 6], x[f + 7], x[f + 8])
     rows = forces.regressor_at(flow, x[IN_U], x[IN_U + 1], block[BLOCK_K1], block[BLOCK_K2])
     for r in range(3):
         row = rows[r]
         for k in range(N_THETA):
-            phi[N_THETA * r + k] = row[k]
+            phi[n * r + k] = row[k]
+
+
+@regressor_kernel
+def regressor(block, x, phi, work):
+    """The paper's regressor (:func:`paper_columns`), 3 x 8."""
+    paper_columns(block, x, phi, N_THETA)
