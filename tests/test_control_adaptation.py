@@ -16,6 +16,7 @@ from scipy.optimize import lsq_linear, minimize
 
 from vtoladapt import forces
 from vtoladapt.control import adaptation as ad
+from vtoladapt.control import linalg
 from vtoladapt.control import exact_step
 from vtoladapt.control.step import default_theta_bounds
 
@@ -339,31 +340,31 @@ def test_small_linear_algebra_against_numpy(rng):
     for _ in range(20):
         A = _random_spd(rng)
         out = np.empty(N * N)
-        assert ad.spd_inverse(A.ravel(), 0, out, 0, work, 0, N)
+        assert linalg.spd_inverse(A.ravel(), 0, out, 0, work, 0, N)
         out = out.reshape(N, N)
         np.testing.assert_allclose(out, np.linalg.inv(A), rtol=1e-10, atol=1e-12)
         assert np.array_equal(out, out.T)
         # matrices at offsets inside larger arrays
         store = np.zeros(5 + 2 * N * N)
         store[5:5 + N * N] = A.ravel()
-        assert ad.cholesky_lower(store, 5, work, 0, N)
-        ad.inverse_factor(work, 0, store, 5 + N * N, N)
+        assert linalg.cholesky_lower(store, 5, work, 0, N)
+        linalg.inverse_factor(work, 0, store, 5 + N * N, N)
         M = store[5 + N * N:].reshape(N, N)
         np.testing.assert_allclose(M, np.linalg.inv(np.linalg.cholesky(A)), rtol=1e-10, atol=1e-12)
         L = np.empty(N * N)
-        assert ad.cholesky_lower(A.ravel(), 0, L, 0, N)
+        assert linalg.cholesky_lower(A.ravel(), 0, L, 0, N)
         b = rng.normal(size=N)
         x = b.copy()
-        ad.cholesky_solve(L, 0, N, x, 0)
+        linalg.cholesky_solve(L, 0, N, x, 0)
         np.testing.assert_allclose(x, np.linalg.solve(A, b), rtol=1e-10, atol=1e-12)
         x = np.concatenate([[7.0], b])
-        ad.factor_apply(store, 5 + N * N, x, 1, N)
+        linalg.factor_apply(store, 5 + N * N, x, 1, N)
         np.testing.assert_allclose(x[1:], np.linalg.solve(A, b), rtol=1e-10, atol=1e-12)
         assert x[0] == 7.0
         dg = np.empty(N)
-        ad.factor_diag(store, 5 + N * N, dg, 0, N)
+        linalg.factor_diag(store, 5 + N * N, dg, 0, N)
         np.testing.assert_allclose(dg, np.diag(np.linalg.inv(A)), rtol=1e-10)
-    assert not ad.spd_inverse(-np.eye(N).ravel(), 0, out.ravel(), 0, work, 0, N)
+    assert not linalg.spd_inverse(-np.eye(N).ravel(), 0, out.ravel(), 0, work, 0, N)
 
 
 def test_lyapunov_function_matches_its_definition(rng):

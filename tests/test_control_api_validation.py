@@ -310,7 +310,8 @@ def test_a_table_without_keys_says_so():
 def _section_snippets() -> list[str]:
     text = README.read_text(encoding="utf-8")
     start = text.index("## Using the controller in your own loop")
-    end = text.index("\n## ", start + 1)
+    # "Adding a controller" is the recipe tests/test_readme_extensions.py runs (it registers a law)
+    end = text.index("\n### Adding a controller", start + 1)
     blocks = re.findall(r"```python\n(.*?)```", text[start:end], flags=re.S)
     # excerpts of the package's own files (they start with their path) are shown, not run
     return [b for b in blocks if not b.lstrip().startswith("# src/")]

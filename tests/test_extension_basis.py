@@ -18,6 +18,7 @@ vehicle file or a scenario's ``[controller] basis``. Checked against independent
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -68,10 +69,10 @@ def test_the_regressor_is_the_papers_columns_and_the_side_force(spec, rng):
 
 
 def test_a_vehicle_file_names_the_basis_and_gives_its_prior(registered, tmp_path):
-    text = (load_vehicle("caltech_vtol").source_path and
-            open(load_vehicle("caltech_vtol").source_path).read())
+    text = open(load_vehicle("caltech_vtol").source_path).read()
+    assert re.search(r'^basis = "paper" ', text, flags=re.M)          # the shipped file names its basis
     path = tmp_path / "v.toml"
-    path.write_text('basis = "paper_cy"\n' + text + "\n[basis_settings.paper_cy]\nCY_mean = -0.2\nCY_std = 0.1\n")
+    path.write_text(re.sub(r'^basis = "paper"', 'basis = "paper_cy"', text, flags=re.M) + "\n[basis_settings.paper_cy]\nCY_mean = -0.2\nCY_std = 0.1\n")
     veh = load_vehicle(path)
     spec = describe_basis(veh)
     assert spec.id == "paper_cy" and spec.theta_table[-1] == -0.2 and spec.std_table[-1] == 0.1
@@ -104,6 +105,14 @@ def _flight_log(veh, cy, duration_s=20.0, rate_hz=250.0):
                      v_W_mps=v_W, wind_W_mps=np.zeros((n, 3)), airspeed_pitot_mps=V, v_i_B_mps=v_B,
                      v_i_from_pitot=np.ones(n, bool), f_meas_B_mps2=f_B, throttle_x_pct=u_x, throttle_z_pct=u_z,
                      landed=np.zeros(n, bool))
+
+
+def test_the_command_line_lists_the_registered_basis(registered, capsys):
+    from vtoladapt.cli import main
+
+    assert main(["bases"]) == 0
+    out = capsys.readouterr().out
+    assert "paper_cy" in out and "9 parameters: CTx [m/s^2 per %^2]" in out and "CY [1/rad]" in out
 
 
 def test_replay_with_the_basis_recovers_the_side_force(spec):

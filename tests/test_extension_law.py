@@ -51,6 +51,16 @@ def test_the_registered_law_is_validated_like_a_shipped_one(registered):
     assert ExperimentConfig(kind="comparison", controllers=("composite", "example")).controllers[-1] == "example"
 
 
+def test_the_command_line_lists_and_runs_the_registered_law(registered, capsys):
+    from vtoladapt.cli import load_run_scenario, main
+
+    assert main(["controllers"]) == 0
+    assert any(line.split()[:1] == ["example"] and "a user's minimal law" in line
+               for line in capsys.readouterr().out.splitlines())
+    sc = load_run_scenario("gym_hold", duration_s=0.1, controller="example")
+    assert sc.controller.kind == "example"
+
+
 def _hover_scenario(kind: str, duration_s: float, **controller):
     return scenario_from_mapping({
         "name": "example-law", "vehicle": "caltech_vtol", "duration_s": duration_s, "seed": 2,

@@ -18,7 +18,8 @@ Package map
   :data:`.blocks.TICK` and the layout of one law and one basis (``BlockLayout``);
 * the equations: :mod:`.tracking` (eq:wr, eq:f_ctrl, eq:m_ctrl), :mod:`.attitude` (eq:fbar_solve,
   eq:alphad, eq:Rd and the hover blend), :mod:`.allocation` (eq:f_proj), :mod:`.adaptation`
-  (eq:prediction_error, eq:th_adapt, eq:P_adapt, projection, Lyapunov function);
+  (eq:prediction_error, eq:th_adapt, eq:P_adapt, projection, Lyapunov function; its n x n linear algebra
+  in :mod:`.linalg`, the constant-P step in :mod:`.exact_step`);
 * :mod:`.settings`: :class:`ControllerConfig` (``[controller]`` and the ``[controller.<id>]``
   tables; validated when made, in Python as from a file); each law's settings class is exported
   here too (:class:`PIDSettings`, :class:`L1Settings`, ...);

@@ -223,6 +223,12 @@ class ControllerConfig(Validated):
         return _law_settings_class(name)()
 
     @classmethod
+    def sub_tables(cls) -> dict[str, type]:
+        """The ``[controller.<id>]`` tables a file may hold, each the law's ``Settings`` class, for the
+        laws registered now (what documentation that walks the settings lists under ``controller``)."""
+        return {law_id: _law_settings_class(law_id) for law_id in controller_ids()}
+
+    @classmethod
     def table_extras(cls, data: Mapping[str, Any], source: str, section: str) -> tuple[dict, dict]:
         """The ``[controller.<id>]`` sub-tables of a registered law, built as that law's ``Settings``
         (:func:`vtoladapt.config.build`); the rest of the table is returned for the shared keys."""

@@ -35,6 +35,7 @@ from numba.extending import intrinsic
 
 from ..bases import REGRESSOR_SIGNATURE, BasisSpec, basis_key, basis_module, basis_of_key, describe_basis
 from . import adaptation as ad
+from .linalg import spd_inverse
 from .backend import back_end, default_law_diagnostics
 from .blocks import (
     A_A_M, A_BASIS, A_BASIS_SIZE, A_BASIS_WORK_SIZE, A_D_THETA_HAT, A_DIAG_SIZE, A_GAMMA, A_GAMMA0, A_INFO_SUM, A_N,
@@ -408,7 +409,7 @@ def state_P(params, state) -> np.ndarray:
     """The adaptation gain ``P`` (n, n), from the information matrix by Cholesky (a new array)."""
     n, _, gam = estimate_offsets(params)
     P = np.empty(n * n)
-    if not ad.spd_inverse(state, gam, P, 0, np.empty(2 * n * n), 0, n):
+    if not spd_inverse(state, gam, P, 0, np.empty(2 * n * n), 0, n):
         P[:] = np.nan
     return P.reshape((n, n))
 

@@ -177,6 +177,9 @@ def _settings_rows(cls: type, prefix: str = "") -> list[tuple[str, str, str]]:
             rows += _settings_rows(inner, sub)
         elif inner in (int, float):
             rows.append((key, f.metadata.get("unit", ""), _range_text(f.metadata)))
+    # tables named by a registry rather than by a field (a law's [controller.<id>])
+    for name, sub in getattr(cls, "sub_tables", dict)().items():
+        rows += _settings_rows(sub, f"{prefix}{name}.")
     return rows
 
 

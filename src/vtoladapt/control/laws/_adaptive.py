@@ -14,6 +14,7 @@ from numba import njit
 from ...bases import IN_V_I_B
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
+from .. import linalg
 from ..blocks import (A_D_P_DIAG, A_GAMMA, A_INFO_SUM, A_N, A_P0, A_PHI, A_W, A_WK_L, A_WK_M, A_WK_WTW, FAULT_ADAPTATION,
                       P_AD, P_V_LO, S_INPUT, S_SAT_PREV, T_DT, T_E, T_MAY_ADAPT, T_V_TILDE)
 from . import tick3, tick_R
@@ -137,15 +138,15 @@ def _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forge
             faults |= FAULT_ADAPTATION
     else:
         if not (mode == ad.ADAPT_COMPOSITE
-                and ad.cholesky_lower(state, int(params[A_GAMMA]), state, int(params[A_WK_L]), n)):
+                and linalg.cholesky_lower(state, int(params[A_GAMMA]), state, int(params[A_WK_L]), n)):
             if mode == ad.ADAPT_COMPOSITE:
                 faults |= FAULT_ADAPTATION
             p0 = int(params[A_P0])
             for i in range(n):
                 state[p_diag + i] = params[p0 + n * i + i]
         else:
-            ad.inverse_factor(state, int(params[A_WK_L]), state, int(params[A_WK_M]), n)
-            ad.factor_diag(state, int(params[A_WK_M]), state, p_diag, n)
+            linalg.inverse_factor(state, int(params[A_WK_L]), state, int(params[A_WK_M]), n)
+            linalg.factor_diag(state, int(params[A_WK_M]), state, p_diag, n)
     d = int(params[A_D_P_DIAG])
     for i in range(n):
         diag[d + i] = state[p_diag + i]
