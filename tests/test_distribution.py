@@ -183,3 +183,26 @@ def test_readme_tables_render_the_fixture_metrics(reproduced):
     frac = m["distribution"]["comparison"]["claims"]["adaptive_track_best"]
     assert f"({frac['successes']}/{frac['n']})" in text
     assert "src/vtoladapt/control/laws/l1.py" in text and not math.isnan(frac["fraction"])
+
+
+def test_wind_phases_of_the_paper_comparison():
+    """The comparison's schedule (fan 30 % at 5 s, +10 % every 5 s to 70 % at 30 s, off at 40 s):
+    rising 5-30 s, plateau 30-40 s, fan-off transient 40-45 s."""
+    from vtoladapt.experiments.metrics import fan_throttle_series, wind_phase_masks
+    from vtoladapt.sim.scenario import SCENARIO_DIR, load_scenario
+
+    comp = load_scenario(SCENARIO_DIR / "paper_comparison.toml")
+    t = np.arange(0.0, 50.0, 0.004)
+    masks = wind_phase_masks(t, fan_throttle_series(comp, t))
+    for name, (start, end) in {"rising": (5.0, 30.0), "plateau": (30.0, 40.0), "fan_off": (40.0, 45.0)}.items():
+        sel = t[masks[name]]
+        assert sel[0] == pytest.approx(start, abs=0.004) and sel[-1] == pytest.approx(end, abs=0.004), name
+    # a constant wind that never stops has no phases
+    still = wind_phase_masks(t, np.full(t.shape, 40.0))
+    assert not any(m.any() for m in still.values())
+
+
+def test_ablation_flies_the_controllers_the_claims_judge():
+    from vtoladapt.experiments.distribution import claim_controllers
+
+    assert claim_controllers(CONTROLLER_IDS) == ("composite", "composite_pconst", "tracking_only", "pid", "pd")

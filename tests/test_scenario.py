@@ -77,6 +77,28 @@ def test_result_parquet_round_trip(tmp_path):
     assert back.velocity_W.shape == (len(res), 3) and back.theta_hat.shape == (len(res), 8)
 
 
+def test_velocity_error_is_the_controllers_reference_velocity_row_by_row():
+    """``v~ = v - v_r`` of the log (computed for all rows at once) against the controller's own
+    :func:`~vtoladapt.control.tracking.reference_velocity` row by row, with the correction limit
+    reached on part of the run (starting 0.8 m from the held point, limit 0.5 m/s)."""
+    from vtoladapt.control.tracking import reference_velocity
+
+    data = {**BASE, "controller": {"velocity_correction_max_mps": 0.5},
+            "initial": {"position_m": [0.8, 0.0, -1.5]}}
+    res = simulate(scenario_from_mapping(data, "t"))
+    lam = np.asarray(res.metadata["Lambda_p"])
+    p_tilde = res.position_error_W
+    v_d = res.columns_like(("ref_v_N_mps", "ref_v_E_mps", "ref_v_D_mps"))
+    a_d = res.columns_like(("ref_a_N_mps2", "ref_a_E_mps2", "ref_a_D_mps2"))
+    v = res.velocity_W
+    saturated = 0
+    for k in range(len(res)):
+        v_r, _, sat = reference_velocity(p_tilde[k], v_d[k], a_d[k], v[k], lam, 0.5)
+        saturated += sat
+        np.testing.assert_allclose(res.velocity_error_W[k], v[k] - np.array(v_r), rtol=1e-14, atol=1e-15)
+    assert 0 < saturated < len(res)
+
+
 def test_run_writes_log_metrics_and_figure(tmp_path):
     path = tmp_path / "s.toml"
     path.write_text('name = "s"\nvehicle = "caltech_vtol"\nduration_s = 3.0\n'

@@ -2,6 +2,7 @@
 
     vtoladapt reproduce --out DIR           the paper's experiments, figures and report
     vtoladapt run SCENARIO.toml --out DIR   one scenario (a single run or an experiment)
+    vtoladapt tune SCENARIO --controller ID tune a law's declared gains (one budget for every law)
     vtoladapt campaign SCENARIO --runs N    Monte-Carlo campaign on a Dask cluster
     vtoladapt vehicle list | show NAME      shipped vehicles and their parameters
     vtoladapt controllers | bases           the control laws and force-model bases (registered ones too)
@@ -43,6 +44,9 @@ def _add_run(sub) -> None:
     p.add_argument("--seed", type=int, default=None, help="override the seed")
     p.add_argument("--controller", default=None,
                    help="override [controller] kind: an id of vtoladapt.control.registry (that controller only)")
+    p.add_argument("--tuned", default=None, metavar="FILE",
+                   help="fly the law of a tuned settings file (from `vtoladapt tune`, e.g. scenarios/tuned/...) "
+                        "with its gains (that controller only)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_force_argument(p)
     p.set_defaults(handler=_cmd_run)
@@ -102,14 +106,17 @@ def _cmd_bases(args) -> int:
     return ExitCode.OK
 
 
-def load_run_scenario(path, duration_s=None, seed=None, controller=None):
+def load_run_scenario(path, duration_s=None, seed=None, controller=None, tuned=None):
     """The scenario of ``vtoladapt run`` with its command-line overrides, fully validated.
 
     The overrides go through the same checks as the file's keys (``--duration`` has
     ``duration_s``'s range), and the logs must fit the memory budget (:mod:`vtoladapt.sim.limits`).
+    ``tuned``: a tuned settings file (:mod:`vtoladapt.experiments.tuning`); its law flies alone, with
+    its gains (``--controller`` must then name the same law or be left out).
     """
     from dataclasses import replace
 
+    from .config import ConfigError
     from .control.settings import ControllerConfig
     from .sim.limits import check_run_size
     from .sim.scenario import Scenario, load_scenario
@@ -120,6 +127,14 @@ def load_run_scenario(path, duration_s=None, seed=None, controller=None):
                                                             "--duration"))
     if seed is not None:
         scenario = replace(scenario, seed=check_value(Scenario, "seed", seed, "--seed"))
+    if tuned is not None:
+        from .experiments.tuning import tuned_controller
+
+        config = tuned_controller(scenario.controller, tuned)
+        if controller is not None and controller != config.kind:
+            raise ConfigError(f"--controller {controller} with --tuned {tuned}: the file tunes {config.kind}")
+        scenario = replace(scenario, controller=config)
+        controller = config.kind
     if controller is not None:
         kind = check_value(ControllerConfig, "kind", controller, "--controller")
         scenario = replace(scenario, controller=replace(scenario.controller, kind=kind))
@@ -137,7 +152,7 @@ def _cmd_run(args) -> int:
     from .config import ConfigError
     from .outputs import OutputError
 
-    scenario = load_run_scenario(args.scenario, args.duration, args.seed, args.controller)
+    scenario = load_run_scenario(args.scenario, args.duration, args.seed, args.controller, args.tuned)
     target = OutputDir(args.out, "run", force=args.force)
     with target:
         try:
@@ -251,6 +266,7 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     """The ``vtoladapt`` parser: every sub-command registers itself here."""
     from .campaign.runner import register_cli as register_campaign
+    from .experiments.tuning import register_cli as register_tune
     from .fitting.cli import register_cli as register_fitting
     from .probe.cli import register_cli as register_probe
     from .replay.cli import register_cli as register_replay
@@ -259,8 +275,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true",
                         help="show the traceback of an error (accepted anywhere on the line)")
     sub = parser.add_subparsers(dest="command", required=True)
-    for register in (_add_reproduce, _add_run, _add_vehicle, _add_listings, register_campaign, register_fitting,
-                     register_probe, register_replay):
+    for register in (_add_reproduce, _add_run, register_tune, _add_vehicle, _add_listings, register_campaign,
+                     register_fitting, register_probe, register_replay):
         register(sub)
     return parser
 

@@ -40,7 +40,7 @@ theta-hat's physics part and the basis's extra force, output guard, diagnostics)
 
 The control-law interface
 -------------------------
-A law is a module with these seven names (:func:`.laws.check_law` checks them):
+A law is a module with these seven names, and two optional ones (:func:`.laws.check_law` checks them):
 
 ``Settings``
     A frozen dataclass of the law's own gains, every field declared with
@@ -68,6 +68,11 @@ A law is a module with these seven names (:func:`.laws.check_law` checks them):
     ``config.loop_rate_hz``, INDI's filter against ``K_v``): a ``ConfigError`` starting with
     ``source``. :class:`ControllerConfig` runs it for its ``kind`` whenever it is made (from a file
     or in Python), a scenario for every law it compares.
+``TUNABLE`` (optional)
+    The gains ``vtoladapt tune`` may search: a tuple of ``(setting, low, high, log_scale)``, the
+    setting a key of the law's table (``"K_I[0:2]"`` for components of a tuple,
+    ``"controller.<key>"`` for a shared key that is the law's gain); see
+    :mod:`vtoladapt.experiments.tuning`. Absent or empty: nothing to tune.
 ``init_state(params, state) -> None``
     Python, at start and reset: anything the law's memory needs beyond zeros (the shared start
     is theta-hat = theta_init, P^-1 = P0^-1, filters empty; ``state`` is the whole array).

@@ -283,18 +283,20 @@ def forgetting_weights(lam: float, dt: float) -> tuple:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def information_update(Gamma, g, Gamma0, g0, WtW, h, a, b, n) -> None:
+def information_update(Gamma, g, Gamma0, g0, WtW, h, a, b, n, toward_prior=1.0) -> None:
     """One exact step of ``Gamma' = W^T W - lambda (Gamma - Gamma_0)`` (eq:P_adapt, information form).
 
     ``Gamma <- a Gamma + (1 - a) Gamma_0 + b W^T W`` in place, with ``(a, b)`` from
     :func:`forgetting_weights` (n x n matrices at ``Gamma[g:]``, ``Gamma0[g0:]``, ``WtW[h:]``).
+    ``toward_prior = 0``: the paper's pure forgetting ``Gamma' = W^T W - lambda Gamma`` (P winds up
+    where W does not excite; measured against the shipped law in the README, "Deviations").
     """
     Gamma = Gamma[g:g + n * n]
     Gamma0 = Gamma0[g0:g0 + n * n]
     WtW = WtW[h:h + n * n]
     for i in range(n):
         for j in range(i, n):
-            v = flush_tiny(a * Gamma[n * i + j] + (1.0 - a) * Gamma0[n * i + j] + b * WtW[n * i + j])
+            v = flush_tiny(a * Gamma[n * i + j] + toward_prior * (1.0 - a) * Gamma0[n * i + j] + b * WtW[n * i + j])
             Gamma[n * i + j] = v
             Gamma[n * j + i] = v
 
@@ -556,7 +558,8 @@ def adaptation_step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a,
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def weighted_adaptation_step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma,
-                             trace_max, active_set, w_track, w_pred, directional, gain_scale) -> tuple:
+                             trace_max, active_set, w_track, w_pred, directional, gain_scale,
+                             toward_prior=1.0) -> tuple:
     """One tick of eq:th_adapt and eq:P_adapt (see the module notes), in place.
 
     The paper's law is ``w_track = w_pred = gain_scale = 1``, ``directional = False``
@@ -565,7 +568,7 @@ def weighted_adaptation_step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, 
     information increment ``w_pred W^T W`` (weights in [0, 1] saying how far the linear model is
     trusted this tick); ``directional``: the composite mode forgets only along the excited
     directions (:func:`directional_information_update`); ``gain_scale``: the tracking mode's
-    gain is ``gain_scale P0``.
+    gain is ``gain_scale P0``; ``toward_prior`` 0: the paper's pure forgetting (:func:`information_update`).
 
     Parameters
     ----------
@@ -584,7 +587,7 @@ def weighted_adaptation_step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, 
     dt : float, tick (s).
     forget_a, forget_b : :func:`forgetting_weights` of the forgetting rate (1/s) and ``dt``.
     sigma, trace_max : sigma-modification, information-trace cap.
-    w_track, w_pred, directional, gain_scale : the extensions above.
+    w_track, w_pred, directional, gain_scale, toward_prior : the extensions above.
     active_set : bit mask of the bounds the previous step's projection held (0 if none): where
         this step's projection starts (:func:`project_direction`).
 
@@ -600,13 +603,14 @@ def weighted_adaptation_step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, 
     e = prediction_error(x, int(at[a + AT_W]), x, int(at[a + AT_THETA]), x, int(at[a + AT_A_M]), n)
     n_active, active = adaptation_step_with_error(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a,
                                                   forget_b, sigma, trace_max, active_set, w_track, w_pred,
-                                                  directional, gain_scale, e)
+                                                  directional, gain_scale, e, toward_prior)
     return n_active, active, e
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def adaptation_step_with_error(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma,
-                               trace_max, active_set, w_track, w_pred, directional, gain_scale, e) -> tuple:
+                               trace_max, active_set, w_track, w_pred, directional, gain_scale, e,
+                               toward_prior=1.0) -> tuple:
     """:func:`weighted_adaptation_step` given the prediction error ``e`` (eq:prediction_error, before the
     update: what the controller's front end has formed already); returns ``(n_active, active_set)``.
 
@@ -616,14 +620,14 @@ def adaptation_step_with_error(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt
     n = int(at[a + AT_N])
     if n == SPECIALISED_N:
         return _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma, trace_max,
-                     active_set, w_track, w_pred, directional, gain_scale, e, SPECIALISED_N)
+                     active_set, w_track, w_pred, directional, gain_scale, e, SPECIALISED_N, toward_prior)
     return _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma, trace_max,
-                 active_set, w_track, w_pred, directional, gain_scale, e, n)
+                 active_set, w_track, w_pred, directional, gain_scale, e, n, toward_prior)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma, trace_max, active_set,
-          w_track, w_pred, directional, gain_scale, e, n) -> tuple:
+          w_track, w_pred, directional, gain_scale, e, n, toward_prior) -> tuple:
     """The body of :func:`adaptation_step_with_error` for ``n`` parameters (inlined: a constant ``n`` makes
     every loop below of constant length)."""
     th = int(at[a + AT_THETA])
@@ -681,7 +685,7 @@ def _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b,
                                                w_pred * forget_b, x, int(at[a + AT_DWT]), int(at[a + AT_SWD]),
                                                int(at[a + AT_S]), int(at[a + AT_S_FACTOR]), n)
             else:
-                information_update(x, gam, prior, gamma0, x, G, forget_a, w_pred * forget_b, n)
+                information_update(x, gam, prior, gamma0, x, G, forget_a, w_pred * forget_b, n, toward_prior)
             G = gam
         else:
             # P = P0, solved exactly over the tick: K = phi(dt P0 W^T W) P0, formed as its inverse

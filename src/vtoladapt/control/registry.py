@@ -62,7 +62,8 @@ CONTROLLERS: Registry = Registry("law", check_law, (
                    "the composite law with P held at P0 (the paper's controller II)", "composite_pconst", paper="II",
                    adapts_theta=True),
     ControllerInfo("tracking_only", "Tracking-error adapt", "C4", True, False,
-                   "adaptation on the tracking error only, theta-hat' = P0 Phi^T R^T v-tilde (III)",
+                   "adaptation on the tracking error only, theta-hat' = k P0 Phi^T R^T v-tilde with k <= 1 from "
+                   "the gain rule (the paper's III has k = 1: gain_rule = \"paper\")",
                    "tracking_only", paper="III", adapts_theta=True),
     ControllerInfo("pid", "PID", "C1", False, False,
                    "PX4-style velocity PID with the same force allocation, theta-hat = theta_0 (IV)", "pid", paper="IV"),

@@ -16,6 +16,7 @@ Runs are reduced to their metrics as they finish, so memory stays that of a few 
 """
 from __future__ import annotations
 
+import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
@@ -24,11 +25,10 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 
 from ..control.registry import composite_ids
-from ..sim.run_metrics import run_metrics
 from ..sim.scenario import Scenario
 from ..stats import fraction_holding, median_iqr
 from .claims import CLAIM_SOURCES, check_claims, is_paper_claim
-from .metrics import convergence_metrics, fan_throttle_series
+from .metrics import convergence_metrics, fan_throttle_series, law_run_metrics
 
 VARIANT_STREAM = 0xD157
 """Second entropy word of the variants' seed sequence (keeps them apart from the convergence
@@ -71,35 +71,39 @@ def _pool_map(fn, items: Sequence, workers: Optional[int] = None) -> list:
 
 
 # --- one variant of each experiment, reduced to numbers ---------------------------------------------
-def comparison_variant(scenario: Scenario, progress: Progress = None) -> dict:
-    """Every controller of the comparison flies ``scenario``; their metrics and the claims."""
+def comparison_variant(scenario: Scenario, progress: Progress = None, workers: Optional[int] = None,
+                       controllers: Optional[dict] = None) -> dict:
+    """Every controller of the comparison flies ``scenario``; their metrics and the claims.
+
+    ``controllers``: id -> :class:`~vtoladapt.control.settings.ControllerConfig` to fly instead of the
+    scenario's own with ``kind`` switched (the tuned settings); ``workers``: threads for this
+    variant's runs (default one per core; 1 when variants run side by side)."""
     from ..sim.driver import simulate
 
     fan: dict = {}  # the fan schedule sampled once per variant (every controller logs the same ticks)
-    ids = scenario.experiment.controllers
+    ids = list(controllers) if controllers is not None else list(scenario.experiment.controllers)
 
     def fly(cid: str) -> dict:
-        res = simulate(replace(scenario, controller=replace(scenario.controller, kind=cid)))
+        config = (controllers[cid] if controllers is not None
+                  else replace(scenario.controller, kind=cid))
+        res = simulate(replace(scenario, controller=config))
         if len(res.time_s) not in fan:
             fan[len(res.time_s)] = fan_throttle_series(scenario, res.time_s)
-        out = run_metrics(res, fan[len(res.time_s)])
-        if cid not in composite_ids():
-            for key in ("pred_err_rms_g", "pred_err_p95_g", "pred_err_p95_g_by_airspeed"):
-                out.pop(key, None)
+        out = law_run_metrics(res, fan[len(res.time_s)])
         if progress is not None:
             progress(scenario.duration_s)
         return out
 
-    controllers = dict(zip(ids, _pool_map(fly, ids)))
-    comparison = {"scenario": scenario.name, "controllers": controllers}
-    return {"controllers": controllers, "claims": check_claims(comparison, None)}
+    results = dict(zip(ids, _pool_map(fly, ids, workers)))
+    comparison = {"scenario": scenario.name, "controllers": results}
+    return {"controllers": results, "claims": check_claims(comparison, None)}
 
 
-def convergence_variant(scenario: Scenario, progress: Progress = None) -> dict:
+def convergence_variant(scenario: Scenario, progress: Progress = None, workers: Optional[int] = None) -> dict:
     """The convergence experiment (``runs`` random-start runs) on ``scenario``; claims and ratios."""
     from ..sim.driver import simulate_many
 
-    results = simulate_many(convergence_runs(scenario))
+    results = simulate_many(convergence_runs(scenario), workers=workers)
     conv = convergence_metrics(scenario, results)
     if progress is not None:
         progress(scenario.duration_s * len(results))
@@ -145,18 +149,53 @@ def summarize_controllers(variants: list[dict]) -> dict:
     return {cid: {k: median_iqr(vals).as_dict() for k, vals in ms.items()} for cid, ms in out.items()}
 
 
-def comparison_distribution(scenario: Scenario, n: int, progress: Progress = None) -> dict:
-    """The comparison over ``n`` seeded variants: claims as fractions, metrics as median and IQR."""
+PAIRED_METRICS = ("vel_err_rms_mps", "vel_err_rms_rising_mps", "vel_err_rms_plateau_mps", "vel_err_rms_fan_off_mps",
+                  "overshoot_after_fan_off_mps", "vel_err_rms_high_wind_mps", "pos_err_rms_m", "pred_err_p95_g",
+                  "pred_err_p95_rising_g", "pred_err_p95_plateau_g", "pred_err_p95_fan_off_g")
+"""The metrics every pair of laws is compared on, variant by variant (:mod:`.pairs`)."""
+
+
+def fly_variants(scenario: Scenario, n: int, progress: Progress = None,
+                 controllers: Optional[dict] = None) -> list[dict]:
+    """:func:`comparison_variant` for each of the ``n`` variant seeds, the variants side by side (one
+    per core, each flying its laws in turn: a thread keeps one log at a time)."""
     seeds = variant_seeds(scenario.seed, n)
-    variants = [comparison_variant(replace(scenario, seed=s), progress) for s in seeds]
-    return {"variants": n, "seeds": seeds, "claims": summarize_claims(variants),
-            "controllers": summarize_controllers(variants)}
+    return _pool_map(lambda s: comparison_variant(replace(scenario, seed=s), progress, 1, controllers), seeds)
+
+
+def per_variant_values(variants: list[dict]) -> dict:
+    """id -> metric -> [value per variant] for the scalar metrics (None where a variant has none)."""
+    out: dict = {}
+    for v in variants:
+        for cid, m in v["controllers"].items():
+            for key, value in m.items():
+                if isinstance(value, (int, float)) and key not in ("wall_time_s", "fan_off_time_s"):
+                    out.setdefault(cid, {}).setdefault(key, [])
+    for cid, keys in out.items():
+        for key, values in keys.items():
+            for v in variants:
+                x = v["controllers"].get(cid, {}).get(key)
+                values.append(None if x is None or not math.isfinite(x) else float(x))
+    return out
+
+
+def comparison_distribution(scenario: Scenario, n: int, progress: Progress = None) -> dict:
+    """The comparison over ``n`` seeded variants: claims as fractions, metrics as median and IQR, every
+    metric's value per variant (``per_variant``) and every pair of laws compared (``paired``)."""
+    from .pairs import compare_laws
+
+    variants = fly_variants(scenario, n, progress)
+    per_variant = per_variant_values(variants)
+    return {"variants": n, "seeds": variant_seeds(scenario.seed, n), "claims": summarize_claims(variants),
+            "controllers": summarize_controllers(variants), "per_variant": per_variant,
+            "paired": compare_laws(per_variant, PAIRED_METRICS, list(scenario.experiment.controllers))}
 
 
 def convergence_distribution(scenario: Scenario, n: int, progress: Progress = None) -> dict:
-    """The convergence experiment over ``n`` seeded variants (each ``runs`` runs on its own aircraft)."""
+    """The convergence experiment over ``n`` seeded variants (each ``runs`` runs on its own aircraft),
+    the variants side by side (one per core, each flying its runs in turn)."""
     seeds = variant_seeds(scenario.seed, n)
-    variants = [convergence_variant(replace(scenario, seed=s), progress) for s in seeds]
+    variants = _pool_map(lambda s: convergence_variant(replace(scenario, seed=s), progress, 1), seeds)
     ratios: dict = {}
     for v in variants:
         for p, r in v["param_std_ratio"].items():
@@ -165,17 +204,31 @@ def convergence_distribution(scenario: Scenario, n: int, progress: Progress = No
             "param_std_ratio": {p: median_iqr(r).as_dict() for p, r in ratios.items()}}
 
 
-def ablation(scenario: Scenario, n: int, progress: Progress = None) -> dict:
+def claim_controllers(ids: Sequence[str]) -> tuple[str, ...]:
+    """The controllers of ``ids`` the comparison's claims judge (the paper's five): the ablation flies only these."""
+    from ..control.registry import paper_adaptive_ids, paper_baseline_ids
+
+    needed = set(paper_adaptive_ids()) | set(paper_baseline_ids()) | set(composite_ids())
+    return tuple(i for i in ids if i in needed)
+
+
+def ablation(scenario: Scenario, n: int, progress: Progress = None, all_on: Optional[dict] = None) -> dict:
     """The comparison's claims over ``n`` variants with each unmodelled effect of
-    :data:`ABLATION_EFFECTS` switched off in turn (``all_on``: every effect on, the same seeds)."""
-    seeds = variant_seeds(scenario.seed, n)
+    :data:`ABLATION_EFFECTS` switched off in turn (``all_on``: every effect on, the same seeds).
+
+    Only the controllers the claims judge fly (:func:`claim_controllers`). ``all_on`` may be the
+    comparison's own distribution over the same ``n`` variants (:func:`comparison_distribution`):
+    its claims are then reused, not flown again."""
+    ids = claim_controllers(scenario.experiment.controllers)
+    base = replace(scenario, experiment=replace(scenario.experiment, controllers=ids))
     out = {}
-    configs = {"all_on": scenario.plant}
+    if all_on is not None and all_on.get("variants") == n:
+        out["all_on"] = {"variants": n, "claims": all_on["claims"]}
+    else:
+        out["all_on"] = {"variants": n, "claims": summarize_claims(fly_variants(base, n, progress))}
     for key, (field, _label) in ABLATION_EFFECTS.items():
-        configs[f"{key}_off"] = replace(scenario.plant, **{field: False})
-    for name, plant in configs.items():
-        variants = [comparison_variant(replace(scenario, seed=s, plant=plant), progress) for s in seeds]
-        out[name] = {"variants": n, "claims": summarize_claims(variants)}
+        variants = fly_variants(replace(base, plant=replace(base.plant, **{field: False})), n, progress)
+        out[f"{key}_off"] = {"variants": n, "claims": summarize_claims(variants)}
     return out
 
 
@@ -229,6 +282,7 @@ def wind_table(scenario: Scenario, n: int, progress: Progress = None, time_scale
             "conditions": out}
 
 
-__all__ = ["ABLATION_EFFECTS", "VARIANT_STREAM", "WIND_CONDITIONS", "ablation", "comparison_distribution",
-           "comparison_variant", "convergence_distribution", "convergence_variant", "summarize_claims",
+__all__ = ["ABLATION_EFFECTS", "PAIRED_METRICS", "VARIANT_STREAM", "WIND_CONDITIONS", "ablation",
+           "claim_controllers", "comparison_distribution", "comparison_variant", "fly_variants",
+           "per_variant_values", "convergence_distribution", "convergence_variant", "summarize_claims",
            "summarize_controllers", "variant_seeds", "wind_condition_scenario", "wind_table"]

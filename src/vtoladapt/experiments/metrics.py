@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 
-from ..control.registry import composite_ids
 from ..sim.run_metrics import run_metrics
 from ..sim.results import SimulationResult
 from ..sim.scenario import Scenario
@@ -30,18 +29,84 @@ def fan_speed_series(scenario: Scenario, t: np.ndarray) -> np.ndarray:
     return np.array([fan_mean_wind_speed(params, ti) for ti in t])
 
 
+# --- the wind's phases --------------------------------------------------------------------------
+WIND_PHASES: dict[str, str] = {"rising": "rising wind", "plateau": "wind plateau", "fan_off": "fan-off transient"}
+"""The phases of a fan schedule a comparison's metrics are also given in (:func:`wind_phase_masks`)."""
+
+PHASE_METRIC_INFO: dict[str, tuple[str, str]] = {
+    **{f"vel_err_rms_{k}_mps": (f"RMS velocity error, {label}", "m/s") for k, label in WIND_PHASES.items()},
+    **{f"pred_err_p95_{k}_g": (f"95th-percentile prediction error, {label}", "g") for k, label in WIND_PHASES.items()},
+}
+"""Label and unit of each per-phase metric (the keys :func:`phase_metrics` adds), as
+:data:`vtoladapt.metrics.METRIC_INFO` has them for the run's other metrics."""
+
+
+def wind_phase_masks(t: np.ndarray, fan_pct: np.ndarray) -> dict[str, np.ndarray]:
+    """Masks of the log rows in each phase of the fan schedule (:data:`WIND_PHASES`).
+
+    ``fan_pct`` is the commanded throttle at each row (the schedule, no spin-up lag). *rising*: from
+    the fan's first start to the start of its last constant level before it stops; *plateau*: that
+    last level; *fan-off transient*: the :data:`vtoladapt.metrics.OVERSHOOT_WINDOW_S` after it stops
+    (the window of ``overshoot_after_fan_off_mps``). A schedule without a stop, or with one level
+    only, has empty masks where a phase does not exist. In the paper's comparison: 5-30 s (30 %
+    to 60 %), 30-40 s (70 %), 40-45 s.
+    """
+    from ..sim.run_metrics import OVERSHOOT_WINDOW_S, fan_events
+
+    empty = np.zeros(t.shape, dtype=bool)
+    _, t_off = fan_events(t, fan_pct)
+    on = fan_pct > 0.5
+    if t_off is None or not on.any():
+        return {k: empty for k in WIND_PHASES}
+    t_on = float(t[np.argmax(on)])
+    before = (t >= t_on) & (t < t_off)
+    idx = np.flatnonzero(before)
+    changes = idx[1:][np.abs(np.diff(fan_pct[idx])) > 1e-9]
+    t_plateau = float(t[changes[-1]]) if changes.size else t_on
+    return {"rising": before & (t < t_plateau), "plateau": before & (t >= t_plateau),
+            "fan_off": (t >= t_off) & (t <= t_off + OVERSHOOT_WINDOW_S)}
+
+
+def phase_metrics(result: SimulationResult, fan_pct: np.ndarray) -> dict:
+    """RMS velocity error and 95th-percentile prediction error in each wind phase (:data:`PHASE_METRIC_INFO`);
+    NaN for an empty phase. The prediction error is that of the law's theta-hat (theta_0 for a law
+    that does not adapt it), skipping the first :data:`vtoladapt.metrics.PRED_ERR_SKIP_S` as the
+    run's own."""
+    from ..frames import GRAVITY_MPS2
+    from ..sim.run_metrics import PRED_ERR_SKIP_S
+
+    t = result.time_s
+    v = np.linalg.norm(result.velocity_error_W, axis=1)
+    e = None
+    if "pred_err_x_mps2" in result:
+        e = np.linalg.norm(result.columns_like(("pred_err_x_mps2", "pred_err_y_mps2", "pred_err_z_mps2")),
+                           axis=1) / GRAVITY_MPS2
+    out = {}
+    for k, mask in wind_phase_masks(t, fan_pct).items():
+        out[f"vel_err_rms_{k}_mps"] = float(np.sqrt(np.mean(v[mask] ** 2))) if mask.any() else float("nan")
+        sel = mask & (t >= PRED_ERR_SKIP_S)
+        out[f"pred_err_p95_{k}_g"] = (float(np.percentile(e[sel], 95)) if e is not None and sel.any()
+                                      else float("nan"))
+    return out
+
+
+def law_run_metrics(result: SimulationResult, fan_pct: np.ndarray) -> dict:
+    """A comparison run's metrics: :func:`vtoladapt.metrics.run_metrics` and :func:`phase_metrics`.
+
+    Every law has a force model, theta-hat (theta_0 held for the laws that do not adapt it), so its
+    prediction error is reported too: the nominal theta_0's is what adaptation is measured against.
+    """
+    return {**run_metrics(result, fan_pct), **phase_metrics(result, fan_pct)}
+
+
 def comparison_metrics(scenario: Scenario, results: dict[str, SimulationResult]) -> dict:
-    """Each controller's run metrics (prediction error only for the composite controllers)."""
+    """Each controller's run metrics (:func:`law_run_metrics`)."""
     out = {}
     fan = None
     for cid, res in results.items():
         if fan is None or len(fan) != len(res.time_s):
             fan = fan_throttle_series(scenario, res.time_s)
-        m = run_metrics(res, fan)
-        if cid not in composite_ids():
-            for key in ("pred_err_rms_g", "pred_err_p95_g", "pred_err_p95_g_by_airspeed"):
-                m.pop(key, None)
-        out[cid] = m
+        out[cid] = law_run_metrics(res, fan)
     return {"scenario": scenario.name, "controllers": out}
 
 

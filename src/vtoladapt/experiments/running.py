@@ -236,20 +236,22 @@ def _figure_refs(figures: list[Path]) -> list[FigureRef]:
     return [FigureRef(p.name, FIGURE_CAPTIONS.get(p.name, p.stem)) for p in figures]
 
 
-ABLATION_VARIANTS = 10
-"""Seeded variants per plant configuration of the ablation."""
-WIND_VARIANTS = 5
+ABLATION_VARIANTS = 30
+"""Seeded variants per plant configuration of the ablation (every distribution claim: at least 30)."""
+WIND_VARIANTS = 30
 """Seeded variants per controller and wind condition of the method x wind table."""
 
 
 def reproduce(out: Path, duration_scale: float = 1.0, show_progress: bool = True,
               variants: Optional[int] = None, ablation_variants: int = ABLATION_VARIANTS,
-              wind_variants: int = WIND_VARIANTS) -> dict:
+              wind_variants: int = WIND_VARIANTS, tuned: bool = True) -> dict:
     """Both paper experiments, one combined metrics.json and report.
 
     Each experiment is flown once at its scenario seed (the figures) and over seeded variants
-    (``variants``, default each scenario's ``[experiment] variants``): ``distribution.<experiment>``.
-    Then the comparison's claims with each unmodelled effect off (``ablation``, over
+    (``variants``, default each scenario's ``[experiment] variants``): ``distribution.<experiment>``,
+    the comparison's with every pair of laws compared (``distribution.comparison.paired``). Then
+    every law with its shipped tuned settings over the same variants (``tuned``; ``tuned=False``
+    skips it), the comparison's claims with each unmodelled effect off (``ablation``, over
     ``ablation_variants``) and the method x wind table (``wind_table``, over ``wind_variants``);
     0 skips either."""
     out = Path(out)
@@ -268,13 +270,22 @@ def reproduce(out: Path, duration_scale: float = 1.0, show_progress: bool = True
     metrics = {"convergence": m_conv["convergence"], "comparison": m_comp["comparison"]}
     metrics["claims"] = check_claims(metrics["comparison"], metrics["convergence"])
     metrics["distribution"] = {**m_conv.get("distribution", {}), **m_comp.get("distribution", {})}
-    from .distribution import ABLATION_EFFECTS, WIND_CONDITIONS, WIND_HOLD_S, ablation, wind_table
+    from .distribution import (ABLATION_EFFECTS, WIND_CONDITIONS, WIND_HOLD_S, ablation, claim_controllers,
+                               wind_table)
+    from .tuning import tuned_comparison
 
+    default = metrics["distribution"].get("comparison")
+    if tuned and default is not None:
+        n = default["variants"]
+        metrics["tuned"] = _with_progress(
+            lambda add: tuned_comparison(comp, n, default, add),
+            n * len(comp.experiment.controllers) * comp.duration_s, show_progress, "tuned laws")
     if ablation_variants > 0:
+        reused = default is not None and default["variants"] == ablation_variants
         metrics["ablation"] = _with_progress(
-            lambda add: ablation(comp, ablation_variants, add),
-            (1 + len(ABLATION_EFFECTS)) * ablation_variants * len(comp.experiment.controllers) * comp.duration_s,
-            show_progress, "ablation")
+            lambda add: ablation(comp, ablation_variants, add, all_on=default),
+            (len(ABLATION_EFFECTS) + (0 if reused else 1)) * ablation_variants
+            * len(claim_controllers(comp.experiment.controllers)) * comp.duration_s, show_progress, "ablation")
     if wind_variants > 0:
         metrics["wind_table"] = _with_progress(
             lambda add: wind_table(comp, wind_variants, add, duration_scale),

@@ -258,9 +258,10 @@ def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | 
 
 def shipped_scenario_names() -> list[str]:
     """The names :func:`load_scenario` accepts for the shipped scenarios (``faults/...`` included;
-    the shipped campaign files, which hold a ``[campaign]`` table, are not scenarios)."""
+    the shipped campaign files, which hold a ``[campaign]`` table, and the tuned settings files of
+    ``tuned/``, which hold a ``[tuning]`` table, are not scenarios)."""
     return sorted(p.relative_to(SCENARIO_DIR).with_suffix("").as_posix() for p in SCENARIO_DIR.rglob("*.toml")
-                  if "campaign" not in read_toml(p))
+                  if not {"campaign", "tuning"} & set(read_toml(p)))
 
 
 def load_scenario(name_or_path: str | Path) -> Scenario:
@@ -277,5 +278,8 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     if "campaign" in data:
         raise ConfigError(f"{path}: a campaign file ([campaign] table), not a scenario; "
                           f"run it with: vtoladapt campaign {path} --out DIR")
+    if "tuning" in data:
+        raise ConfigError(f"{path}: a tuned settings file ([tuning] table), not a scenario; "
+                          f"fly it with: vtoladapt run SCENARIO --tuned {path} --out DIR")
     refuse_internal_keys(data, str(path))
     return scenario_from_mapping(data, str(path), source_path=path)

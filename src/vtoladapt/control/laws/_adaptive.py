@@ -95,12 +95,12 @@ def add_information(params, state, g, weight, dt, n) -> None:
 
 @njit(cache=True, _nrt=False)
 def adaptive_estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max,
-                      w_track=1.0, w_pred=1.0, directional=False, gain_scale=1.0) -> tuple:
+                      w_track=1.0, w_pred=1.0, directional=False, gain_scale=1.0, toward_prior=1.0) -> tuple:
     """Update theta-hat and P (eq:th_adapt, eq:P_adapt) if the tick allows; write ``P_diag`` and the
     projection's active bounds (at ``diag[d_proj]``).
 
     ``s_active``: the law's state slot holding the last projection's active set; ``w_track``,
-    ``w_pred``, ``directional``, ``gain_scale``: see
+    ``w_pred``, ``directional``, ``gain_scale``, ``toward_prior``: see
     :func:`vtoladapt.control.adaptation.weighted_adaptation_step` (the defaults are the paper's law).
     Returns ``(adapt_active, faults)``: whether theta-hat was updated, ``FAULT_*`` bits. Compiled for the
     paper's n with constant loop lengths too (:data:`vtoladapt.control.adaptation.SPECIALISED_N`).
@@ -108,14 +108,14 @@ def adaptive_estimate(mode, params, state, tick, diag, s_active, d_proj, forget_
     n = int(params[A_N])
     if n == ad.SPECIALISED_N:
         return _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max,
-                         w_track, w_pred, directional, gain_scale, ad.SPECIALISED_N)
+                         w_track, w_pred, directional, gain_scale, toward_prior, ad.SPECIALISED_N)
     return _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max,
-                     w_track, w_pred, directional, gain_scale, n)
+                     w_track, w_pred, directional, gain_scale, toward_prior, n)
 
 
 @njit(cache=True, inline="always")
 def _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max, w_track,
-              w_pred, directional, gain_scale, n) -> tuple:
+              w_pred, directional, gain_scale, toward_prior, n) -> tuple:
     """The body of :func:`adaptive_estimate` for ``n`` parameters (inlined, see there)."""
     faults = 0
     n_active = 0
@@ -126,7 +126,7 @@ def _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forge
         n_active, active_set = ad.adaptation_step_with_error(
             mode, params, P_AD, state, params, state, int(params[A_PHI]), tick_R(tick), tick3(tick, T_V_TILDE),
             dt, forget_a, forget_b, sigma, trace_max, int(state[s_active]), w_track, w_pred, directional, gain_scale,
-            tick3(tick, T_E))
+            tick3(tick, T_E), toward_prior)
         state[s_active] = active_set
         if mode == ad.ADAPT_COMPOSITE:
             # the composite step leaves W^T W of this tick's W in its scratch (the other modes overwrite

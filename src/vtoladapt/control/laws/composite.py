@@ -14,6 +14,10 @@ directions comes from the projection bounds, not from sigma.
 
 Options beyond the paper (measured, defaults are the shipped law)
 ------------------------------------------------------------------
+``forgetting = "paper"`` is the paper's eq:P_adapt, ``(P^-1)' = W^T W - lambda P^-1``: the
+information decays in every direction, so P grows without bound where the regressor does not
+excite (the shipped law forgets toward P0 instead; measured in the README, "Deviations from the
+paper").
 ``forgetting = "directional"`` forgets only the information along the directions the current
 regressor excites (:func:`vtoladapt.control.adaptation.directional_information_update`), so
 unexcited directions keep their information and theta-hat does not wander along them.
@@ -57,7 +61,9 @@ class CompositeSettings(Validated):
     forgetting: str = setting(
         "-", "how eq:P_adapt forgets: 'prior' (every direction relaxes toward P0 at lambda, the shipped "
         "law), 'directional' (only the directions the current regressor excites are forgotten; "
-        "unexcited ones keep their information)", default="prior", choices=("prior", "directional"))
+        "unexcited ones keep their information), 'paper' (the paper's P' = -P W^T W P + lambda P: "
+        "unexcited directions of P grow without bound)", default="prior",
+        choices=("prior", "directional", "paper"))
     validity_gating: bool = setting(
         "-", "weight the prediction-error term and the information increment by the model's validity "
         "(measured alpha against the vehicle's believed stall angle), and drop the tracking term while "
@@ -67,6 +73,9 @@ class CompositeSettings(Validated):
 Settings = CompositeSettings
 """The law interface's name for the settings class."""
 
+TUNABLE = (("forgetting_lambda", 0.05, 20.0, True), ("sigma", 1e-6, 1.0, True))
+"""The gains ``vtoladapt tune`` searches (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale)."""
+
 
 PARAMS = BlockLayout("composite parameters", [
     Field("LAMBDA", 1, "1/s", "forgetting factor"),
@@ -74,6 +83,7 @@ PARAMS = BlockLayout("composite parameters", [
     Field("TRACE_MAX", 1, "adaptation units", "cap on trace(P^-1 - P0^-1)"),
     Field("DIRECTIONAL", 1, "-", "1: directional forgetting"),
     Field("GATING", 1, "-", "1: model-validity gating"),
+    Field("TOWARD_PRIOR", 1, "-", "1: forgetting toward P0; 0: the paper's pure forgetting"),
     Field("ALPHA_TRUST", 1, "rad", "model fully trusted up to this |alpha| (believed stall - margin)"),
     Field("ALPHA_STALL", 1, "rad", "model not trusted from this |alpha| on (believed stall)"),
 ])
@@ -81,8 +91,9 @@ STATE = BlockLayout("composite state", [
     Field("ACTIVE_SET", 1, "-", "bit mask of the bounds the last projection held"),
     Field("FORGET", 2, "-", "forgetting weights (a, b) for the current dt"),
 ])
-P_LAMBDA, P_SIGMA, P_TRACE_MAX, P_DIRECTIONAL, P_GATING, P_ALPHA_TRUST, P_ALPHA_STALL = law_offsets(
-    PARAMS, P_LAW, "LAMBDA", "SIGMA", "TRACE_MAX", "DIRECTIONAL", "GATING", "ALPHA_TRUST", "ALPHA_STALL")
+P_LAMBDA, P_SIGMA, P_TRACE_MAX, P_DIRECTIONAL, P_GATING, P_TOWARD_PRIOR, P_ALPHA_TRUST, P_ALPHA_STALL = law_offsets(
+    PARAMS, P_LAW, "LAMBDA", "SIGMA", "TRACE_MAX", "DIRECTIONAL", "GATING", "TOWARD_PRIOR", "ALPHA_TRUST",
+    "ALPHA_STALL")
 S_ACTIVE_SET, S_FORGET = law_offsets(STATE, S_LAW, "ACTIVE_SET", "FORGET")
 (D_PROJ_ACTIVE,) = law_offsets(DIAG, D_LAW, "PROJ_ACTIVE")
 
@@ -94,7 +105,7 @@ def fill_params(settings: CompositeSettings, ctx: LawContext) -> np.ndarray:
     return PARAMS.pack(LAMBDA=settings.forgetting_lambda, SIGMA=settings.sigma,
                        TRACE_MAX=settings.information_trace_max,
                        DIRECTIONAL=float(settings.forgetting == "directional"),
-                       GATING=float(settings.validity_gating),
+                       GATING=float(settings.validity_gating), TOWARD_PRIOR=float(settings.forgetting != "paper"),
                        ALPHA_TRUST=np.radians(env.alpha_protect_deg), ALPHA_STALL=np.radians(env.stall_angle_deg))
 
 
@@ -114,6 +125,7 @@ def update(params, state, tick, diag):
         w_track = 0.0 if saturated(state) else w_pred
     adapt_active, faults = adaptive_estimate(
         ad.ADAPT_COMPOSITE, params, state, tick, diag, S_ACTIVE_SET, D_PROJ_ACTIVE, state[S_FORGET],
-        state[S_FORGET + 1], params[P_SIGMA], params[P_TRACE_MAX], w_track, w_pred, params[P_DIRECTIONAL] > 0.0, 1.0)
+        state[S_FORGET + 1], params[P_SIGMA], params[P_TRACE_MAX], w_track, w_pred, params[P_DIRECTIONAL] > 0.0, 1.0,
+        params[P_TOWARD_PRIOR])
     K_v = (params[P_K_V], params[P_K_V + 1], params[P_K_V + 2])
     finish(tick, force_command(tick3(tick, T_V_R_DOT), tick3(tick, T_V_TILDE), K_v), adapt_active, faults)

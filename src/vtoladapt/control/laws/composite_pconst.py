@@ -31,6 +31,10 @@ class CompositePConstSettings(Validated):
 Settings = CompositePConstSettings
 """The law interface's name for the settings class."""
 
+TUNABLE = (("sigma", 1e-6, 1.0, True),)
+"""The gains ``vtoladapt tune`` searches (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale).
+Its adaptation gain is P0 itself, the vehicle's prior (Table III), not a setting of the law."""
+
 
 PARAMS = BlockLayout("composite_pconst parameters", [
     Field("SIGMA", 1, "adaptation units", "sigma-modification"),

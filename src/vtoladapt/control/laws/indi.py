@@ -126,6 +126,10 @@ class IndiSettings(Validated):
 Settings = IndiSettings
 """The law interface's name for the settings class."""
 
+TUNABLE = (("controller.lowpass_cutoff_hz", 2.0, 40.0, True), ("increment_limit_mps2", 1.0, 30.0, True))
+"""The gains ``vtoladapt tune`` searches (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale).
+INDI's gain is the shared filter ``[controller] lowpass_cutoff_hz`` (its rule: at least 3 max K_v / 2 pi)."""
+
 
 PARAMS = BlockLayout("indi parameters", [
     Field("INC_LIMIT", 1, "m/s^2", "limit on the increment's norm"),

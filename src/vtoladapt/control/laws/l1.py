@@ -131,6 +131,10 @@ class L1Settings(Validated):
 Settings = L1Settings
 """The law interface's name for the settings class."""
 
+TUNABLE = (("cutoff_radps", 0.5, 40.0, True), ("predictor_pole_radps", 0.5, 100.0, True))
+"""The gains ``vtoladapt tune`` searches (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale);
+a_s up to 100 rad/s keeps ``a_s dt`` = 0.4 < 0.5 at 250 Hz."""
+
 
 PARAMS = BlockLayout("l1 parameters", [
     Field("A_S", 1, "1/s", "predictor pole a_s"),

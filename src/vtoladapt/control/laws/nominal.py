@@ -26,6 +26,9 @@ class NominalSettings(Validated):
 Settings = NominalSettings
 """The law interface's name for the settings class."""
 
+TUNABLE = ()
+"""No gain of its own: nothing for ``vtoladapt tune`` to search (:mod:`vtoladapt.experiments.tuning`)."""
+
 PARAMS = BlockLayout("nominal parameters", [])
 STATE = BlockLayout("nominal state", [])
 DIAG = BlockLayout("nominal diagnostics", [])

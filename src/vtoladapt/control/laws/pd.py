@@ -29,6 +29,9 @@ class PDSettings(Validated):
 Settings = PDSettings
 """The law interface's name for the settings class."""
 
+TUNABLE = (("K_D[0:2]", 0.0, 2.0, False), ("K_D[2]", 0.0, 2.0, False), ("derivative_cutoff_hz", 0.5, 40.0, True))
+"""The gains ``vtoladapt tune`` searches (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale)."""
+
 
 def fill_params(settings: PDSettings, ctx: LawContext) -> np.ndarray:
     """The PID's parameter block with no integral (``K_I`` = 0, limit 0)."""

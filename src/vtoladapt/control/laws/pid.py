@@ -77,6 +77,11 @@ class PIDSettings(Validated):
 Settings = PIDSettings
 """The law interface's name for the settings class."""
 
+TUNABLE = (("K_I[0:2]", 0.05, 20.0, True), ("K_I[2]", 0.2, 40.0, True), ("K_D[0:2]", 0.0, 2.0, False),
+           ("derivative_cutoff_hz", 0.5, 40.0, True))
+"""The gains ``vtoladapt tune`` searches (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale);
+``[0:2]``: north and east together."""
+
 
 PARAMS = BlockLayout("pid parameters", [
     Field("K_I", 3, "1/s^2", "velocity-error integral gain (0: no integral, the PD)"),

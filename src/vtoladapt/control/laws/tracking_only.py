@@ -62,6 +62,10 @@ class TrackingOnlySettings(Validated):
 Settings = TrackingOnlySettings
 """The law interface's name for the settings class."""
 
+TUNABLE = (("loop_gain_margin", 1.0, 8.0, True), ("sigma", 1e-6, 1.0, True))
+"""The gains ``vtoladapt tune`` searches (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale).
+The margin sets the gain ``k P0`` (``k <= 1``) of the Routh rule."""
+
 
 PARAMS = BlockLayout("tracking_only parameters", [
     Field("SIGMA", 1, "adaptation units", "sigma-modification"),

@@ -1,0 +1,479 @@
+"""One tuning budget for every law: ``vtoladapt tune SCENARIO --controller ID``.
+
+Each law declares the gains it may tune, in its own module: ``TUNABLE``, a tuple of
+``(setting, low, high, log_scale)``. ``setting`` is a key of the law's ``[controller.<id>]`` table
+(``"cutoff_radps"``), components of a tuple-valued one set to one value (``"K_I[0:2]"``: north and
+east, ``"K_I[2]"``: down), or ``"controller.<key>"`` for a shared ``[controller]`` key that is the
+law's gain (INDI's filter, ``lowpass_cutoff_hz``). A law without ``TUNABLE`` (or an empty one) has
+nothing to tune: its tuned settings are its defaults.
+
+The search
+----------
+* **Objective**: the mean over the tuning draws of the run's RMS velocity error ``|v~|`` (the
+  comparison's headline metric); a draw that leaves the envelope counts as
+  :data:`DIVERGED_PENALTY_MPS`. The draws are fixed for the whole search (common random numbers),
+  so the objective is a deterministic function of the gains.
+* **Tuning draws**: seeds ``0 .. draws-1`` of ``SeedSequence([seed, TUNING_STREAM])`` (each its own
+  plant draw from Table I, turbulence and sensor noise), disjoint from the evaluation variants of
+  ``SeedSequence([seed, VARIANT_STREAM])`` that ``make reproduce`` reports (checked, not assumed).
+* **Budget**: the same for every law: :data:`EVALUATIONS` evaluations of the objective, each on
+  :data:`DRAWS` draws; the first is the law's defaults, the rest the optimiser's. The tuned
+  settings are the best evaluated, so on the tuning draws they are never worse than the defaults.
+* **Optimiser**: DIRECT (Jones, Perttunen & Stuckman 1993) in its locally biased form, DIRECT-L
+  (Gablonsky & Kelley 2001), from SciPy (``scipy.optimize.direct``), over the declared box (log
+  coordinates where declared). Why: it is derivative-free and deterministic (the same budget gives
+  the same answer, which a shipped result needs), it needs no starting point or step size (the
+  laws' gains span decades), it works from one dimension (composite_pconst's sigma) to a few (the
+  PID's four), it explores the whole box globally before it refines, which suits budgets of tens
+  of evaluations on a box of unknown shape, and SciPy is already a dependency: nothing is added.
+  CMA-ES (pycma) and Optuna's samplers need a population or a model over tens of points before
+  they beat a space-filling search at this budget, are stochastic, and pycma does not run in one
+  dimension; Nelder-Mead and Powell are local and need a start and a step.
+
+The result is written as a controller settings file (:func:`write_tuned_file`): ``dt_control_s``,
+a ``[controller]`` table with ``kind``, the tuned shared keys and the law's table of tuned gains,
+and a ``[tuning]`` table with the search's record. :func:`vtoladapt.control.load_controller_config`
+loads it (the other tables are ignored); :func:`tuned_controller` puts its gains into a scenario's
+controller (``vtoladapt run SCENARIO --tuned FILE``). The tuned files ``make reproduce`` reports
+ship in ``scenarios/tuned/`` (:func:`shipped_tuned_file`); ``make tune`` searches them again.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import re
+import sys
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Callable, Optional, Sequence
+
+import numpy as np
+
+from ..config import ConfigError
+from ..sim.scenario import SCENARIO_DIR, Scenario
+
+TUNING_STREAM = 0x7E5E
+"""Second entropy word of the tuning draws' seed sequence (the evaluation variants use
+:data:`vtoladapt.experiments.distribution.VARIANT_STREAM`)."""
+EVALUATIONS = 60
+"""Evaluations of the objective per law (the first is the law's defaults)."""
+DRAWS = 10
+"""Tuning draws each evaluation flies."""
+OBJECTIVE = "vel_err_rms_mps"
+DIVERGED_PENALTY_MPS = 10.0
+"""A tuning draw that leaves the envelope counts as this RMS velocity error (m/s)."""
+OPTIMISER = "DIRECT-L (scipy.optimize.direct, locally_biased=True)"
+TUNED_DIR = SCENARIO_DIR / "tuned"
+
+_NAME = re.compile(r"^(controller\.)?([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)(?::(\d+))?\])?$")
+
+
+@dataclass(frozen=True)
+class Tunable:
+    """One declared gain: where it is (``shared`` or the law's table), which components, its box."""
+
+    name: str                   # as declared, e.g. "K_I[0:2]" or "controller.lowpass_cutoff_hz"
+    key: str                    # the setting's key
+    shared: bool                # True: a [controller] key, False: the law's [controller.<id>] key
+    components: Optional[tuple[int, ...]]   # of a tuple-valued setting; None: a scalar
+    low: float
+    high: float
+    log_scale: bool
+
+    def value(self, u: float) -> float:
+        """The gain at ``u`` in [0, 1] of the box (log coordinates if ``log_scale``)."""
+        if self.log_scale:
+            return float(self.low * (self.high / self.low) ** u)
+        return float(self.low + u * (self.high - self.low))
+
+
+def tunables(cid: str) -> tuple[Tunable, ...]:
+    """The gains law ``cid`` declares (its module's ``TUNABLE``), checked against its settings.
+
+    Raises ``ValueError`` naming the law and the entry if a name is not a setting of the law (or of
+    ``[controller]``), a component is out of range, the box is empty, a log box does not start
+    above 0, or the box leaves the setting's allowed range.
+    """
+    from ..control.settings import ControllerConfig
+    from ..control.registry import CONTROLLERS
+
+    info = CONTROLLERS[cid]
+    out = []
+    for entry in getattr(info.law, "TUNABLE", ()):
+        where = f"{info.law.__name__}.TUNABLE {entry!r}"
+        if len(entry) != 4:
+            raise ValueError(f"{where}: must be (setting, low, high, log_scale)")
+        name, low, high, log_scale = entry
+        m = _NAME.match(str(name))
+        if m is None:
+            raise ValueError(f"{where}: '{name}' is not a setting name, name[i] or name[i:j]")
+        shared, key = m.group(1) is not None, m.group(2)
+        cls = ControllerConfig if shared else info.settings
+        # [controller]'s own keys (its law tables are not among them)
+        fields = {f.name: f for f in dataclasses.fields(cls) if not (shared and f.name == "laws")}
+        if key not in fields:
+            raise ValueError(f"{where}: {'[controller]' if shared else f'[controller.{cid}]'} has no key '{key}'")
+        default = getattr(cls(), key)
+        components = None
+        if m.group(3) is not None:
+            i0 = int(m.group(3))
+            i1 = int(m.group(4)) if m.group(4) is not None else i0 + 1
+            if not isinstance(default, tuple) or not 0 <= i0 < i1 <= len(default):
+                raise ValueError(f"{where}: components [{i0}:{i1}] of '{key}' (a {type(default).__name__})")
+            components = tuple(range(i0, i1))
+        elif isinstance(default, tuple):
+            raise ValueError(f"{where}: '{key}' is a tuple: name its components, e.g. '{key}[0:2]'")
+        low, high = float(low), float(high)
+        if not (math.isfinite(low) and math.isfinite(high) and low < high) or (log_scale and low <= 0.0):
+            raise ValueError(f"{where}: box [{low}, {high}] must be finite and non-empty, above 0 if log-scaled")
+        meta = fields[key].metadata
+        for bound, ok in ((meta.get("gt"), lambda b: low > b), (meta.get("ge"), lambda b: low >= b),
+                          (meta.get("lt"), lambda b: high < b), (meta.get("le"), lambda b: high <= b)):
+            if bound is not None and not ok(bound):
+                raise ValueError(f"{where}: box [{low}, {high}] leaves the setting's allowed range")
+        out.append(Tunable(str(name), key, shared, components, low, high, bool(log_scale)))
+    return tuple(out)
+
+
+def with_gains(config, cid: str, values: dict[str, float]):
+    """``config`` (a ControllerConfig) flying ``cid`` with the declared gains ``values`` (name -> value).
+
+    Validated as any ControllerConfig (a combination a law's own rules refuse raises ``ConfigError``).
+    """
+    specs = {t.name: t for t in tunables(cid)}
+    shared: dict = {}
+    law: dict = {}
+    for name, v in values.items():
+        t = specs[name]
+        target = shared if t.shared else law
+        source = config if t.shared else getattr(config, cid)
+        if t.components is None:
+            target[t.key] = float(v)
+        else:
+            current = list(target.get(t.key, getattr(source, t.key)))
+            for i in t.components:
+                current[i] = float(v)
+            target[t.key] = tuple(current)
+    return replace(config, kind=cid, **shared, **{cid: replace(getattr(config, cid), **law)})
+
+
+def settings_of(config, cid: str) -> dict:
+    """The values of the declared gains in ``config`` (name -> value; a component group by its first)."""
+    out = {}
+    for t in tunables(cid):
+        v = getattr(config if t.shared else getattr(config, cid), t.key)
+        out[t.name] = float(v if t.components is None else v[t.components[0]])
+    return out
+
+
+def tuning_seeds(seed: int, draws: int) -> list[int]:
+    """The ``draws`` tuning seeds of a scenario seed; ``ValueError`` if one is also an evaluation variant's."""
+    from .distribution import variant_seeds
+
+    seeds = [int(s) for s in np.random.SeedSequence([int(seed), TUNING_STREAM]).generate_state(draws)]
+    clash = set(seeds) & set(variant_seeds(seed, 10000))
+    if clash:
+        raise ValueError(f"tuning seeds {sorted(clash)} are also evaluation variants' seeds")
+    return seeds
+
+
+def objective(scenario: Scenario, config, seeds: Sequence[int], progress: Optional[Callable[[float], None]] = None
+              ) -> tuple[float, list[float]]:
+    """``(mean, per draw)`` of the RMS velocity error of ``config`` flying ``scenario`` at each seed (m/s)."""
+    from ..sim.run_metrics import run_metrics
+    from ..sim.driver import simulate
+    from .distribution import _pool_map
+    from .metrics import fan_throttle_series
+
+    def fly(seed: int) -> float:
+        res = simulate(replace(scenario, seed=seed, controller=config))
+        if progress is not None:
+            progress(scenario.duration_s)
+        if res.diverged:
+            return DIVERGED_PENALTY_MPS
+        value = run_metrics(res, fan_throttle_series(scenario, res.time_s))[OBJECTIVE]
+        return value if math.isfinite(value) else DIVERGED_PENALTY_MPS
+
+    per_draw = _pool_map(fly, list(seeds))
+    return float(np.mean(per_draw)), [float(x) for x in per_draw]
+
+
+def tune(scenario: Scenario, cid: str, evaluations: int = EVALUATIONS, draws: int = DRAWS,
+         progress: Optional[Callable[[float], None]] = None) -> dict:
+    """Search law ``cid``'s declared gains on ``scenario`` (module notes); the record of the search.
+
+    Returns ``{scenario, controller, objective, optimiser, budget, seed_stream, tuning_seeds,
+    tunables, default, tuned, trace}``; ``default`` and ``tuned`` hold ``settings`` (name -> value)
+    and the ``objective`` (m/s) on the tuning draws.
+    """
+    from scipy.optimize import direct
+
+    if evaluations < 1 or draws < 1:
+        raise ValueError(f"evaluations = {evaluations}, draws = {draws}: each must be >= 1")
+    specs = tunables(cid)
+    seeds = tuning_seeds(scenario.seed, draws)
+    base = replace(scenario.controller, kind=cid)
+    trace: list[dict] = []
+
+    def record(values: dict) -> float:
+        try:
+            config = with_gains(base, cid, values)
+        except ConfigError as exc:     # a combination the law's own rules refuse: no flight
+            trace.append({"settings": values, "objective": math.inf, "refused": str(exc)})
+            return math.inf
+        mean, per_draw = objective(scenario, config, seeds, progress)
+        trace.append({"settings": values, "objective": mean, "per_draw": per_draw})
+        return mean
+
+    record(settings_of(base, cid))
+    if specs and evaluations > 1:
+        def f(u: np.ndarray) -> float:
+            if len(trace) >= evaluations:      # the budget is spent: DIRECT's last calls fly nothing
+                return 1e9
+            return record({t.name: t.value(float(x)) for t, x in zip(specs, u)})
+
+        direct(f, [(0.0, 1.0)] * len(specs), maxfun=evaluations - 1, locally_biased=True)
+    best = min(range(len(trace)), key=lambda i: trace[i]["objective"])
+    return {
+        "scenario": scenario.name, "controller": cid, "objective": OBJECTIVE,
+        "objective_description": "mean over the tuning draws of the run's RMS velocity error (m/s); "
+                                 f"a diverged draw counts {DIVERGED_PENALTY_MPS:g} m/s",
+        "optimiser": OPTIMISER if specs else "none (no tunable gains)",
+        "budget": {"evaluations": len(trace), "evaluations_allowed": evaluations, "draws": draws,
+                   "simulated_s": sum(draws * scenario.duration_s for e in trace if "per_draw" in e)},
+        "seed_stream": TUNING_STREAM, "tuning_seeds": seeds,
+        "tunables": [{"name": t.name, "low": t.low, "high": t.high, "log_scale": t.log_scale} for t in specs],
+        "default": {"settings": trace[0]["settings"], "objective": trace[0]["objective"]},
+        "tuned": {"settings": trace[best]["settings"], "objective": trace[best]["objective"],
+                  "evaluation": best + 1},
+        "trace": trace,
+    }
+
+
+# --- the tuned settings file ------------------------------------------------------------------------
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, float):
+        return repr(v) if math.isfinite(v) else ("inf" if v > 0 else "-inf" if v < 0 else "nan")
+    return repr(v)
+
+
+def tuned_file_text(record: dict, scenario: Scenario) -> str:
+    """The tuned settings file of a :func:`tune` record (TOML; see the module notes)."""
+    from ..control.registry import CONTROLLERS
+
+    cid = record["controller"]
+    config = with_gains(replace(scenario.controller, kind=cid), cid, record["tuned"]["settings"])
+    shared, law = {}, {}                 # key -> line: a tuple gain tuned in groups is one key
+    for t in tunables(cid):
+        v = getattr(config if t.shared else getattr(config, cid), t.key)
+        (shared if t.shared else law)[t.key] = f"{t.key} = {_toml_value(v)}"
+    b = record["budget"]
+    lines = [
+        f"# {CONTROLLERS[cid].label} tuned on scenario {record['scenario']} by `vtoladapt tune` "
+        f"({record['optimiser']}).",
+        f"# Objective: {record['objective_description']}.",
+        f"# Budget: {b['evaluations']} evaluations x {b['draws']} tuning draws (the first the defaults); tuning "
+        f"seeds from SeedSequence([seed, {TUNING_STREAM:#x}]), disjoint from the evaluation variants.",
+        f"# Defaults {record['default']['objective']:.5g} m/s, tuned {record['tuned']['objective']:.5g} m/s "
+        "on the tuning draws.",
+        "# Load: vtoladapt.control.load_controller_config(path), or `vtoladapt run SCENARIO --tuned path`.",
+        f"dt_control_s = {_toml_value(scenario.dt_control_s)}",
+        "",
+        "[controller]",
+        f"kind = {_toml_value(cid)}",
+        *shared.values(),
+        "",
+        f"[controller.{cid}]",
+        *law.values(),
+        "",
+        "[tuning]",
+        f"scenario = {_toml_value(record['scenario'])}",
+        f"objective = {_toml_value(record['objective'])}",
+        f"optimiser = {_toml_value(record['optimiser'])}",
+        f"evaluations = {b['evaluations']}",
+        f"draws = {b['draws']}",
+        f"seed_stream = {TUNING_STREAM}",
+        f"tuning_seeds = {_toml_value(record['tuning_seeds'])}",
+        f"default_objective_mps = {_toml_value(record['default']['objective'])}",
+        f"tuned_objective_mps = {_toml_value(record['tuned']['objective'])}",
+        f"tuned_evaluation = {record['tuned']['evaluation']}",
+    ]
+    for name in ("default", "tuned"):
+        lines += ["", f"[tuning.{name}]"] + [f"{json.dumps(k)} = {_toml_value(v)}"
+                                             for k, v in record[name]["settings"].items()]
+    return "\n".join(lines) + "\n"
+
+
+def tuned_file_name(scenario_name: str, cid: str) -> str:
+    """The tuned settings file's name for law ``cid`` on a scenario: ``<scenario>_<id>.toml``."""
+    return f"{scenario_name}_{cid}.toml"
+
+
+def shipped_tuned_file(scenario_name: str, cid: str) -> Path:
+    """Where the shipped tuned settings of ``cid`` on a shipped scenario are (``scenarios/tuned/``)."""
+    return TUNED_DIR / tuned_file_name(scenario_name, cid)
+
+
+def read_tuned_file(path) -> tuple[str, dict, dict, dict]:
+    """``(kind, shared keys, law keys, tuning record)`` of a tuned settings file, validated as a
+    controller settings file (:func:`vtoladapt.control.load_controller_config`); ``ConfigError``
+    naming the file otherwise."""
+    from ..config import read_toml
+    from ..control.settings import load_controller_config
+
+    load_controller_config(path)                 # the file itself is a valid controller config
+    data = read_toml(path)
+    table = dict(data.get("controller", {}))
+    kind = table.pop("kind", None)
+    if kind is None:
+        raise ConfigError(f"{path}: [controller] kind: missing; a tuned settings file names its law")
+    law = dict(table.pop(kind, {}) or {})
+    table.pop("loop_rate_hz", None)
+    for other in [k for k, v in table.items() if isinstance(v, dict)]:
+        table.pop(other)
+    return kind, table, law, dict(data.get("tuning", {}))
+
+
+def tuned_controller(config, path):
+    """``config`` (a scenario's ControllerConfig) flying the law of the tuned file ``path`` with its
+    gains: its ``kind``, the shared keys it sets and its law table replace the scenario's, every other
+    setting stays. ``ConfigError`` naming the file if it is not a tuned settings file."""
+    from ..control.settings import controller_config_from_mapping
+
+    kind, shared, law, _ = read_tuned_file(path)
+    # validated as a table of the file (the messages name it); its values as the settings hold them
+    built = controller_config_from_mapping({"kind": kind, **shared, kind: law}, source=str(path))
+    own = getattr(built, kind)
+    return replace(config, kind=kind, **{k: getattr(built, k) for k in shared},
+                   **{kind: replace(getattr(config, kind), **{k: getattr(own, k) for k in law})})
+
+
+# --- the command line: vtoladapt tune ---------------------------------------------------------------
+def register_cli(sub) -> None:
+    """``vtoladapt tune SCENARIO --controller ID [--controller ID ...] --out DIR``."""
+    from ..outputs import add_force_argument, output_path
+
+    p = sub.add_parser("tune", help="tune a law's declared gains on a scenario (one budget for every law)",
+                       description="Search the gains a law declares (its module's TUNABLE) with DIRECT-L on "
+                                   "tuning draws of the scenario, disjoint from the evaluation variants, and "
+                                   "write the tuned settings file <scenario>_<id>.toml and the search's record "
+                                   "<scenario>_<id>.json into --out.")
+    p.add_argument("scenario", help="scenario TOML (or the name of a shipped scenario)")
+    p.add_argument("--controller", action="append", required=True, metavar="ID",
+                   help="a law of vtoladapt.control.registry (repeat for several), or 'all'")
+    p.add_argument("--out", required=True, type=output_path, help="output directory")
+    p.add_argument("--evaluations", type=int, default=EVALUATIONS,
+                   help=f"evaluations of the objective per law, the defaults' included (default {EVALUATIONS})")
+    p.add_argument("--draws", type=int, default=DRAWS, help=f"tuning draws per evaluation (default {DRAWS})")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_force_argument(p)
+    p.set_defaults(handler=_cmd_tune)
+
+
+def _cmd_tune(args) -> int:
+    from dataclasses import replace as _replace
+
+    from ..config import check_flag
+    from ..control.registry import controller_ids
+    from ..errors import ExitCode
+    from ..sim.limits import check_run_size
+    from ..outputs import OutputDir, write_json, write_text
+    from ..sim.scenario import load_scenario
+
+    known = controller_ids()
+    ids = list(known) if "all" in args.controller else list(dict.fromkeys(args.controller))
+    for cid in ids:
+        if cid not in known:
+            raise ConfigError(f"--controller {cid!r}: allowed: {', '.join(known)} or all")
+    evaluations = int(check_flag("--evaluations", args.evaluations, ge=1, le=10000))
+    draws = int(check_flag("--draws", args.draws, ge=1, le=1000))
+    scenario = load_scenario(args.scenario)
+    scenario = _replace(scenario, experiment=_replace(scenario.experiment, kind="single"))
+    check_run_size(scenario, f"{scenario.source_path}")
+    for cid in ids:
+        with_gains(_replace(scenario.controller, kind=cid), cid, {})   # the scenario's settings fly this law
+    target = OutputDir(args.out, "tune", force=args.force)
+    with target:
+        for cid in ids:
+            bar, add = _progress(evaluations * draws * scenario.duration_s, not args.quiet, f"tune {cid}")
+            try:
+                record = tune(scenario, cid, evaluations, draws, add)
+            finally:
+                if bar is not None:
+                    bar.close()
+            write_text(target.path / tuned_file_name(scenario.name, cid), tuned_file_text(record, scenario))
+            write_json(target.path / f"{scenario.name}_{cid}.json", record)
+            if not args.quiet:
+                print(f"{cid}: {record['default']['objective']:.5g} -> {record['tuned']['objective']:.5g} m/s "
+                      f"on {draws} tuning draws ({record['budget']['evaluations']} evaluations): "
+                      f"{record['tuned']['settings']}", file=sys.stderr)
+    return ExitCode.OK
+
+
+def _progress(total_s: float, show: bool, desc: str):
+    """``(bar or None, add(sim_s))``: a progress bar over simulated seconds, ``add`` safe from threads."""
+    import threading
+
+    from ..progress import progress_bar
+
+    bar = progress_bar(total=round(total_s, 1), unit="sim s", desc=desc) if show else None
+    lock = threading.Lock()
+
+    def add(sim_s: float) -> None:
+        if bar is not None:
+            with lock:
+                bar.update(round(min(sim_s, bar.total - bar.n), 3))
+    return bar, add
+
+
+# --- default against tuned, on the evaluation variants ---------------------------------------------
+def tuned_comparison(scenario: Scenario, n: int, default: dict, progress: Optional[Callable[[float], None]] = None,
+                     tuned_dir: Optional[Path] = None) -> dict:
+    """Every law of the comparison with its shipped tuned settings over the ``n`` evaluation variants.
+
+    ``default`` is the comparison's own distribution over the same variants
+    (:func:`vtoladapt.experiments.distribution.comparison_distribution`, with ``per_variant``). A law
+    whose tuned settings are its defaults (nothing to tune, or the search kept them) is not flown
+    again. Returns ``{variants, seeds, settings: {id: {default, tuned}}, tuning: {id: the file's
+    [tuning] record}, controllers (median and IQR), per_variant, paired (the tuned laws against each
+    other), vs_default: {id: {metric: paired difference tuned - default}}}``.
+    """
+    from .distribution import PAIRED_METRICS, fly_variants, per_variant_values, summarize_controllers, variant_seeds
+    from .pairs import compare_laws, paired_difference
+
+    ids = list(scenario.experiment.controllers)
+    configs, settings, records = {}, {}, {}
+    for cid in ids:
+        path = (Path(tuned_dir) if tuned_dir is not None else TUNED_DIR) / tuned_file_name(scenario.name, cid)
+        base = replace(scenario.controller, kind=cid)
+        config = tuned_controller(base, path)
+        _, _, _, records[cid] = read_tuned_file(path)
+        settings[cid] = {"default": settings_of(base, cid), "tuned": settings_of(config, cid)}
+        if config != base:
+            configs[cid] = config
+    flown = per_variant_values(fly_variants(scenario, n, progress, configs)) if configs else {}
+    per_variant = {cid: flown.get(cid, default["per_variant"][cid]) for cid in ids}
+    summary = summarize_controllers([{"controllers": {cid: {k: per_variant[cid][k][i] for k in per_variant[cid]}
+                                                      for cid in ids}} for i in range(n)])
+    vs_default = {cid: {m: paired_difference(_nan(per_variant[cid][m]), _nan(default["per_variant"][cid][m]))
+                        for m in PAIRED_METRICS if m in per_variant[cid] and m in default["per_variant"][cid]}
+                  for cid in ids}
+    return {"variants": n, "seeds": variant_seeds(scenario.seed, n), "settings": settings, "tuning": records,
+            "flown": sorted(configs), "controllers": summary, "per_variant": per_variant,
+            "paired": compare_laws(per_variant, PAIRED_METRICS, ids), "vs_default": vs_default}
+
+
+def _nan(values: Sequence) -> list[float]:
+    return [math.nan if v is None else float(v) for v in values]
+
+
+__all__ = ["DIVERGED_PENALTY_MPS", "DRAWS", "EVALUATIONS", "OBJECTIVE", "OPTIMISER", "TUNED_DIR", "TUNING_STREAM",
+           "Tunable", "objective", "read_tuned_file", "settings_of", "shipped_tuned_file", "tune",
+           "tuned_comparison", "tuned_controller", "tuned_file_name", "tuned_file_text", "tuning_seeds", "tunables", "with_gains"]
