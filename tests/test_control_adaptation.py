@@ -326,7 +326,7 @@ def test_information_update_is_the_exact_solution_of_its_ode(rng):
     np.testing.assert_allclose(step(0.0), G + dt * WtW, rtol=1e-14)      # lambda = 0: plain integration
     # the paper's pure forgetting (forgetting = "paper"): Gamma' = W^T W - lambda Gamma
     paper = G.ravel().copy()
-    ad.information_update(paper, 0, G0.ravel(), 0, WtW_gram, 0, *ad.forgetting_weights(lam, dt), 0.0)
+    ad.information_update(paper, 0, G0.ravel(), 0, WtW_gram, 0, *ad.forgetting_weights(lam, dt), N, 0.0)
     sol = solve_ivp(lambda t, y: (WtW - lam * y.reshape(N, N)).ravel(), (0, dt), G.ravel(), rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(paper.reshape(N, N), sol.y[:, -1].reshape(N, N), rtol=1e-9, atol=1e-12)
 
