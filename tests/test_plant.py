@@ -274,7 +274,7 @@ def test_applied_collective_is_the_commanded_one_unless_the_mixer_saturated(veh,
     thrust the rotors were actually sent, which is what the controller is told (report_mixed)."""
     from vtoladapt.sim.loop import report_mixed
     from vtoladapt.control.api import Controller
-    from vtoladapt.control.kernel import controller_initial_state, state_last_command
+    from vtoladapt.control.step import controller_initial_state, state_last_command
     from vtoladapt.sim.mixer import applied_collective
 
     mp = mixer_params(veh)
