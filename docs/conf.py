@@ -203,8 +203,8 @@ def _generate(app) -> None:
     _write_if_changed(out / "metrics.md", metrics_markdown())
 
 
-FIGURE_EXAMPLES = ("first_flight", "scenario_variant", "fit_tunnel_data", "calibrate_probe", "replay_flight_log",
-                   "campaign")
+FIGURE_EXAMPLES = ("first_flight", "scenario_variant", "own_law", "fit_tunnel_data", "calibrate_probe",
+                   "replay_flight_log", "campaign")
 """The examples whose output folders the tutorials show figures from (``docs/_generated/examples/NAME``)."""
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import io
 import os
+import sys
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -22,6 +23,9 @@ import pytest
 from hypothesis import settings
 
 from vtoladapt import load_vehicle
+
+# examples/ holds the modules the tutorials show (examples/example_law.py, the user's law the tests fly)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
 
 HYPOTHESIS_PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "vtoladapt")
 THOROUGH_EXAMPLES = 2000
