@@ -1,6 +1,6 @@
 """An example force-model basis from outside the package: the paper's eight columns plus a side force C_Y(beta).
 
-This module is what README "Adding a force-model basis" shows: one module meeting the basis interface
+This module is what the how-to "Adding a force-model basis" (docs/howto/adding-a-basis.md) shows: one module meeting the basis interface
 (:mod:`vtoladapt.bases`), registered by ``vtoladapt.components.register("basis", INFO)``. The ninth
 column is the fuselage and tail's side force, ``f_y = (rho S / 2 m) V^2 beta C_Y`` per unit mass (the
 form of the simulated aircraft's, :mod:`vtoladapt.sim.plant`), with ``beta = asin(v_iy / V)``.

@@ -41,7 +41,6 @@ from vtoladapt.experiments.metrics import identifiability
 from vtoladapt.sim.scenario import load_scenario, scenario_from_mapping
 from vtoladapt.sim.driver import prepare
 
-README = Path(__file__).resolve().parents[1] / "README.md"
 
 
 def _hover():
@@ -305,14 +304,18 @@ def test_a_table_without_keys_says_so():
         scenario_from_mapping({**BASE, "controller": {"nominal": {"x": 1}}}, "s.toml")
 
 
-# --- 8. the README's snippets run --------------------------------------------------------------------
+# --- 8. the documentation's snippets run -------------------------------------------------------------
+
+PAGES = ("docs/howto/controller.md", "docs/explanation/adaptation.md")
+"""The controller's how-to and the adaptation explanation (the README's "Using the controller in your
+own loop" before it became pages; "Adding a controller" is the recipe tests/test_readme_extensions.py
+runs, since it registers a law)."""
+
 
 def _section_snippets() -> list[str]:
-    text = README.read_text(encoding="utf-8")
-    start = text.index("## Using the controller in your own loop")
-    # "Adding a controller" is the recipe tests/test_readme_extensions.py runs (it registers a law)
-    end = text.index("\n### Adding a controller", start + 1)
-    blocks = re.findall(r"```python\n(.*?)```", text[start:end], flags=re.S)
+    from doc_pages import code_blocks, page
+
+    blocks = [code for path in PAGES for _, code in code_blocks(page(path), "python")]
     # excerpts of the package's own files (they start with their path) are shown, not run
     return [b for b in blocks if not b.lstrip().startswith("# src/")]
 
@@ -321,7 +324,7 @@ def test_the_controller_sections_python_snippets_run(capsys):
     snippets = _section_snippets()
     assert len(snippets) >= 2
     for code in snippets:
-        exec(compile(code, "README.md", "exec"), {"__name__": "readme_snippet"})
+        exec(compile(code, "docs/howto/controller.md", "exec"), {"__name__": "readme_snippet"})
     out = capsys.readouterr().out
     assert "theta-hat:" in out and "predictor_pole_radps = 200.0" in out
 

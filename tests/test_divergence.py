@@ -153,16 +153,18 @@ def test_cli_run_that_diverges_exits_1_with_one_line_and_keeps_its_outputs(tmp_p
 
 
 def test_the_readme_divergence_example_runs_as_written():
-    """README "The envelope": the example used CTz = 1e10, which the input ranges refuse."""
+    """The how-to docs/howto/faults.md, "The envelope" (once the README's): the example used
+    CTz = 1e10, which the input ranges refuse."""
     import re
-    from pathlib import Path
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    (code,) = [b for b in re.findall(r"```python\n(.*?)```", readme, re.S) if "raise_if_diverged()" in b]
+    from doc_pages import code_blocks, section
+
+    _, text = section("The envelope: a run that loses the vehicle stops")
+    (code,) = [b for _, b in code_blocks(text, "python") if "raise_if_diverged()" in b]
     lines = code.splitlines()
     setup = "\n".join(line for line in lines if not line.startswith("res."))
     namespace: dict = {}
-    exec(compile(setup, "README.md", "exec"), namespace)
+    exec(compile(setup, "docs/howto/faults.md", "exec"), namespace)
     res = namespace["res"]
     shown = {m.group(1): m.group(2) for m in (re.match(r"res\.(\w+)\(?\)?\s+# (.*)", line) for line in lines) if m}
     assert res.diverged

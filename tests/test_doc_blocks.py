@@ -3,7 +3,9 @@
 A fenced block is one of:
 
 - ``python``: executed, in page order, the blocks of one page sharing a namespace, in a temporary
-  working directory (so a block that writes a file writes it there);
+  working directory that links the repository's ``data/``, ``scenarios/`` and ``examples/`` (so a
+  block reads what a clone has and writes its files there); a ``toml`` block whose first line is a
+  file name (``# gusty_hold.toml``) is written to that file first, as the page asks the reader to;
 - ``toml``: parsed (a fragment shown must at least be valid TOML);
 - preceded by ``<!-- run by: tests/test_NAME.py -->``: a test that file names executes it (the file
   must exist and read the page the block is on);
@@ -85,8 +87,22 @@ def _python_blocks(page: Path) -> list[tuple[int, str]]:
             if lang == "python" and not marker.startswith(("<!-- not run:", "<!-- run by:"))]
 
 
+def _files(page: Path) -> dict[str, str]:
+    """The files a page's TOML blocks are (first line ``# NAME.toml``)."""
+    out = {}
+    for _, lang, code, _ in blocks(page.read_text(encoding="utf-8")):
+        m = re.match(r"# ([\w.-]+\.toml)\n", code)
+        if lang == "toml" and m:
+            out[m.group(1)] = code
+    return out
+
+
 @pytest.mark.parametrize("page", [p for p in pages() if _python_blocks(p)], ids=_rel)
 def test_python_blocks_run(page, tmp_path, monkeypatch):
+    for folder in ("data", "scenarios", "examples"):
+        (tmp_path / folder).symlink_to(ROOT / folder, target_is_directory=True)
+    for name, text in _files(page).items():
+        (tmp_path / name).write_text(text)
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MPLBACKEND", "Agg")
     namespace: dict = {"__name__": "doc_block"}

@@ -250,9 +250,15 @@ def test_alpha_excursions_match_a_plain_loop(samples, dt):
 
 # --- the README -----------------------------------------------------------------------------------
 def test_readme_envelope_tables_are_generated_from_the_committed_summary():
-    """The README's envelope block is what envelope_readme renders from docs/envelope_summary.json."""
+    """The site's envelope page holds what envelope_readme renders from docs/envelope_summary.json, and
+    the README its targets."""
+    from vtoladapt.experiments.envelope_readme import HEADLINE_BEGIN, HEADLINE_END, envelope_headline
+    from vtoladapt.experiments.readme import readme_block as block_between
+
     summary = json.loads((REPO / "docs" / "envelope_summary.json").read_text())
-    assert readme_block((REPO / "README.md").read_text()) == envelope_tables(summary)
+    assert readme_block((REPO / "docs" / "explanation" / "envelope.md").read_text()) == envelope_tables(summary)
+    assert block_between((REPO / "README.md").read_text(), HEADLINE_BEGIN, HEADLINE_END) == \
+        envelope_headline(summary).strip("\n") + "\n"
 
 
 def test_the_envelope_readme_tool_refuses_bad_input_and_writes_nothing(tmp_path, capsys):

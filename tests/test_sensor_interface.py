@@ -3,7 +3,7 @@ package's four channels and by a channel written outside the package the way a u
 (``tests/example_sensor.py``, a GNSS receiver in place of the motion capture), which is registered by a
 call and flown through ``simulate`` and the Gymnasium environment without recompiling the loop.
 
-README "Adding a sensor" is that file and the calls below; the last test holds the README to them.
+The how-to "Adding a sensor" (docs/howto/wind-and-sensors.md) is that file and the calls below; the last test holds the README to them.
 """
 from __future__ import annotations
 
@@ -29,13 +29,12 @@ from vtoladapt.sim.loop import run_closed_loop
 from vtoladapt.sim.scenario import scenario_from_mapping
 from vtoladapt.sensors.registry import SENSOR_CHANNELS, SENSOR_KIND
 
-README = Path(__file__).resolve().parents[1] / "README.md"
 GNSS = {"position_noise_std_m": 0.0, "position_quantum_m": 0.25, "velocity_noise_std_mps": 0.0, "rate_hz": 50.0}
 
 
 @pytest.fixture(scope="module", autouse=True)
 def gnss_registered():
-    """The user's channel, registered by a call as the README says (and removed after these tests)."""
+    """The user's channel, registered by a call as the how-to says (and removed after these tests)."""
     components.register("sensor", PartInfo("gnss", "example_sensor", "a GNSS receiver"))
     yield
     SENSOR_CHANNELS.unregister("gnss")
@@ -190,13 +189,13 @@ def test_a_registered_channel_is_flown_by_the_gym_as_by_simulate():
     np.testing.assert_allclose(meas_p / 0.25, np.round(meas_p / 0.25), rtol=0, atol=1e-9)
 
 
-# --- the README's recipe -------------------------------------------------------------------------
+# --- the how-to's recipe --------------------------------------------------------------------------
 
 def _readme_section(title: str) -> str:
-    text = README.read_text()
-    start = text.index(f"### {title}\n")
-    end = re.search(r"\n##+ ", text[start + 4:]).start() + start + 4
-    return text[start:end]
+    """The section ``title`` of the documentation (the how-to docs/howto/wind-and-sensors.md)."""
+    from doc_pages import section
+
+    return section(title)[1]
 
 
 def test_readme_recipe_is_the_example_channel_and_runs(tmp_path, monkeypatch):
@@ -212,7 +211,7 @@ def test_readme_recipe_is_the_example_channel_and_runs(tmp_path, monkeypatch):
     SENSOR_CHANNELS.unregister("gnss")  # the recipe registers it itself
     try:
         namespace: dict = {"__name__": "readme"}
-        exec(compile(usage[0], "README.md", "exec"), namespace)
+        exec(compile(usage[0], "docs/howto/wind-and-sensors.md", "exec"), namespace)
         result = namespace["result"]
         assert "gnss" in SENSOR_CHANNELS and not result.diverged
         assert namespace["obs"].shape == (OBS_SIZE,) and np.isfinite(namespace["obs"]).all()

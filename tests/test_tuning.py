@@ -260,13 +260,11 @@ def test_tuned_comparison_pairs_tuned_with_default(monkeypatch, tmp_path):
 
 
 def test_readme_lists_every_declared_gain_with_its_box():
-    """README "Tuning a law's gains": a row for the shared gains and one per law naming each of its
-    own gains, each with its box."""
-    from pathlib import Path
+    """The how-to "Tuning a law's gains" (docs/howto/tuning.md): a row for the shared gains and one
+    per law naming each of its own gains, each with its box."""
+    from doc_pages import page
 
-    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
-    start = text.index("## Tuning a law's gains")
-    section = text[start:text.index("\n## ", start + 1)]
+    section = page("docs/howto/tuning.md")
     rows = {line.strip().split("|")[1].strip().strip("`"): line for line in section.splitlines()
             if line.strip().startswith("| `")}
     rows["every law"] = next(line for line in section.splitlines() if line.startswith("  | every law"))

@@ -3,7 +3,7 @@ package's four parts and by a part written outside the package the way a user wo
 (``tests/example_wind_part.py``, a wind shear that depends on the height), which is registered by a
 call and flown through ``simulate`` and the Gymnasium environment without recompiling the loop.
 
-README "Adding a wind model" is that file and the calls below; the last tests hold the README to them.
+The how-to "Adding a wind model" (docs/howto/wind-and-sensors.md) is that file and the calls below; the last tests hold the README to them.
 """
 from __future__ import annotations
 
@@ -29,13 +29,12 @@ from vtoladapt.sim.loop import run_closed_loop
 from vtoladapt.sim.scenario import scenario_from_mapping
 from vtoladapt.wind.registry import WIND_KIND, WIND_PARTS
 
-README = Path(__file__).resolve().parents[1] / "README.md"
 SHEAR = {"speed_mps": 3.0, "bearing_deg": 90.0, "shear_per_s": 0.4}
 
 
 @pytest.fixture(scope="module", autouse=True)
 def shear_registered():
-    """The user's part, registered by a call as the README says (and removed after these tests)."""
+    """The user's part, registered by a call as the how-to says (and removed after these tests)."""
     components.register("wind", PartInfo("shear", "example_wind_part", "a wind shear"))
     yield
     WIND_PARTS.unregister("shear")
@@ -180,13 +179,13 @@ def test_a_registered_part_is_flown_by_the_gym_as_by_simulate():
     assert np.abs(np.array(obs)[:, OBS_V + 1] - np.array(calm_obs)[:, OBS_V + 1]).max() > 1e-3
 
 
-# --- the README's recipe -------------------------------------------------------------------------
+# --- the how-to's recipe --------------------------------------------------------------------------
 
 def _readme_section(title: str) -> str:
-    text = README.read_text()
-    start = text.index(f"### {title}\n")
-    end = re.search(r"\n##+ ", text[start + 4:]).start() + start + 4
-    return text[start:end]
+    """The section ``title`` of the documentation (the how-to docs/howto/wind-and-sensors.md)."""
+    from doc_pages import section
+
+    return section(title)[1]
 
 
 def test_readme_recipe_is_the_example_part_and_runs(tmp_path, monkeypatch):
@@ -202,7 +201,7 @@ def test_readme_recipe_is_the_example_part_and_runs(tmp_path, monkeypatch):
     WIND_PARTS.unregister("shear")  # the recipe registers it itself
     try:
         namespace: dict = {"__name__": "readme"}
-        exec(compile(usage[0], "README.md", "exec"), namespace)
+        exec(compile(usage[0], "docs/howto/wind-and-sensors.md", "exec"), namespace)
         result = namespace["result"]
         wind_E = result["wind_E_mps"]
         # from the east, 3 m/s + 0.4 /s x 1.5 m at the held height, gusting 0.2 m/s averaged over 1250 ticks

@@ -232,8 +232,9 @@ class Assembly:
     ----------
     params : numpy.ndarray
         The kind's parameter array (the blocks in order; layout :attr:`params_layout`).
-    table : numpy.ndarray, int64 (n, PART_ROW.size)
-        What the compiled loop calls the parts through (this process only).
+    table : numpy.ndarray
+        What the compiled loop calls the parts through (this process only): int64, shape
+        ``(n, PART_ROW.size)``.
     draws_size : int
         Draws per step of all the parts (the loop's draws block for this kind).
     """

@@ -16,7 +16,7 @@ import math
 import types
 import typing
 
-from .config import _PATTERN_TEXT, INTERNAL_KEYS, _type_hints
+from .config import _PATTERN_TEXT, INTERNAL_KEYS, _type_hints, choices_of
 from .sim.limits import BOUND_REASONS, ROW_CHECKS, _range_text
 
 
@@ -77,8 +77,9 @@ def _default_text(field: dataclasses.Field) -> str:
 def _allowed_text(key: str, inner, meta) -> str:
     if key in ROW_CHECKS:
         return ROW_CHECKS[key]
-    if meta.get("choices"):
-        return "one of " + ", ".join(f'"{c}"' if isinstance(c, str) else str(c) for c in meta["choices"])
+    choices = choices_of(meta)  # a registry's ids are read when the reference is made
+    if choices:
+        return "one of " + ", ".join(f'"{c}"' if isinstance(c, str) else str(c) for c in choices)
     if inner is bool:
         return "true or false"
     if inner in (int, float):

@@ -122,7 +122,7 @@ INPUT_SIZE = INPUT.size
 
 @dataclass(frozen=True, eq=False)
 class BasisSpec:
-    """One basis for one vehicle: what :func:`describe` returns (arrays of length ``n``).
+    """One basis for one vehicle: what a basis module's ``describe`` returns (arrays of length ``n``).
 
     ``names``: parameter names; ``units``: their Table-I units (throttle in percent); ``scale``:
     ``theta_scaled = theta_table * scale`` (the adaptation scaling, throttle as a fraction), in which

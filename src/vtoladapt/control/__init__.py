@@ -72,7 +72,7 @@ A law is a module with these seven names, and two optional ones (:func:`.laws.ch
     The law's own gains ``vtoladapt tune`` may search: a tuple of ``(setting, low, high,
     log_scale)``, the setting a key of the law's table (``"K_I[0:2]"`` for components of a tuple,
     ``"controller.<key>"`` for a shared key that is the law's gain and not already among the shared
-    gains every law's search includes, :data:`.config.TUNABLE`); see
+    gains every law's search includes, :data:`.settings.TUNABLE`); see
     :mod:`vtoladapt.experiments.tuning`. Absent or empty: only the shared gains are searched.
 ``init_state(params, state) -> None``
     Python, at start and reset: anything the law's memory needs beyond zeros (the shared start

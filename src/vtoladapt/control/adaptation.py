@@ -1,8 +1,8 @@
 """Composite adaptation of the force model (eq:prediction_error, eq:th_adapt, eq:P_adapt).
 
 All quantities are in the adaptation scaling of :mod:`vtoladapt.models` (throttle as a fraction;
-``f_b = Phi theta`` in m/s^2). The kernels here are pure functions of arrays; the controller
-kernel (:mod:`.kernel`) owns the state.
+``f_b = Phi theta`` in m/s^2). The kernels here are pure functions of arrays; the controller's
+compiled step (:mod:`vtoladapt.control.step`) owns the state.
 
 Filters (eq:prediction_error)
 -----------------------------

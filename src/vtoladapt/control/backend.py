@@ -5,13 +5,13 @@ One call of :func:`back_end` per tick, after the law's update has written the fo
 
 1. ``|f_r + g|`` limited (``accel_max_mps2``, :func:`limit_force`).
 2. **Commanded heading and flow-angle protection** (:func:`heading`, :func:`flow_angle_protection`;
-   :mod:`.attitude` module notes): the heading
+   :mod:`~vtoladapt.control.attitude` module notes): the heading
    weathervanes into the flow above ``weathervane_airspeed_mps`` and follows the reference yaw
    below, rate limited (while the probe cannot see the flow: against the unexplained force, or into
    the front end's airflow estimate when ``unseen_flow_estimate`` has one); the probe's measured alpha beyond ``alpha_max`` (``alpha_min``) lowers
    (raises) the alpha_d limit through an integral trim.
-3. **Desired attitude** (:func:`attitude`, :mod:`.attitude`) and, if ``omega_d_feedforward`` is on (default off, see
-   :mod:`.config`), ``omega_d``, ``omega_d'``: the desired frame's rate ``log(R_d,prev^T R_d)/dt``
+3. **Desired attitude** (:func:`attitude`, :mod:`~vtoladapt.control.attitude`) and, if ``omega_d_feedforward`` is on (default off, see
+   :mod:`~vtoladapt.control.settings`), ``omega_d``, ``omega_d'``: the desired frame's rate ``log(R_d,prev^T R_d)/dt``
    is limited to ``omega_d_max`` and passed through two cascaded first-order low-passes at
    ``omega_d_cutoff_hz``; ``omega_d`` is the second stage's output and ``omega_d'`` its exact
    derivative ``(x_1 - x_2) 2 pi f_c`` (a dirty derivative of a smoothed signal, limited to

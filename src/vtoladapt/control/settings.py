@@ -1,6 +1,6 @@
 """Controller settings: the frozen, validated ``[controller]`` table of a scenario and its law tables.
 
-``[controller]`` holds the controller's ``kind`` (an id of :mod:`.registry`), its force-model
+``[controller]`` holds the controller's ``kind`` (an id of :mod:`~vtoladapt.control.registry`), its force-model
 ``basis`` (an id of :mod:`vtoladapt.bases`; default the vehicle's) and the gains every law shares;
 each law's own gains are in its table ``[controller.<id>]`` (the law module's ``Settings``, e.g.
 ``[controller.pid] K_I``, ``[controller.composite] forgetting_lambda``), read as

@@ -453,7 +453,7 @@ def tuned_gains_table(tuned: dict):
     for cid, s in tuned["settings"].items():
         own = "; ".join(f"{k} {cell(cid, k)}" for k in s["tuned"] if k not in shared) or "(none)"
         rows.append((Cell(controller_label(cid)), *(Cell(cell(cid, k), numeric=True) for k in shared), Cell(own)))
-    caption = ("The gains each law flies, default → tuned (the boxes searched: README \"Tuning a law's gains\"; "
+    caption = ("The gains each law flies, default → tuned (the boxes searched: the how-to \"Tuning a law's gains\"; "
                "[0:2]: north and east, or roll and pitch; [2]: down). \"top tenth of box\", \"bottom tenth of box\": "
                f"within {100 * EDGE_FRACTION:g} % of the box's width (log width where searched in log scale) "
                "of that bound: the optimum may lie beyond it:")
