@@ -160,3 +160,6 @@ def test_pages_lay_out_at_1300_px(site):
         assert not r["overflowing_tables"], (page, r["overflowing_tables"])
         assert not r["broken_images"], (page, r["broken_images"])
     assert sum(r["images_checked"] for r in results.values()) >= 2  # the home page's and the tutorial's figures
+    # the site's own search page, served from loopback with nothing fetched, finds the pages
+    assert check_site.search_hits(site, "composite adaptation") >= 10
+    assert check_site.search_hits(site, "qwertyuiopzxcv") == 0

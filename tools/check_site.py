@@ -10,6 +10,9 @@ reader must scroll sideways) or than the window, and every image that failed to 
 ``--dump-dom`` prints the probe's report, so nothing but the browser is needed (Debian: ``apt-get
 install chromium``); it is started with the flags that keep it off the network.
 
+``--search QUERY`` also runs the site's own search page (``search.html?q=QUERY``, the index in
+``searchindex.js``, nothing fetched) and reports how many pages it finds.
+
 Exit status: 0 every page passed, 1 a page has an overflowing table or a broken image, 2 no
 Chromium, no built site or a page missing.
 """
@@ -88,33 +91,55 @@ class _QuietHandler(http.server.SimpleHTTPRequestHandler):
         pass
 
 
-def check_site(site: Path, pages=DEFAULT_PAGES, chromium: str | None = None, timeout_s: float = 120) -> dict:
-    """``{page: report}`` for each page of the built ``site`` (see the module docstring)."""
+def _dump_dom(site: Path, path: str, chromium: str | None, timeout_s: float,
+              extra: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    """Chromium's DOM of ``path`` after its scripts ran, the site served on 127.0.0.1 from a copy (with
+    the ``extra`` files added to the copy, so the built site itself is never written to)."""
     chromium = chromium or find_chromium()
     if chromium is None:
         raise FileNotFoundError("no Chromium on PATH (Debian: apt-get install chromium)")
-    for page in pages:
-        if not (site / page).is_file():
-            raise FileNotFoundError(f"{site / page}: no such page (build the site first: make docs)")
     with tempfile.TemporaryDirectory() as tmp:
-        # the probe must share the pages' origin to read their layout: it is served from a copy
-        # of the site, so the built site itself is never written to
         served = Path(tmp) / "site"
         shutil.copytree(site, served)
-        (served / PROBE_NAME).write_text(PROBE % {"pages": json.dumps(list(pages)), "width": WIDTH_PX})
+        for name, text in (extra or {}).items():
+            (served / name).write_text(text)
         handler = functools.partial(_QuietHandler, directory=str(served))
         server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
         thread = threading.Thread(target=server.serve_forever, daemon=True)
         thread.start()
         try:
-            url = f"http://127.0.0.1:{server.server_address[1]}/{PROBE_NAME}"
-            done = subprocess.run([chromium, *CHROMIUM_FLAGS, f"--user-data-dir={tmp}/profile",
+            url = f"http://127.0.0.1:{server.server_address[1]}/{path}"
+            return subprocess.run([chromium, *CHROMIUM_FLAGS, f"--user-data-dir={tmp}/profile",
                                    "--window-size=1400,1000", "--virtual-time-budget=20000", "--dump-dom", url],
                                   capture_output=True, text=True, timeout=timeout_s)
         finally:
             server.shutdown()
             server.server_close()
             thread.join()
+
+
+def search_hits(site: Path, query: str, chromium: str | None = None, timeout_s: float = 120) -> int:
+    """How many pages the site's own search page finds for ``query`` (its summary line)."""
+    import re
+    from urllib.parse import quote_plus
+
+    done = _dump_dom(site, f"search.html?q={quote_plus(query)}", chromium, timeout_s)
+    if "did not match any documents" in done.stdout:
+        return 0
+    m = re.search(r"found (\d+) pages?", done.stdout)
+    if m is None:
+        raise RuntimeError(f"the search page reported no result count (Chromium status {done.returncode})")
+    return int(m.group(1))
+
+
+def check_site(site: Path, pages=DEFAULT_PAGES, chromium: str | None = None, timeout_s: float = 120) -> dict:
+    """``{page: report}`` for each page of the built ``site`` (see the module docstring)."""
+    for page in pages:
+        if not (site / page).is_file():
+            raise FileNotFoundError(f"{site / page}: no such page (build the site first: make docs)")
+    # the probe must share the pages' origin to read their layout, so it is served with them
+    probe = PROBE % {"pages": json.dumps(list(pages)), "width": WIDTH_PX}
+    done = _dump_dom(site, PROBE_NAME, chromium, timeout_s, {PROBE_NAME: probe})
     text = done.stdout
     start, end = text.find('<pre id="report">'), text.find("</pre>")
     report = text[start + len('<pre id="report">'):end] if start >= 0 and end > start else ""
@@ -127,13 +152,21 @@ def check_site(site: Path, pages=DEFAULT_PAGES, chromium: str | None = None, tim
 
 
 def main(argv: list[str]) -> int:
+    query = None
+    if "--search" in argv:
+        i = argv.index("--search")
+        query = argv[i + 1] if i + 1 < len(argv) else ""
+        argv = argv[:i] + argv[i + 2:]
     site = Path(argv[0]) if argv else ROOT / "docs" / "_build" / "html"
     pages = tuple(argv[1:]) or DEFAULT_PAGES
     try:
         results = check_site(site, pages)
-    except (FileNotFoundError, RuntimeError) as exc:
+        hits = search_hits(site, query) if query else None
+    except (FileNotFoundError, RuntimeError, subprocess.TimeoutExpired) as exc:
         print(f"check_site: {exc}", file=sys.stderr)
         return 2
+    if hits is not None:
+        print(f"{'ok  ' if hits else 'FAIL'} search.html?q={query}: {hits} pages found")
     failed = False
     for page, r in results.items():
         bad = r["overflowing_tables"] or r["broken_images"]
@@ -144,7 +177,7 @@ def main(argv: list[str]) -> int:
             print(f"     table {t['index']} ('{t['first_cell']}') is {t['table_px']} px in a {t['box_px']} px box")
         for src in r["broken_images"]:
             print(f"     broken image {src}")
-    return 1 if failed else 0
+    return 1 if failed or hits == 0 else 0
 
 
 if __name__ == "__main__":
