@@ -127,6 +127,9 @@ def _tables(cls: type, section: str, out: list[str], array: bool = False) -> Non
         out.append("")
     for inner, key, is_list, f in subs:
         _tables(inner, key, out, array=is_list)
+    # tables named by a registry rather than by a field (each law's [controller.<id>]), read now
+    for name, sub in getattr(cls, "sub_tables", dict)().items():
+        _tables(sub, f"{section}.{name}" if section else name, out)
 
 
 FILES = (
