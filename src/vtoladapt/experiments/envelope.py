@@ -126,7 +126,7 @@ def envelope_run_metrics(result, scenario) -> dict:
     nonfinite = int(data.size - np.count_nonzero(np.isfinite(data)))
     row: dict = {
         "alpha_protect_deg": vehicle.envelope.stall_angle_deg - vehicle.envelope.stall_margin_deg,
-        "alpha_stall_true_deg": scenario.plant.stall_angle_deg,
+        "alpha_stall_true_deg": scenario.plant.resolved(vehicle, scenario.seed).true_stall_angle_deg(vehicle),
         "wing_airspeed_min_mps": vehicle.envelope.hover_blend_airspeed_mps[0],
         "finite": float(nonfinite == 0), "nonfinite_values": float(nonfinite),
         "diverged": float(result.diverged),
