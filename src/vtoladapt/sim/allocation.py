@@ -12,17 +12,25 @@ then left neutral), which is what PX4's airspeed scaling of the surfaces does. I
 columns vanish and the rotors do everything; at speed the surfaces take their share.
 
 **The problem solved every tick** (normalised: each output row divided by the lift rotors' authority in
-it and multiplied by its priority ``w_k``, each actuator divided by its range):
+it, ``s_k``, and weighted by ``w_k``; each actuator divided by its scale ``r_i``, its range over its effort
+weight -- :data:`ROTOR_EFFORT_WEIGHT` for the lift rotors, 1 for the surfaces):
 
-    minimise  sum_k w_k^2 (B a - y)_k^2 / s_k^2 + eps sum_i (a_i - p_i)^2 / r_i^2   over lo <= a <= hi,
+    P(y, w):  minimise  sum_k w_k^2 (B a - y)_k^2 / s_k^2 + eps sum_i (a_i - p_i)^2 / r_i^2   over lo <= a <= hi,
 
 with ``p`` the preferred actuators (the four rotors sharing the asked lift equally, surfaces neutral) and
-``eps`` (:data:`ALLOCATION_EPS`) small: a feasible demand is met to ``~eps`` (exactly, for every purpose),
-and of the actuators that meet it the least deflected are chosen; an infeasible one is met as well as the
-priorities allow. **Priority**: thrust, roll and pitch weigh 1, yaw :data:`YAW_PRIORITY` -- when the
-actuators cannot do everything, yaw gives way first (the attitude that holds the lift vector and the
-lift itself are kept; this is PX4's rule too). What one actuator cannot do the others take
-(redistribution: the solver is a bounded least squares, not a clip). The allocator keeps no state,
+``eps`` (:data:`ALLOCATION_EPS`) small. The effort weight makes the rotors' differential thrust the
+costlier way to a moment, so wherever the surfaces can make it they do (at speed, as on a real standard
+VTOL) and the rotors take what they cannot (in hover, where the surfaces' columns vanish, or past their
+limits). **Stage 1**: ``P(y, (1, 1, 1, 1))``. A feasible demand is met to
+``~eps`` (exactly, for every purpose), and of the actuators that meet it the least deflected are chosen;
+that is every tick where nothing saturates. **Priority** (only when stage 1 cannot meet the demand):
+thrust, roll and pitch before yaw, as PX4's allocator does. **Stage 2** ``P(y, (1, 1, 1, 0))`` finds the
+thrust, roll and pitch ``y1`` the actuators can give with yaw ignored (if even those cannot all be met,
+they share the shortfall in proportion to the rotors' authority); **stage 3** ``P((y1, y_yaw), (1, 1, 1,
+1/H))`` with ``H`` = :data:`HOLD_WEIGHT` then gives yaw what is left while holding ``y1`` (each held
+output gives way by ``~1/H^2`` of yaw's remaining error: a priority, not a hard constraint, so that the
+least-deflection term keeps its meaning in every stage). What one actuator cannot do the others take (redistribution: each stage is a bounded least
+squares, not a clip). The allocator keeps no state,
 so nothing winds up in it, and it reports what it achieved: the applied collective goes back to the
 adaptation (:func:`vtoladapt.sim.loop.report_mixed`) and the asked and achieved ``[T, tau]`` go to the log.
 
@@ -53,8 +61,13 @@ N_ALLOC = N_LIFT + N_SURFACES
 """Allocated actuators: the lift rotors' thrusts (N), then the surfaces' deflections (rad)."""
 ALLOCATION_EPS = 1e-9
 """Weight of the least-deflection term against the (normalised) demand error."""
-YAW_PRIORITY = 0.05
-"""Weight of the yaw moment's error against thrust's, roll's and pitch's (1)."""
+HOLD_WEIGHT = 1000.0
+"""Stage 3's weight on the thrust, roll and pitch found in stage 2 against yaw's."""
+ROTOR_EFFORT_WEIGHT = 10.0
+"""How much costlier a lift rotor's deviation from its share of the lift is than a surface's deflection, each
+in its own range (the least-deflection term's weight, squared: 100)."""
+SATURATION_TOL = 1e-6
+"""A demand counts as met when every output's error is below this fraction of the rotors' authority in it."""
 MAX_ITERATIONS = 4 * N_ALLOC
 """Active-set changes at most per tick (each adds or drops one bound; a box QP of 8 needs far fewer)."""
 
@@ -62,7 +75,8 @@ ALLOC_PARAMS = BlockLayout("allocator parameters", [
     Field("B0", N_OUT * N_ALLOC, "-", "normalised effectiveness at zero dynamic pressure, row-major"),
     Field("BQ", N_OUT * N_ALLOC, "1/Pa", "normalised effectiveness per pascal of dynamic pressure, row-major"),
     Field("ROW_SCALE", N_OUT, "N, N m", "output k's normalisation: its error counts as (B a - y)_k / ROW_SCALE_k"),
-    Field("COL_RANGE", N_ALLOC, "N, rad", "actuator i's range: the normalised actuator is a_i / COL_RANGE_i"),
+    Field("COL_RANGE", N_ALLOC, "N, rad", "actuator i's scale (its range over its effort weight): the normalised "
+          "actuator is a_i / COL_RANGE_i"),
     Field("LO", N_ALLOC, "N, rad", "actuator lower bounds"),
     Field("HI", N_ALLOC, "N, rad", "actuator upper bounds"),
     Field("PREF_SHARE", N_ALLOC, "-", "preferred actuator per newton of asked lift"),
@@ -97,10 +111,11 @@ ALLOC_WORK = BlockLayout("allocator work", [
     Field("TRIAL", N_ALLOC, "-", "the free actuators' minimiser for the current bounds"),
     Field("M", N_OUT * N_OUT, "-", "the 4 x 4 system and its Cholesky factor"),
     Field("R", N_OUT, "-", "residual / right-hand side"),
+    Field("YAW_ROW", N_ALLOC + 1, "-", "the yaw row of B and its demand, kept while stage 2 ignores yaw"),
     Field("REPORT", ALLOC_REPORT.size, "-", "the tick's ALLOC_REPORT"),
 ])
 """Scratch of :func:`allocate` (part of the tick's work array; nothing in it outlives a tick but the report)."""
-(_A_B, _A_Y, _A_A, _A_P, _A_LO, _A_HI, _A_STATE, _A_TRIAL, _A_M, _A_R, _A_REPORT) = ALLOC_WORK.offsets(
+(_A_B, _A_Y, _A_A, _A_P, _A_LO, _A_HI, _A_STATE, _A_TRIAL, _A_M, _A_R, _A_YAW_ROW, _A_REPORT) = ALLOC_WORK.offsets(
     *(f.name for f in ALLOC_WORK.fields))
 ALLOC_WORK_SIZE = ALLOC_WORK.size
 _R_ASKED, _R_ACHIEVED, _R_QBAR = ALLOC_REPORT.offsets("ASKED", "ACHIEVED", "QBAR")
@@ -253,6 +268,18 @@ def solve_box_lsq(w, o, eps) -> int:
 
 
 @njit(cache=True, nogil=True, _nrt=False)
+def _unmet(w, o, n_rows) -> float:
+    """The largest normalised error ``|B a - y|_k`` of the first ``n_rows`` outputs at the iterate."""
+    worst = 0.0
+    for k in range(n_rows):
+        y = -w[o + _A_Y + k]
+        for i in range(N_ALLOC):
+            y += w[o + _A_B + k * N_ALLOC + i] * w[o + _A_A + i]
+        worst = max(worst, abs(y))
+    return worst
+
+
+@njit(cache=True, nogil=True, _nrt=False)
 def allocate(cmd, meas, p, act_cmd, w, o) -> bool:
     """Actuator commands (lift rotors and pusher as throttle fractions, surfaces in rad) for a controller
     command (compiled, unchecked).
@@ -288,14 +315,33 @@ def allocate(cmd, meas, p, act_cmd, w, o) -> bool:
         w[o + _A_P + i] = p[AL_PREF_SHARE + i] * T / r
         w[o + _A_LO + i] = p[AL_LO + i] / r
         w[o + _A_HI + i] = p[AL_HI + i] / r
-    solve_box_lsq(w, o, p[AL_EPS])
-    saturated = False
+    eps = p[AL_EPS]
+    solve_box_lsq(w, o, eps)
+    saturated = _unmet(w, o, N_OUT) > SATURATION_TOL
+    if saturated:
+        # stage 2: thrust, roll and pitch with yaw ignored (its row and demand kept aside)
+        yaw = N_OUT - 1
+        for i in range(N_ALLOC):
+            w[o + _A_YAW_ROW + i] = w[o + _A_B + yaw * N_ALLOC + i]
+            w[o + _A_B + yaw * N_ALLOC + i] = 0.0
+        w[o + _A_YAW_ROW + N_ALLOC] = w[o + _A_Y + yaw]
+        w[o + _A_Y + yaw] = 0.0
+        solve_box_lsq(w, o, eps)
+        # stage 3: hold what stage 2 achieved and give yaw, weighted 1/H, the rest
+        for k in range(yaw):
+            y = 0.0
+            for i in range(N_ALLOC):
+                y += w[o + _A_B + k * N_ALLOC + i] * w[o + _A_A + i]
+            w[o + _A_Y + k] = y
+        for i in range(N_ALLOC):
+            w[o + _A_B + yaw * N_ALLOC + i] = w[o + _A_YAW_ROW + i] / HOLD_WEIGHT
+        w[o + _A_Y + yaw] = w[o + _A_YAW_ROW + N_ALLOC] / HOLD_WEIGHT
+        solve_box_lsq(w, o, eps)
     for k in range(N_OUT):
         y = 0.0
         for i in range(N_ALLOC):
-            y += w[o + _A_B + k * N_ALLOC + i] * w[o + _A_A + i]
-        if abs(y - w[o + _A_Y + k]) > 1e-6:
-            saturated = True
+            j = k * N_ALLOC + i
+            y += (p[AL_B0 + j] + qbar * p[AL_BQ + j]) * w[o + _A_A + i]
         w[rep + _R_ACHIEVED + k] = y * p[AL_ROW_SCALE + k]
     t_unit = p[AL_T_UNIT]
     for i in range(N_LIFT):
@@ -370,11 +416,11 @@ def allocator_params(vehicle, surfaces: bool = True, effectiveness_id: str = "li
         hi[N_LIFT:] = 0.0
     col_range = np.maximum(hi - lo, 0.0)
     col_range[col_range == 0.0] = 1.0
+    col_range[:N_LIFT] /= ROTOR_EFFORT_WEIGHT
     # each output normalised by what the lift rotors can do in it (all four at full thrust, with its sign)
     row_scale = np.abs(B0[:, :N_LIFT]) @ hi[:N_LIFT]
     row_scale[row_scale == 0.0] = 1.0
-    priority = np.array([1.0, 1.0, 1.0, YAW_PRIORITY])
-    W = priority / row_scale
+    W = 1.0 / row_scale
     return ALLOC_PARAMS.pack(
         B0=(W[:, None] * B0 * col_range[None, :]).ravel(), BQ=(W[:, None] * Bq * col_range[None, :]).ravel(),
         ROW_SCALE=1.0 / W, COL_RANGE=col_range, LO=lo, HI=hi, PREF_SHARE=np.array(eff.preferred_share, dtype=float),
@@ -383,11 +429,12 @@ def allocator_params(vehicle, surfaces: bool = True, effectiveness_id: str = "li
 
 
 def allocation_problem(p: np.ndarray, asked, qbar_Pa: float) -> dict:
-    """The weighted bounded least-squares problem :func:`allocate` solves for ``asked = [T, tau_x, tau_y,
-    tau_z]`` at dynamic pressure ``qbar_Pa``, in physical units: ``B`` (4 x 8), ``row_weight`` (4: the
-    error of output k counts times it), ``col_weight`` (8: the least-deflection term's weight of actuator
-    i, before ``eps``), ``preferred``, ``lower``, ``upper``, ``eps``. For checking the solver against an
-    independent one (the tests use ``scipy.optimize.lsq_linear``)."""
+    """The weighted bounded least-squares problem of :func:`allocate`'s stage 1 for ``asked = [T, tau_x,
+    tau_y, tau_z]`` at dynamic pressure ``qbar_Pa``, in physical units: ``B`` (4 x 8), ``row_weight`` (4:
+    the error of output k counts times it), ``col_weight`` (8: the least-deflection term's weight of
+    actuator i, before ``eps``), ``preferred``, ``lower``, ``upper``, ``eps``, ``hold_weight`` (stage 3's
+    ``H``). For checking the solver against an independent one (the tests use
+    ``scipy.optimize.lsq_linear``, stages 2 and 3 built from this)."""
     p = np.asarray(p, dtype=float)
     g = lambda name: p[ALLOC_PARAMS.slice(name)]  # noqa: E731
     col_range = g("COL_RANGE")
@@ -396,4 +443,4 @@ def allocation_problem(p: np.ndarray, asked, qbar_Pa: float) -> dict:
     B = Bn * row_scale[:, None] / col_range[None, :]
     return {"B": B, "row_weight": 1.0 / row_scale, "col_weight": 1.0 / col_range,
             "preferred": g("PREF_SHARE") * float(asked[0]), "lower": g("LO").copy(), "upper": g("HI").copy(),
-            "eps": float(g("EPS")[0])}
+            "eps": float(g("EPS")[0]), "hold_weight": HOLD_WEIGHT}
