@@ -175,7 +175,8 @@ def test_motor_lag_is_integrated_exactly(veh):
     integrate(x, cmd, np.zeros(3), p, 0.004, 25)  # 0.1 s in steps as long as the lift motors' lag
     tau = np.array([veh.actuators.lift_motor_time_constant_s] * 4 + [veh.actuators.pusher_motor_time_constant_s])
     c = np.clip(cmd, 0.0, 1.0)
-    np.testing.assert_allclose(x[layout.X_MOTOR:], c + (u0 - c) * np.exp(-0.1 / tau), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(x[layout.X_MOTOR:layout.X_MOTOR + layout.N_MOTORS], c + (u0 - c) * np.exp(-0.1 / tau),
+                               rtol=0, atol=1e-14)
 
 
 def test_first_stage_reuse_is_exact(veh):

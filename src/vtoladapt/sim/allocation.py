@@ -52,12 +52,12 @@ import numpy as np
 from numba import njit
 
 from ..components import Registry
-from ..layout import (ACT_SURFACE, CMD_TAU_B, CMD_U_X, CMD_U_Z, MEAS_V_I_B, MEAS_V_I_VALID, MOTOR_PUSHER, N_LIFT,
+from ..layout import (ACTUATORS, ACT_SURFACE, CMD_TAU_B, CMD_U_X, CMD_U_Z, MEAS_V_I_B, MEAS_V_I_VALID, MOTOR_PUSHER, N_LIFT,
                       N_SURFACES, BlockLayout, Field)
 
 N_OUT = 4
 """Allocated outputs: total lift (N) and the three body moments (N m)."""
-N_ALLOC = N_LIFT + N_SURFACES
+N_ALLOC = ACTUATORS.field("LIFT").size + ACTUATORS.field("SURFACE").size
 """Allocated actuators: the lift rotors' thrusts (N), then the surfaces' deflections (rad)."""
 ALLOCATION_EPS = 1e-9
 """Weight of the least-deflection term against the (normalised) demand error."""

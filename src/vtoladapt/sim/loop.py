@@ -87,7 +87,7 @@ from ..parts import draw
 from ..sensors.suite import sensors_at
 from ..wind.composer import wind_at
 from .faults import active_mask, apply_actuator_faults, apply_measurement_faults
-from .allocation import ALLOC_REPORT, ALLOC_REPORT_OFFSET, ALLOC_WORK_SIZE, allocate
+from .allocation import ALLOC_REPORT, ALLOC_WORK, ALLOC_WORK_SIZE, allocate
 from .mixer import MX_U_MAX, applied_collective
 from .monitor import REASON_OK, check_envelope
 from .plant import RK4_WORK_SIZE, plant_advance, plant_first_stage
@@ -100,7 +100,7 @@ TICK_WORK = BlockLayout("tick work", [
 """The ``work`` array the two halves of a tick share (one per run, reused every tick)."""
 (_TW_ALLOC,) = TICK_WORK.offsets("ALLOC")
 TICK_WORK_SIZE = TICK_WORK.size
-_TW_REPORT = _TW_ALLOC + ALLOC_REPORT_OFFSET
+(_TW_REPORT,) = TICK_WORK.nested("ALLOC", ALLOC_WORK, "REPORT")
 _N_ALLOC_REPORT = ALLOC_REPORT.size
 
 # --- the log row -----------------------------------------------------------------------------------
