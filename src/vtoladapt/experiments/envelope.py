@@ -134,7 +134,7 @@ def envelope_run_metrics(result, scenario) -> dict:
         "wall_time_s": float(result.metadata["wall_time_s"]),
     }
     scalar_keys = ("vel_err_rms_mps", "vel_err_max_mps", "pos_err_rms_m", "pred_err_p95_g",
-                   "mixer_saturated_fraction", "airspeed_max_mps")
+                   "mixer_saturated_fraction", "lift_attitude_unmet_fraction", "airspeed_max_mps")
     for k in scalar_keys:
         row[k] = nan
     for lab in labels:

@@ -98,6 +98,8 @@ ALLOC_REPORT = BlockLayout("allocation report", [
           columns=("alloc_achieved_T_N", "alloc_achieved_tau_x_Nm", "alloc_achieved_tau_y_Nm",
                    "alloc_achieved_tau_z_Nm")),
     Field("QBAR", 1, "Pa", "dynamic pressure the effectiveness was scheduled with", columns=("alloc_qbar_Pa",)),
+    Field("UNMET_LIFT_ATTITUDE", 1, "-", "1.0 when even thrust, roll and pitch could not all be met (stage 2 "
+          "saturated), not only yaw", columns=("alloc_unmet_lift_attitude",)),
 ])
 """What the allocator reports each tick (logged)."""
 ALLOC_WORK = BlockLayout("allocator work", [
@@ -118,7 +120,7 @@ ALLOC_WORK = BlockLayout("allocator work", [
 (_A_B, _A_Y, _A_A, _A_P, _A_LO, _A_HI, _A_STATE, _A_TRIAL, _A_M, _A_R, _A_YAW_ROW, _A_REPORT) = ALLOC_WORK.offsets(
     *(f.name for f in ALLOC_WORK.fields))
 ALLOC_WORK_SIZE = ALLOC_WORK.size
-_R_ASKED, _R_ACHIEVED, _R_QBAR = ALLOC_REPORT.offsets("ASKED", "ACHIEVED", "QBAR")
+_R_ASKED, _R_ACHIEVED, _R_QBAR, _R_UNMET_LA = ALLOC_REPORT.offsets("ASKED", "ACHIEVED", "QBAR", "UNMET_LIFT_ATTITUDE")
 ALLOC_REPORT_OFFSET = _A_REPORT
 """Where the report lies in :data:`ALLOC_WORK`."""
 
@@ -318,6 +320,7 @@ def allocate(cmd, meas, p, act_cmd, w, o) -> bool:
     eps = p[AL_EPS]
     solve_box_lsq(w, o, eps)
     saturated = _unmet(w, o, N_OUT) > SATURATION_TOL
+    w[rep + _R_UNMET_LA] = 0.0
     if saturated:
         # stage 2: thrust, roll and pitch with yaw ignored (its row and demand kept aside)
         yaw = N_OUT - 1
@@ -327,6 +330,7 @@ def allocate(cmd, meas, p, act_cmd, w, o) -> bool:
         w[o + _A_YAW_ROW + N_ALLOC] = w[o + _A_Y + yaw]
         w[o + _A_Y + yaw] = 0.0
         solve_box_lsq(w, o, eps)
+        w[rep + _R_UNMET_LA] = 1.0 if _unmet(w, o, yaw) > SATURATION_TOL else 0.0
         # stage 3: hold what stage 2 achieved and give yaw, weighted 1/H, the rest
         for k in range(yaw):
             y = 0.0
