@@ -192,20 +192,30 @@ def solve_box_lsq(w, o, eps) -> int:
     this strictly convex problem, so the minimum.
     """
     for i in range(N_ALLOC):
-        w[o + _A_STATE + i] = 0.0
+        # an actuator with no range (a surface the airframe lacks, or switched off) is held from the start
+        fixed = w[o + _A_LO + i] == w[o + _A_HI + i]
+        w[o + _A_STATE + i] = -1.0 if fixed else 0.0
+        w[o + _A_A + i] = w[o + _A_LO + i]
     _free_minimiser(w, o, eps)
+    clipped = False
     for i in range(N_ALLOC):
+        if w[o + _A_STATE + i] != 0.0:
+            continue
         t = w[o + _A_TRIAL + i]
         lo = w[o + _A_LO + i]
         hi = w[o + _A_HI + i]
-        if t <= lo:
+        if t < lo:
             w[o + _A_A + i] = lo
             w[o + _A_STATE + i] = -1.0
-        elif t >= hi:
+            clipped = True
+        elif t > hi:
             w[o + _A_A + i] = hi
             w[o + _A_STATE + i] = 1.0
+            clipped = True
         else:
             w[o + _A_A + i] = t
+    if not clipped:
+        return 0  # the unconstrained minimiser is inside the box: it is the solution (every unsaturated tick)
     it = 0
     while it < MAX_ITERATIONS:
         it += 1
