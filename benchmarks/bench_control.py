@@ -24,7 +24,8 @@ import vtoladapt
 from vtoladapt import forces
 from vtoladapt import layout as L
 from vtoladapt.control import Controller, ControllerConfig, Measurement, Reference
-from vtoladapt.control.kernel import DIAG_SIZE, controller_initial_state, controller_params, controller_step
+from vtoladapt.control.step import (controller_functions, controller_initial_state, controller_params, controller_step,
+                                    diagnostics_size)
 from vtoladapt.sim.allocation import ALLOC_WORK_SIZE, allocate, allocator_params
 
 
@@ -48,22 +49,22 @@ def _operating_point(veh, consistent: bool = True):
 # Not cached: Numba would reuse a cached loop, with the controller compiled into it, until this
 # file changes, however the package changes (the package's own cache guard does not reach here).
 @njit
-def _loop(params, state, meas, ref, dt, cmd, diag, n) -> float:
+def _loop(fns, params, state, meas, ref, dt, cmd, diag, n) -> float:
     acc = 0.0
     a0 = meas[L.MEAS_ACCEL_B]
     for k in range(n):
         meas[L.MEAS_ACCEL_B] = a0 + 1e-6 * (k % 7)   # vary an input so nothing is hoisted
-        controller_step(params, state, meas, ref, dt, cmd, diag)
+        controller_step(fns, params, state, meas, ref, dt, cmd, diag)
         acc += cmd[1]
     meas[L.MEAS_ACCEL_B] = a0
     return acc
 
 
 @njit(_nrt=False)
-def _fc_loop(params, state, meas, ref, dt, cmd, diag, alloc_p, act, work, n) -> float:
+def _fc_loop(fns, params, state, meas, ref, dt, cmd, diag, alloc_p, act, work, n) -> float:
     """The flight computer's tick without the plant: the controller step, then the allocator."""
     for _ in range(n):
-        controller_step(params, state, meas, ref, dt, cmd, diag)
+        controller_step(fns, params, state, meas, ref, dt, cmd, diag)
         allocate(cmd, meas, alloc_p, act, work, 0)
     return cmd[0]
 
@@ -81,9 +82,10 @@ def _settled_state(veh, kind, meas, ref, n=1000):
     params = controller_params(ControllerConfig(kind=kind), veh)
     state = controller_initial_state(params)
     cmd = np.zeros(L.CMD_SIZE)
-    diag = np.zeros(DIAG_SIZE)
-    _loop(params, state, meas.array, ref.array, 0.004, cmd, diag, n)
-    return params, state, cmd, diag
+    diag = np.zeros(diagnostics_size(params))
+    fns = controller_functions(params)
+    _loop(fns, params, state, meas.array, ref.array, 0.004, cmd, diag, n)
+    return fns, params, state, cmd, diag
 
 
 def run() -> list[tuple[str, float, str]]:
@@ -110,10 +112,10 @@ def run() -> list[tuple[str, float, str]]:
     m = meas.array.copy()
     r = ref.array.copy()
     for kind in ("composite", "composite_pconst", "tracking_only", "pid", "pd"):
-        params, state, cmd, diag = _settled_state(veh, kind, meas, ref)
+        fns, params, state, cmd, diag = _settled_state(veh, kind, meas, ref)
 
-        def loop(n, params=params, state=state, cmd=cmd, diag=diag):
-            _loop(params, state, m, r, 0.004, cmd, diag, n)
+        def loop(n, fns=fns, params=params, state=state, cmd=cmd, diag=diag):
+            _loop(fns, params, state, m, r, 0.004, cmd, diag, n)
 
         rows.append((f"{kind}_step_njit_loop_median", 1e6 * _median_per_call(loop, 20000, 15), "us"))
         rows.append((f"{kind}_step_njit_loop_median_cpu",
@@ -121,25 +123,25 @@ def run() -> list[tuple[str, float, str]]:
 
     # the flight computer's step: the controller and the allocator that realises its moment, at 9 m/s,
     # surfaces on against off (the controller's law is the same; only the allocation differs)
-    params, state, cmd, diag = _settled_state(veh, "composite", meas, ref)
+    fns, params, state, cmd, diag = _settled_state(veh, "composite", meas, ref)
     act = np.zeros(L.N_ACTUATORS)
     work = np.zeros(ALLOC_WORK_SIZE)
     per = {}
     for surfaces in (True, False):
         ap = allocator_params(veh, surfaces=surfaces)
-        _fc_loop(params, state, m, r, 0.004, cmd, diag, ap, act, work, 10)
+        _fc_loop(fns, params, state, m, r, 0.004, cmd, diag, ap, act, work, 10)
         per[surfaces] = 1e6 * _median_per_call(
-            lambda n, ap=ap: _fc_loop(params, state, m, r, 0.004, cmd, diag, ap, act, work, n), 20000, 15,
+            lambda n, ap=ap: _fc_loop(fns, params, state, m, r, 0.004, cmd, diag, ap, act, work, n), 20000, 15,
             time.process_time)
         rows.append((f"composite_step_plus_allocation_surfaces_{'on' if surfaces else 'off'}_median_cpu",
                      per[surfaces], "us"))
     rows.append(("step_plus_allocation_surfaces_on_over_off", per[True] / per[False], "ratio"))
 
     bad, _ = _operating_point(veh, consistent=False)
-    params, state, cmd, diag = _settled_state(veh, "composite", bad, ref, n=5000)
+    fns, params, state, cmd, diag = _settled_state(veh, "composite", bad, ref, n=5000)
     mb = bad.array.copy()
     rows.append(("composite_step_njit_loop_all_bounds_active_median_cpu",
-                 1e6 * _median_per_call(lambda n: _loop(params, state, mb, r, 0.004, cmd, diag, n),
+                 1e6 * _median_per_call(lambda n: _loop(fns, params, state, mb, r, 0.004, cmd, diag, n),
                                         20000, 15, time.process_time), "us"))
     return rows
 

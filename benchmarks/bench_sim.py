@@ -95,7 +95,7 @@ def _part_rows() -> list[tuple[str, float, str]]:
     from numba import njit
 
     from vtoladapt import layout
-    from vtoladapt.control.kernel import DIAG_SIZE, controller_step
+    from vtoladapt.control.step import controller_functions, controller_step, diagnostics_size
     from vtoladapt.parts import draw
     from vtoladapt.sensors import sensors_at
     from vtoladapt.sim.driver import prepare
@@ -116,9 +116,9 @@ def _part_rows() -> list[tuple[str, float, str]]:
             plant_advance(x, m, w, p, 0.001, 4, True, work)
 
     @njit
-    def ctrl(p, s, meas, ref, cmd, diag, n):
+    def ctrl(fns, p, s, meas, ref, cmd, diag, n):
         for _ in range(n):
-            controller_step(p, s, meas, ref, 0.004, cmd, diag)
+            controller_step(fns, p, s, meas, ref, 0.004, cmd, diag)
 
     # without reference counting, as the tick that calls them (the slices the inlined part calls take
     # would otherwise cost an atomic increment and decrement each)
@@ -149,7 +149,7 @@ def _part_rows() -> list[tuple[str, float, str]]:
     meas[layout.MEAS_ACCEL_B + 2] = -9.8
     rng = np.random.default_rng(0)
     cmd = np.zeros(layout.CMD_SIZE)
-    diag = np.zeros(DIAG_SIZE)
+    diag = np.zeros(diagnostics_size(run.controller_params))
     out = np.zeros(layout.WIND_SIZE)
     truth = layout.TRUTH.pack(F_B=[0.0, 0.0, -9.8], V_I_B=[9.0, 0.0, 0.5])
     sensor_table, sp, _, sd = run.sensors()
@@ -166,7 +166,8 @@ def _part_rows() -> list[tuple[str, float, str]]:
 
     return [
         ("plant, one 4 ms tick at 1 kHz (4 RK4 steps, first stage included)", per_call(plant_tick, x, motors, v_wind, run.plant_params), "us/tick"),
-        ("controller_step (composite, compiled)", per_call(ctrl, run.controller_params, run.controller_state,
+        ("controller_step (composite, compiled)", per_call(ctrl, controller_functions(run.controller_params),
+                                                           run.controller_params, run.controller_state,
                                                            meas, run.reference_table[0], cmd, diag), "us/tick"),
         ("allocator, a demand it meets (9 m/s flow, surfaces on)",
          per_call(alloc, np.array([0.2, 0.6, 0.05, -0.08, 0.01]), meas, run.mixer_params, np.zeros(layout.N_ACTUATORS),

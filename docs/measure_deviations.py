@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vtoladapt.control.registry import CONTROLLER_IDS
+from vtoladapt.control.registry import controller_ids
 from vtoladapt.experiments.distribution import (
     PAIRED_METRICS, convergence_distribution, fly_variants, per_variant_values, variant_seeds,
     wind_condition_scenario,
@@ -67,14 +67,14 @@ def convergence_case(conv, n, composite_changes=None, bounds=None):
         sc = replace(conv, controller=replace(conv.controller,
                                               composite=replace(conv.controller.composite, **composite_changes)))
     if bounds is not None:
-        import vtoladapt.control.kernel as kernel
+        import vtoladapt.control.step as step
 
-        saved = kernel.theta_bounds
-        kernel.theta_bounds = bounds
+        saved = step.theta_bounds
+        step.theta_bounds = bounds
         try:
             d = convergence_distribution(sc, n)
         finally:
-            kernel.theta_bounds = saved
+            step.theta_bounds = saved
     else:
         d = convergence_distribution(sc, n)
     return {"claims": {k: {"fraction": c["fraction"], "successes": c["successes"], "n": c["n"],
@@ -82,9 +82,9 @@ def convergence_case(conv, n, composite_changes=None, bounds=None):
             "param_std_ratio": d["param_std_ratio"]}
 
 
-def unsigned_bounds(theta_0, theta_std, bound_fraction, bound_sigmas):
+def unsigned_bounds(theta_0, theta_std, bound_fraction, bound_sigmas, signs=None):
     """The bounds before issue #25: no cut at the signs physics gives (C_S could reach -0.5 theta_0)."""
-    from vtoladapt.control.kernel import theta_bound_half_widths
+    from vtoladapt.control.step import theta_bound_half_widths
 
     th0 = np.asarray(theta_0, dtype=float)
     half = theta_bound_half_widths(th0, theta_std, bound_fraction, bound_sigmas)
@@ -147,5 +147,5 @@ def main(n: int) -> None:
 
 
 if __name__ == "__main__":
-    assert "composite" in CONTROLLER_IDS
+    assert "composite" in controller_ids()
     main(int(sys.argv[1]) if len(sys.argv) > 1 else 30)

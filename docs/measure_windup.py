@@ -34,12 +34,11 @@ from pathlib import Path
 
 import numpy as np
 
-from vtoladapt.control.kernel import state_P_inv
-from vtoladapt.control.layouts import FAULT_ADAPTATION
+from vtoladapt.control.blocks import FAULT_ADAPTATION
+from vtoladapt.control.step import state_P_inv
 from vtoladapt.experiments.distribution import _pool_map, variant_seeds
 from vtoladapt.experiments.pairs import paired_difference
 from vtoladapt.sim.driver import controller_prior, prepare, run_chunk
-from vtoladapt.sim.loop import LOG_COLUMNS, N_LOG
 from vtoladapt.sim.scenario import SCENARIO_DIR, load_scenario
 
 OUT = Path(__file__).with_name("windup.json")
@@ -48,10 +47,6 @@ CHUNK_S = 5.0
 HOVER_S = 600.0
 CYCLE_S = 300.0          # long_hour: still 0-60 s, ramp 60-90, hold 90-240, stop 240-270, still 270-300
 NAMES = ("CTx", "CTz", "CS", "CD0", "CD1", "CD2", "CL0", "CL1")
-_COL = {c: i for i, c in enumerate(LOG_COLUMNS)}
-_VT = [_COL[f"v_tilde_{a}_mps"] for a in "NED"]
-_PE = [_COL[f"pred_err_{a}_mps2"] for a in "xyz"]
-_TH = [_COL[f"theta_hat_{n}"] for n in NAMES]
 G0_MPS2 = 9.80665
 
 
@@ -59,24 +54,28 @@ def fly(scenario, every_s: float = CHUNK_S) -> dict:
     """Fly ``scenario`` in chunks of ``every_s``; per tick |v~| and |e|/g, per chunk end P's size and theta-hat."""
     run = prepare(scenario)
     _, theta0, _, lower, upper, _ = controller_prior(scenario, run.vehicle)
+    col = {c: i for i, c in enumerate(run.log_layout.columns)}  # this run's law and basis
+    vt_cols = [col[f"v_tilde_{a}_mps"] for a in "NED"]
+    pe_cols = [col[f"pred_err_{a}_mps2"] for a in "xyz"]
+    th_cols = [col[f"theta_hat_{n}"] for n in NAMES]
     x = run.x0.copy()
     n, ch = scenario.n_ticks, int(round(every_s / scenario.dt_control_s))
-    log = np.empty((ch, N_LOG))
+    log = np.empty((ch, run.log_layout.size))
     t, vt, pe, faults = [], [], [], []
     t_chunk, p_max, p_trace, theta = [], [], [], []
     for k0 in range(0, n, ch):
         done, reason = run_chunk(run, x, k0, min(n, k0 + ch), log[:min(n, k0 + ch) - k0])
         rows = log[:done]
         t.append(rows[:, 0].copy())
-        vt.append(np.linalg.norm(rows[:, _VT], axis=1))
-        pe.append(np.linalg.norm(rows[:, _PE], axis=1) / G0_MPS2)
-        faults.append((rows[:, _COL["fault_flags"]].astype(np.int64) & FAULT_ADAPTATION) != 0)
-        gamma = state_P_inv(run.controller_state)
+        vt.append(np.linalg.norm(rows[:, vt_cols], axis=1))
+        pe.append(np.linalg.norm(rows[:, pe_cols], axis=1) / G0_MPS2)
+        faults.append((rows[:, col["fault_flags"]].astype(np.int64) & FAULT_ADAPTATION) != 0)
+        gamma = state_P_inv(run.controller_params, run.controller_state)
         eig = np.linalg.eigvalsh(0.5 * (gamma + gamma.T))
         t_chunk.append((k0 + done) * scenario.dt_control_s)
         p_max.append(float(1.0 / eig[0]) if eig[0] > 0.0 else float("inf"))
         p_trace.append(float(np.sum(1.0 / eig)) if eig[0] > 0.0 else float("inf"))
-        theta.append(rows[-1, _TH].copy() if done else np.full(len(NAMES), np.nan))
+        theta.append(rows[-1, th_cols].copy() if done else np.full(len(NAMES), np.nan))
         if reason != 0:
             break
     return {"t": np.concatenate(t), "vt": np.concatenate(vt), "pe": np.concatenate(pe),

@@ -15,13 +15,16 @@ from hypothesis import strategies as st
 from conftest import examples
 from vtoladapt import forces
 from vtoladapt.control import adaptation as ad
-from vtoladapt.control.config import ControllerConfig
-from vtoladapt.control.layouts import P_P0, P_V_LO, S_SAT_PREV, S_V_I_LAW
+from vtoladapt.bases import IN_V_I_B
+from vtoladapt.control import controller_arrays
+from vtoladapt.control.blocks import A_PHI, P_V_LO, S_INPUT, S_SAT_PREV
 from vtoladapt.control.laws import _adaptive, tracking_only
+from vtoladapt.control.settings import ControllerConfig
 from vtoladapt.experiments.metrics import IDENTIFIABILITY_SENSITIVITY_MIN_MPS2, identifiability
 from vtoladapt.vehicle import PARAMETER_NAMES
 
-N = ad.N_THETA
+N = len(PARAMETER_NAMES)
+MEM = ad.memory_layout(N)
 
 
 def _random_spd(rng, n=N):
@@ -32,9 +35,10 @@ def _random_spd(rng, n=N):
 def _directional_step(G, G0, W, a, b):
     out = G.ravel().copy()
     WtW = np.empty(N * N)
-    ad.gram(W.ravel(), 0, WtW, 0)
-    scratch = np.zeros(66)
-    ad.directional_information_update(out, 0, G0.ravel(), 0, W.ravel(), 0, WtW, 0, a, b, scratch, 0)
+    ad.gram(W.ravel(), 0, WtW, 0, N)
+    scratch = np.zeros(6 * N + 18)                       # D W^T, (S^-1 W D)^T, S, its factor
+    ad.directional_information_update(out, 0, G0.ravel(), 0, W.ravel(), 0, WtW, 0, a, b, scratch, 0, 3 * N,
+                                      6 * N, 6 * N + 9, N)
     return out.reshape(N, N)
 
 
@@ -59,7 +63,7 @@ def test_directional_forgetting_keeps_the_information_of_unexcited_directions(rn
     # the paper's forgetting toward the prior decays the unexcited block
     out = G.ravel().copy()
     WtW = (W.T @ W).ravel().copy()
-    ad.information_update(out, 0, G0.ravel(), 0, WtW, 0, a, b)
+    ad.information_update(out, 0, G0.ravel(), 0, WtW, 0, a, b, N)
     assert np.all(np.diag(out.reshape(N, N))[3:] < np.diag(G)[3:])
 
 
@@ -84,23 +88,15 @@ def test_directional_forgetting_stays_between_the_prior_and_the_data(seed, rank,
 
 
 def _memory_with(theta, G, W, a_m):
-    x = np.zeros(ad.MEM_SIZE + ad.WORK_SIZE)
-    x[ad.MEM_THETA:ad.MEM_THETA + N] = theta
-    x[ad.MEM_GAMMA:ad.MEM_GAMMA + N * N] = G.ravel()
-    x[ad.MEM_W:ad.MEM_W + 3 * N] = W.ravel()
-    x[ad.MEM_A_M:ad.MEM_A_M + 3] = a_m
-    return x
+    """``(at, x)``: the offsets table and the memory (then scratch) of one adaptation."""
+    at, x, _ = ad.standalone_arrays(N)
+    x[:MEM.size] = MEM.pack(THETA=theta, GAMMA=G.ravel(), W=W.ravel(), A_M=a_m)
+    return at, x
 
 
 def _prior(th0, G0):
-    prior = np.zeros(ad.PRIOR_SIZE)
-    prior[ad.PRIOR_THETA0:ad.PRIOR_THETA0 + N] = th0
-    prior[ad.PRIOR_THETA_INIT:ad.PRIOR_THETA_INIT + N] = th0
-    prior[ad.PRIOR_LOWER:ad.PRIOR_LOWER + N] = -1e6
-    prior[ad.PRIOR_UPPER:ad.PRIOR_UPPER + N] = 1e6
-    prior[ad.PRIOR_GAMMA0:ad.PRIOR_GAMMA0 + N * N] = G0.ravel()
-    prior[ad.PRIOR_P0:ad.PRIOR_P0 + N * N] = np.linalg.inv(G0).ravel()
-    return prior
+    return ad.prior_layout(N).pack(THETA0=th0, THETA_INIT=th0, LOWER=-1e6, UPPER=1e6, GAMMA0=G0.ravel(),
+                                   P0=np.linalg.inv(G0).ravel())
 
 
 def test_zero_weights_freeze_theta_and_unit_weights_are_the_paper_step(rng):
@@ -110,23 +106,22 @@ def test_zero_weights_freeze_theta_and_unit_weights_are_the_paper_step(rng):
     W = rng.normal(size=(3, N))
     theta = th0 + 0.1 * rng.normal(size=N)
     a_m = W @ th0 + 0.05 * rng.normal(size=3)
-    Phi = tuple(tuple(r) for r in rng.normal(size=(3, N)))
+    Phi = rng.normal(size=3 * N)
     R = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
-    v_t = np.array([0.3, -0.2, 0.1])
+    v_t = (0.3, -0.2, 0.1)
     fa, fb = ad.forgetting_weights(0.5, 0.004)
-    w = ad.MEM_SIZE
-    x = _memory_with(theta, G, W, a_m)
-    ad.weighted_adaptation_step(ad.ADAPT_COMPOSITE, x, 0, w, _prior(th0, G0), 0, Phi, R, v_t, 0.004, fa, fb,
+    at, x = _memory_with(theta, G, W, a_m)
+    ad.weighted_adaptation_step(ad.ADAPT_COMPOSITE, at, 0, x, _prior(th0, G0), Phi, 0, R, v_t, 0.004, fa, fb,
                                 0.0, 1e9, 0, 0.0, 0.0, False, 1.0)
-    np.testing.assert_array_equal(x[:N], theta)                              # no term moves theta-hat
-    np.testing.assert_allclose(x[ad.MEM_GAMMA:ad.MEM_GAMMA + N * N].reshape(N, N), fa * G + (1 - fa) * G0,
+    np.testing.assert_array_equal(MEM.view(x, "THETA"), theta)                # no term moves theta-hat
+    np.testing.assert_allclose(MEM.view(x, "GAMMA").reshape(N, N), fa * G + (1 - fa) * G0,
                                rtol=1e-12)                                  # no data added, only forgetting
-    x1 = _memory_with(theta, G, W, a_m)
-    x2 = _memory_with(theta, G, W, a_m)
-    ad.weighted_adaptation_step(ad.ADAPT_COMPOSITE, x1, 0, w, _prior(th0, G0), 0, Phi, R, v_t, 0.004, fa, fb,
+    at, x1 = _memory_with(theta, G, W, a_m)
+    _, x2 = _memory_with(theta, G, W, a_m)
+    ad.weighted_adaptation_step(ad.ADAPT_COMPOSITE, at, 0, x1, _prior(th0, G0), Phi, 0, R, v_t, 0.004, fa, fb,
                                 1e-4, 1e9, 0, 1.0, 1.0, False, 1.0)
-    ad.adaptation_step(ad.ADAPT_COMPOSITE, x2, 0, w, _prior(th0, G0), 0, Phi, R, v_t, 0.004, fa, fb, 1e-4, 1e9, 0)
-    np.testing.assert_array_equal(x1[:ad.MEM_SIZE], x2[:ad.MEM_SIZE])
+    ad.adaptation_step(ad.ADAPT_COMPOSITE, at, 0, x2, _prior(th0, G0), Phi, 0, R, v_t, 0.004, fa, fb, 1e-4, 1e9, 0)
+    np.testing.assert_array_equal(x1[:MEM.size], x2[:MEM.size])
 
 
 # --- model validity --------------------------------------------------------------------------------
@@ -134,9 +129,9 @@ def test_zero_weights_freeze_theta_and_unit_weights_are_the_paper_step(rng):
 def _validity(alpha_deg, V, v_lo=2.0, trust_deg=12.0, stall_deg=16.0, sat=(0.0, 0.0)):
     params = np.zeros(P_V_LO + 1)
     params[P_V_LO] = v_lo
-    state = np.zeros(S_V_I_LAW + 3)
+    state = np.zeros(max(S_INPUT + IN_V_I_B, S_SAT_PREV) + 3)
     a = np.radians(alpha_deg)
-    state[S_V_I_LAW:S_V_I_LAW + 3] = (V * np.cos(a), 0.0, V * np.sin(a))
+    state[S_INPUT + IN_V_I_B:S_INPUT + IN_V_I_B + 3] = (V * np.cos(a), 0.0, V * np.sin(a))
     state[S_SAT_PREV:S_SAT_PREV + 2] = sat
     return (_adaptive.model_validity(params, state, np.radians(trust_deg), np.radians(stall_deg)),
             _adaptive.saturated(state))
@@ -173,14 +168,15 @@ def test_tracking_gain_rule_bounds_the_integral_gain(caltech):
     assert tracking_only.integral_gain_limit(tracking_only.TrackingOnlySettings(gain_rule="paper"), K_v,
                                              caltech) == np.inf
     P0 = np.diag(caltech.adaptation.P0_diag)
-    params = np.zeros(P_P0 + N * N + 200)
-    params[P_P0:P_P0 + N * N] = P0.ravel()
-    params[tracking_only.P_K_I_MAX] = k_I_max
+    params, state = controller_arrays(caltech, ControllerConfig(kind="tracking_only"))
+    assert params[tracking_only.P_K_I_MAX] == k_I_max
+    phi = int(params[A_PHI])
     for V, alpha, u_x, u_z in [(0.0, 0.0, 0.0, 0.55), (4.0, 0.1, 0.2, 0.5), (9.0, 0.2, 0.45, 0.3),
                                (12.9, 0.1, 0.6, 0.1)]:
         Phi = np.empty((3, N))
         forces.regressor(np.array([V * np.cos(alpha), 0.0, V * np.sin(alpha)]), u_x, u_z, caltech.model_kernel, Phi)
-        k = tracking_only.gain_scale(params, tuple(tuple(r) for r in Phi))
+        state[phi:phi + 3 * N] = Phi.ravel()              # this tick's regressor, where the front end leaves it
+        k = tracking_only.gain_scale(params, state)
         M = Phi @ P0 @ Phi.T
         assert k == pytest.approx(min(1.0, k_I_max / np.trace(M)), rel=1e-12)
         # every axis' integral gain (any attitude R: same eigenvalues) within the Routh bound

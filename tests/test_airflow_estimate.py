@@ -16,9 +16,9 @@ from vtoladapt import forces
 from vtoladapt.config import ConfigError
 from vtoladapt.control import ControllerConfig
 from vtoladapt.control.airflow_estimate import SIN_SIDESLIP_MAX, estimate_horizontal_wind
-from vtoladapt.control.config import controller_config_from_mapping
-from vtoladapt.control.kernel import controller_params
-from vtoladapt.control.layouts import P_FLOW_EST_ON, P_FLOW_EST_TAU
+from vtoladapt.control.settings import controller_config_from_mapping
+from vtoladapt.control.blocks import P_FLOW_EST_ON, P_FLOW_EST_TAU
+from vtoladapt.control.step import controller_params
 from vtoladapt.vehicle import load_vehicle
 
 VEHICLES = ("caltech_vtol", "px4_standard_vtol")

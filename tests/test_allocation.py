@@ -158,7 +158,7 @@ def test_the_applied_collective_is_reported_when_saturated(veh):
     """A roll demand at high collective: lift is shared with roll, the rotors' collective falls, and that is
     what the controller is told (report_mixed), not what it asked."""
     from vtoladapt.control.api import Controller
-    from vtoladapt.control.kernel import controller_initial_state, state_last_command
+    from vtoladapt.control.step import controller_initial_state, state_last_command
     from vtoladapt.sim.loop import report_mixed
 
     out, sat, rep = motor_commands(np.array([0.3, 0.97, 50.0, 0.0, 0.0]), veh, report=True)

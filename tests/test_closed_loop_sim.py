@@ -25,8 +25,11 @@ import numpy as np
 import pytest
 
 from vtoladapt import forces, load_vehicle
-from vtoladapt.control.config import CONTROLLER_KINDS, ControllerConfig
-from vtoladapt.control.kernel import FAULT_PROBE
+from vtoladapt.control.blocks import FAULT_PROBE
+from vtoladapt.control.registry import controller_ids
+from vtoladapt.control.settings import ControllerConfig
+
+CONTROLLER_KINDS = controller_ids()
 from vtoladapt.frames import GRAVITY_MPS2, quat_to_rotmat
 from vtoladapt.sim.scenario import scenario_from_mapping
 from vtoladapt.sim.driver import simulate

@@ -25,11 +25,11 @@ ENTRY_POINTS = {
     "controller step API, every law": (
         "import vtoladapt\n"
         "from vtoladapt.control import Controller, ControllerConfig, Measurement, Reference\n"
-        "from vtoladapt.control.registry import CONTROLLER_IDS\n"
+        "from vtoladapt.control.registry import controller_ids\n"
         "meas = Measurement()\n"
         "meas.q_WB = (1.0, 0.0, 0.0, 0.0)\n"
         "meas.v_i_valid = True\n"
-        "for kind in CONTROLLER_IDS:\n"
+        "for kind in controller_ids():\n"
         "    c = Controller(vtoladapt.load_vehicle('caltech_vtol'), ControllerConfig(kind=kind))\n"
         "    for k in range(3):\n"
         "        cmd = c.step(0.004 * k, meas, Reference())\n"

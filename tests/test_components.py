@@ -75,10 +75,24 @@ def test_entry_points_of_the_kind_are_read_on_first_use(kind, monkeypatch):
     assert seen == ["vtoladapt.test_kind"]  # read once
 
 
-def test_the_control_laws_are_the_law_kind():
-    from vtoladapt.control.registry import CONTROLLER_IDS, CONTROLLERS
+def test_the_control_laws_are_the_law_kind_and_the_bases_the_basis_kind():
+    from vtoladapt.bases import BASES, basis_ids
+    from vtoladapt.control.registry import CONTROLLERS, controller_ids
 
     assert components.registry("law") is CONTROLLERS
-    assert CONTROLLERS.ids() == CONTROLLER_IDS and "composite" in CONTROLLERS
+    assert CONTROLLERS.ids() == controller_ids() and "composite" in CONTROLLERS
+    assert components.registry("basis") is BASES and "paper" in basis_ids()
+    assert BASES.module("paper").__name__ == "vtoladapt.bases.paper"     # a package member's relative name
     with pytest.raises(KeyError, match="unknown component kind"):
         components.registry("no_such_kind")
+
+
+def test_a_member_registered_by_a_call_names_its_module_absolutely(monkeypatch):
+    """``module = "example_basis"`` of a registered member is the top-level module of that name (tests/), not
+    one inside the kind's package: a user's module needs no dot in its name."""
+    import example_basis
+    from vtoladapt.bases import BASES
+
+    monkeypatch.setattr(BASES, "_members", dict(BASES._members))
+    components.register("basis", example_basis.INFO)
+    assert BASES.module("paper_cy") is example_basis

@@ -16,11 +16,28 @@ from scipy.optimize import lsq_linear, minimize
 
 from vtoladapt import forces
 from vtoladapt.control import adaptation as ad
+from vtoladapt.control import linalg
 from vtoladapt.control import exact_step
-from vtoladapt.control.kernel import default_theta_bounds
+from vtoladapt.control.step import default_theta_bounds
 
 DT = 0.004
 N = 8
+MEM = ad.memory_layout(N)
+PRI = ad.prior_layout(N)
+_IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+
+
+def _standalone(theta, theta0, lower, upper, P0, Gamma=None, W=None, a_m=None):
+    """``(at, x, prior)`` of one adaptation of N parameters (:func:`vtoladapt.control.adaptation.standalone_arrays`)."""
+    at, x, prior = ad.standalone_arrays(N)
+    MEM.view(x, "THETA")[:] = theta
+    MEM.view(x, "GAMMA")[:] = np.linalg.inv(P0).ravel() if Gamma is None else np.asarray(Gamma).ravel()
+    if W is not None:
+        MEM.view(x, "W")[:] = np.asarray(W).ravel()
+    if a_m is not None:
+        MEM.view(x, "A_M")[:] = a_m
+    prior[:] = PRI.pack(THETA0=theta0, LOWER=lower, UPPER=upper, GAMMA0=np.linalg.inv(P0).ravel(), P0=P0.ravel())
+    return at, x, prior
 
 
 def _excitation(vehicle, n):
@@ -38,30 +55,23 @@ def _excitation(vehicle, n):
     return out
 
 
-# Not cached: a cached test kernel keeps the adaptation compiled into it until this file changes,
-# however the package changes (the package's cache guard does not reach the tests).
-@njit
-def _row(W, r):
-    return (W[r, 0], W[r, 1], W[r, 2], W[r, 3], W[r, 4], W[r, 5], W[r, 6], W[r, 7])
-
-
-@njit
 def _drive(mode, theta, Gamma, Ws, theta_true, a_bias, n_steps, theta0, Gamma0, P0, lower, upper, lam, sigma,
            trace_max, theta_hist):
     """Run ``n_steps`` ticks cycling through ``Ws`` with ``a_m = W theta_true + a_bias`` and v~ = 0."""
     # the adaptation's memory and scratch in one array, the prior in another (as in the controller)
-    x = np.zeros(ad.MEM_SIZE + ad.WORK_SIZE)
-    prior = np.zeros(ad.PRIOR_SIZE)
-    for i in range(N):
-        x[ad.MEM_THETA + i] = theta[i]
-        prior[ad.PRIOR_THETA0 + i] = theta0[i]
-        prior[ad.PRIOR_LOWER + i] = lower[i]
-        prior[ad.PRIOR_UPPER + i] = upper[i]
-        for j in range(N):
-            x[ad.MEM_GAMMA + N * i + j] = Gamma[i, j]
-            prior[ad.PRIOR_GAMMA0 + N * i + j] = Gamma0[i, j]
-            prior[ad.PRIOR_P0 + N * i + j] = P0[i, j]
+    at, x, prior = _standalone(theta, theta0, lower, upper, P0, Gamma)
+    return _drive_kernel(mode, at, x, prior, theta, Gamma, Ws, theta_true, a_bias, n_steps, lam, sigma, trace_max,
+                         theta_hist)
+
+
+# Not cached: a cached test kernel keeps the adaptation compiled into it until this file changes,
+# however the package changes (the package's cache guard does not reach the tests).
+@njit
+def _drive_kernel(mode, at, x, prior, theta, Gamma, Ws, theta_true, a_bias, n_steps, lam, sigma, trace_max,
+                  theta_hist):
+    th, gam, wf, am = int(at[ad.AT_THETA]), int(at[ad.AT_GAMMA]), int(at[ad.AT_W]), int(at[ad.AT_A_M])
     R = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    Phi = np.empty(3 * N)
     v_t = (0.0, 0.0, 0.0)
     forget_a, forget_b = ad.forgetting_weights(lam, 0.004)
     n_p = Ws.shape[0]
@@ -73,18 +83,19 @@ def _drive(mode, theta, Gamma, Ws, theta_true, a_bias, n_steps, theta0, Gamma0, 
             a_m = a_bias[i]
             for j in range(N):
                 a_m += W[i, j] * theta_true[j]
-                x[ad.MEM_W + N * i + j] = W[i, j]
-            x[ad.MEM_A_M + i] = a_m
-        r, active, e = ad.adaptation_step(mode, x, 0, ad.MEM_SIZE, prior, 0, (_row(W, 0), _row(W, 1), _row(W, 2)), R,
-                                          v_t, 0.004, forget_a, forget_b, sigma, trace_max, active)
+                x[wf + N * i + j] = W[i, j]
+                Phi[N * i + j] = W[i, j]
+            x[am + i] = a_m
+        r, active, e = ad.adaptation_step(mode, at, 0, x, prior, Phi, 0, R, v_t, 0.004, forget_a, forget_b, sigma,
+                                          trace_max, active)
         worst = min(worst, r)
         if k >= n_steps - theta_hist.shape[0]:
             for i in range(N):
-                theta_hist[k - (n_steps - theta_hist.shape[0]), i] = x[ad.MEM_THETA + i]
+                theta_hist[k - (n_steps - theta_hist.shape[0]), i] = x[th + i]
     for i in range(N):
-        theta[i] = x[ad.MEM_THETA + i]
+        theta[i] = x[th + i]
         for j in range(N):
-            Gamma[i, j] = x[ad.MEM_GAMMA + N * i + j]
+            Gamma[i, j] = x[gam + N * i + j]
     return worst
 
 
@@ -236,12 +247,14 @@ def _random_spd(rng, n=N):
 
 def _project(K, d0, theta, lo, hi, active_start):
     """project_direction on arrays: the projected direction (n_active must not be -1)."""
-    x = np.zeros(3 * N + ad.PROJECTION_WORK_SIZE)
+    m = (N // 2) ** 2
+    x = np.zeros(3 * N + 2 * m + 2 * N)                 # tau, d0, d, then the projection's scratch
     x[:N] = np.linalg.solve(K, d0)                      # tau, with d0 = K tau
     x[N:2 * N] = d0
-    at_upper, at_lower = ad.bound_sides(theta, 0, lo, 0, hi, 0)
-    n_act, active = ad.project_direction(K.ravel(), 0, np.linalg.inv(K).ravel(), 0, x, 0, N, 2 * N, 3 * N,
-                                         at_upper, at_lower, int(active_start))
+    at_upper, at_lower = ad.bound_sides(theta, 0, lo, 0, hi, 0, N)
+    s = 3 * N
+    n_act, active = ad.project_direction(K.ravel(), 0, np.linalg.inv(K).ravel(), 0, x, 0, N, 2 * N, s, s + m,
+                                         s + 2 * m, s + 2 * m + N, at_upper, at_lower, int(active_start), N)
     assert n_act >= 0 and n_act == bin(active).count("1")
     return x[2 * N:3 * N].copy()
 
@@ -298,13 +311,13 @@ def test_information_update_is_the_exact_solution_of_its_ode(rng):
     W = rng.normal(size=(3, N))
     WtW = W.T @ W
     WtW_gram = np.empty(N * N)
-    ad.gram(W.ravel(), 0, WtW_gram, 0)
+    ad.gram(W.ravel(), 0, WtW_gram, 0, N)
     np.testing.assert_allclose(WtW_gram.reshape(N, N), WtW, rtol=1e-14)
     lam, dt = 0.7, 0.05
 
     def step(lam):
         out = G.ravel().copy()
-        ad.information_update(out, 0, G0.ravel(), 0, WtW_gram, 0, *ad.forgetting_weights(lam, dt))
+        ad.information_update(out, 0, G0.ravel(), 0, WtW_gram, 0, *ad.forgetting_weights(lam, dt), N)
         return out.reshape(N, N)
 
     sol = solve_ivp(lambda t, y: (WtW - lam * (y.reshape(N, N) - G0)).ravel(), (0, dt), G.ravel(),
@@ -313,7 +326,7 @@ def test_information_update_is_the_exact_solution_of_its_ode(rng):
     np.testing.assert_allclose(step(0.0), G + dt * WtW, rtol=1e-14)      # lambda = 0: plain integration
     # the paper's pure forgetting (forgetting = "paper"): Gamma' = W^T W - lambda Gamma
     paper = G.ravel().copy()
-    ad.information_update(paper, 0, G0.ravel(), 0, WtW_gram, 0, *ad.forgetting_weights(lam, dt), 0.0)
+    ad.information_update(paper, 0, G0.ravel(), 0, WtW_gram, 0, *ad.forgetting_weights(lam, dt), N, 0.0)
     sol = solve_ivp(lambda t, y: (WtW - lam * y.reshape(N, N)).ravel(), (0, dt), G.ravel(), rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(paper.reshape(N, N), sol.y[:, -1].reshape(N, N), rtol=1e-9, atol=1e-12)
 
@@ -332,31 +345,31 @@ def test_small_linear_algebra_against_numpy(rng):
     for _ in range(20):
         A = _random_spd(rng)
         out = np.empty(N * N)
-        assert ad.spd_inverse(A.ravel(), 0, out, 0, work, 0)
+        assert linalg.spd_inverse(A.ravel(), 0, out, 0, work, 0, N)
         out = out.reshape(N, N)
         np.testing.assert_allclose(out, np.linalg.inv(A), rtol=1e-10, atol=1e-12)
         assert np.array_equal(out, out.T)
         # matrices at offsets inside larger arrays
         store = np.zeros(5 + 2 * N * N)
         store[5:5 + N * N] = A.ravel()
-        assert ad.cholesky_lower(store, 5, work, 0, N)
-        ad.inverse_factor(work, 0, store, 5 + N * N)
+        assert linalg.cholesky_lower(store, 5, work, 0, N)
+        linalg.inverse_factor(work, 0, store, 5 + N * N, N)
         M = store[5 + N * N:].reshape(N, N)
         np.testing.assert_allclose(M, np.linalg.inv(np.linalg.cholesky(A)), rtol=1e-10, atol=1e-12)
         L = np.empty(N * N)
-        assert ad.cholesky_lower(A.ravel(), 0, L, 0, N)
+        assert linalg.cholesky_lower(A.ravel(), 0, L, 0, N)
         b = rng.normal(size=N)
         x = b.copy()
-        ad.cholesky_solve(L, 0, N, x, 0)
+        linalg.cholesky_solve(L, 0, N, x, 0)
         np.testing.assert_allclose(x, np.linalg.solve(A, b), rtol=1e-10, atol=1e-12)
         x = np.concatenate([[7.0], b])
-        ad.factor_apply(store, 5 + N * N, x, 1)
+        linalg.factor_apply(store, 5 + N * N, x, 1, N)
         np.testing.assert_allclose(x[1:], np.linalg.solve(A, b), rtol=1e-10, atol=1e-12)
         assert x[0] == 7.0
         dg = np.empty(N)
-        ad.factor_diag(store, 5 + N * N, dg, 0)
+        linalg.factor_diag(store, 5 + N * N, dg, 0, N)
         np.testing.assert_allclose(dg, np.diag(np.linalg.inv(A)), rtol=1e-10)
-    assert not ad.spd_inverse(-np.eye(N).ravel(), 0, out.ravel(), 0, work, 0)
+    assert not linalg.spd_inverse(-np.eye(N).ravel(), 0, out.ravel(), 0, work, 0, N)
 
 
 def test_lyapunov_function_matches_its_definition(rng):
@@ -373,19 +386,11 @@ def test_lyapunov_function_matches_its_definition(rng):
 
 def _tracking_step(P0, theta, lo, hi, Phi, v_tilde, k, dt=DT):
     """One tick of the tracking mode (gain ``k P0``, sigma 0): ``(theta' = step / dt, bounds held)``."""
-    x = np.zeros(ad.MEM_SIZE + ad.WORK_SIZE)
-    prior = np.zeros(ad.PRIOR_SIZE)
-    x[ad.MEM_THETA:ad.MEM_THETA + N] = theta
-    prior[ad.PRIOR_THETA0:ad.PRIOR_THETA0 + N] = theta
-    prior[ad.PRIOR_LOWER:ad.PRIOR_LOWER + N] = lo
-    prior[ad.PRIOR_UPPER:ad.PRIOR_UPPER + N] = hi
-    prior[ad.PRIOR_GAMMA0:ad.PRIOR_GAMMA0 + N * N] = np.linalg.inv(P0).ravel()
-    prior[ad.PRIOR_P0:ad.PRIOR_P0 + N * N] = P0.ravel()
-    R = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
-    n_act, _, _ = ad.weighted_adaptation_step(ad.ADAPT_TRACKING, x, 0, ad.MEM_SIZE, prior, 0,
-                                              tuple(tuple(r) for r in Phi), R, tuple(v_tilde), dt, 1.0, dt, 0.0,
-                                              np.inf, 0, 1.0, 1.0, False, k)
-    return (x[ad.MEM_THETA:ad.MEM_THETA + N] - theta) / dt, n_act
+    at, x, prior = _standalone(theta, theta, lo, hi, P0)
+    n_act, _, _ = ad.weighted_adaptation_step(ad.ADAPT_TRACKING, at, 0, x, prior, np.ravel(Phi).astype(float), 0,
+                                              _IDENTITY, tuple(v_tilde), dt, 1.0, dt, 0.0, np.inf, 0, 1.0, 1.0,
+                                              False, k)
+    return (MEM.view(x, "THETA") - theta) / dt, n_act
 
 
 def test_tracking_gain_scale_survives_the_projection_with_any_number_of_bounds_held(rng):
@@ -475,22 +480,11 @@ def test_posterior_bounds_respect_the_signs_physics_gives(caltech):
 
 def _pconst_steps(P0, theta, W, a_m, Phi, v_tilde, sigma, w_pred, dt, n):
     """``n`` ticks of the constant-P mode with everything held; theta-hat after them (bounds far away)."""
-    x = np.zeros(ad.MEM_SIZE + ad.WORK_SIZE)
-    prior = np.zeros(ad.PRIOR_SIZE)
-    x[ad.MEM_THETA:ad.MEM_THETA + N] = theta
-    x[ad.MEM_W:ad.MEM_W + 3 * N] = W.ravel()
-    x[ad.MEM_A_M:ad.MEM_A_M + 3] = a_m
-    x[ad.MEM_GAMMA:ad.MEM_GAMMA + N * N] = np.linalg.inv(P0).ravel()
-    prior[ad.PRIOR_THETA0:ad.PRIOR_THETA0 + N] = 0.0
-    prior[ad.PRIOR_LOWER:ad.PRIOR_LOWER + N] = -1e9
-    prior[ad.PRIOR_UPPER:ad.PRIOR_UPPER + N] = 1e9
-    prior[ad.PRIOR_GAMMA0:ad.PRIOR_GAMMA0 + N * N] = np.linalg.inv(P0).ravel()
-    prior[ad.PRIOR_P0:ad.PRIOR_P0 + N * N] = P0.ravel()
-    R = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    at, x, prior = _standalone(theta, np.zeros(N), np.full(N, -1e9), np.full(N, 1e9), P0, W=W, a_m=a_m)
     for _ in range(n):
-        ad.weighted_adaptation_step(ad.ADAPT_PCONST, x, 0, ad.MEM_SIZE, prior, 0, tuple(tuple(r) for r in Phi), R,
+        ad.weighted_adaptation_step(ad.ADAPT_PCONST, at, 0, x, prior, np.ravel(Phi).astype(float), 0, _IDENTITY,
                                     tuple(v_tilde), dt, 1.0, dt, sigma, np.inf, 0, 1.0, w_pred, False, 1.0)
-    return x[ad.MEM_THETA:ad.MEM_THETA + N].copy()
+    return MEM.view(x, "THETA").copy()
 
 
 def _pconst_exact(P0, theta, W, a_m, Phi, v_tilde, sigma, w_pred, dt):

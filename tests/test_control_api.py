@@ -19,11 +19,12 @@ from vtoladapt.control import (
     VelocityProfile,
     controller_arrays,
     controller_config_from_mapping,
+    controller_functions,
     controller_step,
     load_controller_config,
     trajectory_from_reference,
 )
-from vtoladapt.control.kernel import DIAG_SIZE, controller_initial_state, controller_params
+from vtoladapt.control.step import controller_initial_state, controller_params, diagnostics_size
 from vtoladapt.control.laws.composite import CompositeSettings
 from vtoladapt.frames import GRAVITY_MPS2, quat_from_euler
 
@@ -49,11 +50,12 @@ def test_step_returns_exactly_what_the_kernel_returns(caltech, rng, kind):
     params, state = controller_arrays(caltech, cfg)
     ref = Reference.hold((0.0, 0.0, -1.5))
     cmd = np.zeros(L.CMD_SIZE)
-    diag = np.zeros(DIAG_SIZE)
+    diag = np.zeros(diagnostics_size(params))
+    fns = controller_functions(params)          # the compiled entry as the simulator calls it
     for k, m in enumerate(_meas_sequence(100, rng)):
         out = ctrl.step(0.004 * k, m, ref)
         dt = 0.004 if k == 0 else 0.004 * k - 0.004 * (k - 1)      # what step() derives from t
-        controller_step(params, state, m.array, ref.array, dt, cmd, diag)
+        controller_step(fns, params, state, m.array, ref.array, dt, cmd, diag)
         assert isinstance(out, Command)
         assert np.array_equal(out.array, cmd)
         assert np.array_equal(ctrl.diagnostics_array, diag)
@@ -180,7 +182,7 @@ def test_params_conversion_accepts_a_posterior_and_rejects_bad_priors(caltech):
     with pytest.raises(ValueError, match="sigma"):
         Controller(caltech, ControllerConfig(composite=CompositeSettings(sigma=50.0)))
     # K_omega defaults to J times the rate bandwidth
-    from vtoladapt.control.kernel import P_K_OMEGA
+    from vtoladapt.control.blocks import P_K_OMEGA
     p = controller_params(cfg, caltech)
     np.testing.assert_allclose(p[P_K_OMEGA:P_K_OMEGA + 3],
                                np.array(caltech.mass.inertia_kgm2) * np.array(cfg.rate_bandwidth_radps))

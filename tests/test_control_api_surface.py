@@ -9,8 +9,8 @@ import pkgutil
 import pytest
 
 import vtoladapt.control as control
-from vtoladapt.control.config import ControllerConfig, SharedControllerConfig
 from vtoladapt.control.registry import CONTROLLERS
+from vtoladapt.control.settings import ControllerConfig
 
 MODULES = sorted({m.name for m in pkgutil.walk_packages(control.__path__, control.__name__ + ".")}
                  | {control.__name__})
@@ -41,7 +41,7 @@ def test_every_public_function_and_class_has_a_docstring(module_name):
 
 
 def _settings_classes():
-    yield "controller", SharedControllerConfig
+    yield "controller", ControllerConfig
     for cid, info in CONTROLLERS.items():
         yield f"controller.{cid}", info.settings
 
@@ -53,10 +53,15 @@ def test_every_setting_has_a_unit_and_a_description(table, cls):
         assert len(f.metadata.get("doc", "")) >= 10, f"[{table}] {f.name}: no description"
 
 
-def test_controller_config_is_the_shared_table_plus_one_documented_table_per_law():
-    law_fields = [f for f in dataclasses.fields(ControllerConfig) if f.name in CONTROLLERS]
-    assert [f.name for f in law_fields] == list(CONTROLLERS)
-    assert all(f.metadata["doc"] and f.metadata["unit"] for f in law_fields)
+def test_controller_config_has_each_registered_laws_table_as_an_attribute():
+    """No field per law (the laws are looked up when asked for): every registered law's table is read as
+    ``config.<id>``, its defaults where the configuration was not given one."""
+    assert not [f.name for f in dataclasses.fields(ControllerConfig) if f.name in CONTROLLERS]
+    cfg = ControllerConfig()
+    for cid, info in CONTROLLERS.items():
+        assert getattr(cfg, cid) == info.settings()
+    with pytest.raises(AttributeError):
+        cfg.no_such_law
 
 
 def test_the_surface_check_finds_an_undocumented_function():

@@ -23,7 +23,6 @@ from vtoladapt import layout as L
 from vtoladapt.sim import mixer
 from vtoladapt.config import ConfigError
 from vtoladapt.control import (
-    CONTROLLER_KINDS,
     Command,
     Controller,
     ControllerConfig,
@@ -34,9 +33,10 @@ from vtoladapt.control import (
     Reference,
     controller_config_from_mapping,
 )
-from vtoladapt.control.config import SharedControllerConfig
-from vtoladapt.control.layouts import P_DT_NOMINAL
-from vtoladapt.control.registry import CONTROLLERS
+from vtoladapt.control.blocks import P_DT_NOMINAL
+from vtoladapt.control.registry import CONTROLLERS, controller_ids
+
+CONTROLLER_KINDS = controller_ids()
 from vtoladapt.experiments.metrics import identifiability
 from vtoladapt.sim.scenario import load_scenario, scenario_from_mapping
 from vtoladapt.sim.driver import prepare
@@ -65,7 +65,7 @@ NUMBERS = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(
                     st.sampled_from([0.0, -1.0, 1e-9, 0.5, 2.0, 30.0, 250.0, 1e4, 1e12]))
 VALUES = st.one_of(NUMBERS, st.lists(NUMBERS, min_size=0, max_size=4), st.booleans(),
                    st.sampled_from(["composite", "pid", "l1", "indi", "bogus", "a_d", "v_r_dot", "prior"]))
-SHARED_KEYS = [f.name for f in dataclasses.fields(SharedControllerConfig)]
+SHARED_KEYS = [f.name for f in dataclasses.fields(ControllerConfig) if f.name != "laws"]
 
 
 @settings(max_examples=examples(300))
@@ -314,7 +314,8 @@ def test_a_table_without_keys_says_so():
 def _section_snippets() -> list[str]:
     text = README.read_text(encoding="utf-8")
     start = text.index("## Using the controller in your own loop")
-    end = text.index("\n## ", start + 1)
+    # "Adding a controller" is the recipe tests/test_readme_extensions.py runs (it registers a law)
+    end = text.index("\n### Adding a controller", start + 1)
     blocks = re.findall(r"```python\n(.*?)```", text[start:end], flags=re.S)
     # excerpts of the package's own files (they start with their path) are shown, not run
     return [b for b in blocks if not b.lstrip().startswith("# src/")]

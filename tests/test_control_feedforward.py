@@ -14,7 +14,7 @@ import pytest
 
 from vtoladapt.config import ConfigError
 from vtoladapt.control import Controller, ControllerConfig, Measurement, Reference
-from vtoladapt.control.config import controller_config_from_mapping
+from vtoladapt.control.settings import controller_config_from_mapping
 from vtoladapt.control.laws.pd import PDSettings
 from vtoladapt.control.laws.pid import PIDSettings
 from vtoladapt.frames import GRAVITY_MPS2

@@ -29,8 +29,10 @@ import pytest
 from vtoladapt import forces, layout as L, load_vehicle
 from vtoladapt.config import ConfigError
 from vtoladapt.control import Controller, ControllerConfig, Measurement, Reference, controller_arrays
-from vtoladapt.control.config import CONTROLLER_KINDS, controller_config_from_mapping
-from vtoladapt.control.kernel import CONTROLLER_DIAG_COLUMNS, DIAG_SIZE, FAULT_ACCEL, controller_step
+from control_helpers import columns, new_diag, step as controller_step
+from vtoladapt.control.blocks import FAULT_ACCEL
+from vtoladapt.control.registry import controller_ids
+from vtoladapt.control.settings import controller_config_from_mapping
 from vtoladapt.control.laws import indi
 from vtoladapt.control.registry import CONTROLLERS, controller_info
 from vtoladapt.frames import GRAVITY_MPS2, quat_to_rotmat
@@ -42,7 +44,7 @@ VEHICLE = "caltech_vtol"
 IDEAL_SENSORS = {name: {"ideal": True} for name in ("imu", "mocap", "attitude", "probe")}
 UNMODELLED_OFF = {"stall": False, "side_force": False, "pusher_advance_ratio_loss": False,
                   "rotor_reaction_torque": False, "aero_rate_damping": False}
-INC_COLS = ("integrator_N_mps2", "integrator_E_mps2", "integrator_D_mps2")
+INC_COLS = ("indi_increment_N_mps2", "indi_increment_E_mps2", "indi_increment_D_mps2")
 TICK_S = 0.004
 
 
@@ -152,8 +154,12 @@ def _hover_meas(accel_B, v_W=(0.0, 0.0, 0.0)):
     return m
 
 
+INDI_COLUMNS = columns(controller_arrays(load_vehicle(VEHICLE), ControllerConfig(kind="indi"))[0])
+"""The INDI controller's diagnostics columns (its own: ``indi_increment_*``)."""
+
+
 def _col(diag, name, n=1):
-    i = CONTROLLER_DIAG_COLUMNS.index(name)
+    i = INDI_COLUMNS[name]
     return diag[i] if n == 1 else diag[i:i + n]
 
 
@@ -171,7 +177,7 @@ class _StandIn:
             vehicle, ControllerConfig(kind="indi", regressor_motor_lag=False, **config))
         self.d_B = np.asarray(d_B, dtype=float)
         self.cmd = np.zeros(L.CMD_SIZE)
-        self.diag = np.zeros(DIAG_SIZE)
+        self.diag = new_diag(self.params)
         self.ref = L.pack_reference((0.0, 0.0, -1.5))
 
     def step(self, accel_valid=True, v_W=(0.0, 0.0, 0.0)):
@@ -181,7 +187,7 @@ class _StandIn:
         accel = f + self.d_B if accel_valid else np.full(3, np.nan)
         controller_step(self.params, self.state, _hover_meas(accel, v_W), self.ref, TICK_S, self.cmd, self.diag)
         assert np.all(np.isfinite(self.cmd)) and np.all(np.isfinite(self.diag))
-        return _col(self.diag, "integrator_N_mps2", 3).copy()
+        return _col(self.diag, "indi_increment_N_mps2", 3).copy()
 
 
 def test_accelerometer_dropout_holds_then_fades_the_increment(vehicle):
@@ -242,7 +248,7 @@ def test_saturated_allocation_does_not_wind_up_the_increment(vehicle):
 def test_registry_entry_and_validation():
     info = controller_info("indi")
     assert (info.label, info.colour, info.adaptive, info.composite) == ("INDI", "C5", False, False)
-    assert "indi" in CONTROLLER_KINDS and CONTROLLERS["indi"].law is indi
+    assert "indi" in controller_ids() and CONTROLLERS["indi"].law is indi
     cfg = controller_config_from_mapping({"kind": "indi", "indi": {"increment_limit_mps2": 3.0,
                                                                   "fault_fade_s": 0.5}})
     assert cfg.kind == "indi" and cfg.law_settings == indi.IndiSettings(increment_limit_mps2=3.0, fault_fade_s=0.5)
@@ -267,7 +273,7 @@ def test_step_api_runs_indi_and_matches_the_compiled_step(vehicle):
     """The step API (``Controller``) with a stand-in aircraft that follows the reference; same as the raw step."""
     ctrl = Controller(vehicle, ControllerConfig(kind="indi"))
     params, state = controller_arrays(vehicle, ControllerConfig(kind="indi"))
-    cmd, diag = np.zeros(L.CMD_SIZE), np.zeros(DIAG_SIZE)
+    cmd, diag = np.zeros(L.CMD_SIZE), new_diag(params)
     meas = Measurement()
     f_b = np.zeros(3)
     rng = np.random.default_rng(5)
@@ -288,4 +294,5 @@ def test_step_api_runs_indi_and_matches_the_compiled_step(vehicle):
         forces.body_force(np.zeros(3), c.u_x, c.u_z, vehicle.theta_scaled, vehicle.model_kernel, f_b)
     np.testing.assert_allclose(ctrl.state.law_field("INCREMENT"), state[indi.S_INCREMENT:indi.S_INCREMENT + 3],
                                rtol=1e-9, atol=1e-12)
-    assert ctrl.diagnostics["integrator_D_mps2"] == pytest.approx(ctrl.state.law_field("INCREMENT")[2])
+    assert ctrl.diagnostics["indi_increment_D_mps2"] == pytest.approx(ctrl.state.law_field("INCREMENT")[2])
+    assert "integrator_D_mps2" not in ctrl.diagnostics            # the PID's column is the PID's

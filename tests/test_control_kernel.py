@@ -9,29 +9,28 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import examples
+from control_helpers import columns, new_diag, step
 from vtoladapt import layout as L
 from vtoladapt.control import ControllerConfig, controller_arrays
-from vtoladapt.control.config import CONTROLLER_KINDS
-from vtoladapt.control.kernel import (
-    CONTROLLER_DIAG_COLUMNS,
-    DIAG_SIZE,
-    FAULT_PROBE,
-    P_TAU_MAX,
-    P_U_MAX,
-    controller_step,
-    state_integrator,
-    state_P_inv,
-    state_theta_hat,
-)
+from vtoladapt.control.blocks import FAULT_PROBE, P_TAU_MAX, P_U_MAX
+from vtoladapt.control.registry import controller_ids
+from vtoladapt.control.step import state_law_field, state_P_inv, state_theta_hat
 from vtoladapt.frames import GRAVITY_MPS2, quat_from_euler, quat_to_rotmat
 
-COL = {n: i for i, n in enumerate(CONTROLLER_DIAG_COLUMNS)}
 JUNK = [np.nan, np.inf, -np.inf, 1e300, -1e300, 1e20, 0.0]
+_COLS: dict = {}
 
 
 def _col(diag, name, n=1):
-    i = COL[name]
+    i = _COLS[diag.size][name]
     return diag[i] if n == 1 else diag[i:i + n]
+
+
+def _diag(params):
+    """A diag array for ``params``, its columns known to :func:`_col` (by length: one law per length here)."""
+    diag = new_diag(params)
+    _COLS[diag.size] = columns(params)
+    return diag
 
 
 def _hover_meas(q=(1.0, 0, 0, 0), v_i_B=(0.0, 0.0, 0.0), valid=1.0, v_W=(0.0, 0.0, 0.0)):
@@ -52,12 +51,12 @@ def _check_invariants(params, state, cmd, diag, lower, upper, P0):
     assert np.all(np.abs(cmd[L.CMD_TAU_B:L.CMD_TAU_B + 3]) <= params[P_TAU_MAX:P_TAU_MAX + 3])
     assert np.all(np.isfinite(diag))
     assert _col(diag, "q_tilde_0") >= 0.0
-    G = state_P_inv(state)
+    G = state_P_inv(params, state)
     assert np.array_equal(G, G.T)
     np.linalg.cholesky(G)                                        # P^-1 (hence P) is SPD
     P = np.linalg.inv(G)
     assert np.linalg.eigvalsh(P0 - P).min() > -1e-9 * np.abs(P0).max()   # P <= P0
-    th = state_theta_hat(state)
+    th = state_theta_hat(params, state)
     assert np.all((lower <= th) & (th <= upper))
 
 
@@ -80,7 +79,7 @@ def _reference(draw):
     return r
 
 
-@pytest.mark.parametrize("kind", CONTROLLER_KINDS)
+@pytest.mark.parametrize("kind", controller_ids())
 @settings(max_examples=examples(60))
 @given(data=st.data())
 def test_invariants_over_any_input(caltech, kind, data):
@@ -88,12 +87,12 @@ def test_invariants_over_any_input(caltech, kind, data):
     lower, upper = params_bounds(params)
     P0 = np.diag(caltech.adaptation.P0_diag)
     cmd = np.zeros(L.CMD_SIZE)
-    diag = np.zeros(DIAG_SIZE)
+    diag = _diag(params)
     for _ in range(data.draw(st.integers(1, 6))):
         meas = data.draw(_measurement())
         ref = data.draw(_reference())
         dt = data.draw(st.one_of(st.just(0.004), st.floats(1e-5, 0.2), st.sampled_from([0.0, -1.0, np.nan])))
-        controller_step(params, state, meas, ref, dt, cmd, diag)
+        step(params, state, meas, ref, dt, cmd, diag)
         _check_invariants(params, state, cmd, diag, lower, upper, P0)
         vi = meas[L.MEAS_V_I_B:L.MEAS_V_I_B + 3]
         plausible = np.all(np.abs(vi) <= 60.0) and np.sqrt(np.sum(vi * vi)) <= 60.0
@@ -108,15 +107,16 @@ def test_invariants_over_any_input(caltech, kind, data):
 
 
 def params_bounds(params):
-    from vtoladapt.control.kernel import P_LOWER, P_UPPER
-    return params[P_LOWER:P_LOWER + 8], params[P_UPPER:P_UPPER + 8]
+    from vtoladapt.control.blocks import A_LOWER, A_N, A_UPPER
+    n, lo, up = int(params[A_N]), int(params[A_LOWER]), int(params[A_UPPER])
+    return params[lo:lo + n], params[up:up + n]
 
 
 def test_hover_command_in_still_air(caltech):
     params, state = controller_arrays(caltech, ControllerConfig())
     cmd = np.zeros(L.CMD_SIZE)
-    diag = np.zeros(DIAG_SIZE)
-    controller_step(params, state, _hover_meas(), L.pack_reference((0.0, 0.0, -1.5)), 0.004, cmd, diag)
+    diag = _diag(params)
+    step(params, state, _hover_meas(), L.pack_reference((0.0, 0.0, -1.5)), 0.004, cmd, diag)
     assert cmd[L.CMD_U_Z] == pytest.approx(np.sqrt(GRAVITY_MPS2 / caltech.theta_scaled[1]), rel=1e-12)
     assert cmd[L.CMD_U_X] == 0.0
     np.testing.assert_allclose(cmd[L.CMD_TAU_B:], 0.0, atol=1e-12)
@@ -126,7 +126,7 @@ def test_hover_command_in_still_air(caltech):
 def test_invalid_probe_falls_back_to_the_wind_estimate_and_pauses_adaptation(caltech):
     params, state = controller_arrays(caltech, ControllerConfig())
     cmd = np.zeros(L.CMD_SIZE)
-    diag = np.zeros(DIAG_SIZE)
+    diag = _diag(params)
     wind = np.array([-6.0, 1.0, 0.0])
     q = quat_from_euler(0.2, np.radians(10.0), 0.0)
     R = quat_to_rotmat(q)
@@ -134,30 +134,30 @@ def test_invalid_probe_falls_back_to_the_wind_estimate_and_pauses_adaptation(cal
     v_i_B = R.T @ (v_W - wind)
     ref = L.pack_reference((0.0, 0.0, -1.5))
     for _ in range(1000):                                        # 4 s valid: the estimate settles
-        controller_step(params, state, _hover_meas(q, v_i_B, 1.0, v_W), ref, 0.004, cmd, diag)
+        step(params, state, _hover_meas(q, v_i_B, 1.0, v_W), ref, 0.004, cmd, diag)
     np.testing.assert_allclose(_col(diag, "wind_est_N_mps", 3), wind, atol=1e-9)
-    theta_before = state_theta_hat(state).copy()
+    theta_before = state_theta_hat(params, state).copy()
     k = 0
     for bad in ([np.nan, 0.0, 0.0], [1e6, 0.0, 0.0], [0.0, np.nan, 0.0]):
         for valid in (0.0, 1.0):
             m = _hover_meas(q, bad, valid, v_W)
-            controller_step(params, state, m, ref, 0.004, cmd, diag)
+            step(params, state, m, ref, 0.004, cmd, diag)
             k += 1
             assert _col(diag, "probe_valid_used") == 0.0 and _col(diag, "adaptation_active") == 0.0
             # the wind estimate fades toward still air (wind_estimate_fade_s = 2 s) while the probe is out
             w_k = wind * np.exp(-k * 0.004 / 2.0)
             np.testing.assert_allclose(_col(diag, "wind_est_N_mps", 3), w_k, atol=1e-9)
             np.testing.assert_allclose(_col(diag, "ctrl_v_i_x_mps", 3), R.T @ (v_W - w_k), atol=1e-9)
-            assert np.array_equal(state_theta_hat(state), theta_before)
+            assert np.array_equal(state_theta_hat(params, state), theta_before)
     for _ in range(2500):                                        # a 10 s outage ends in still air
-        controller_step(params, state, _hover_meas(q, [np.nan, np.nan, np.nan], 0.0, v_W), ref, 0.004,
+        step(params, state, _hover_meas(q, [np.nan, np.nan, np.nan], 0.0, v_W), ref, 0.004,
                         cmd, diag)
     np.testing.assert_allclose(_col(diag, "wind_est_N_mps", 3), 0.0, atol=0.05)
     # valid again: adaptation waits for the filters (adaptation_holdoff_s = 0.05 s) before resuming,
     # and the wind estimate recovers
     active = []
     for _ in range(1000):
-        controller_step(params, state, _hover_meas(q, v_i_B, 1.0, v_W), ref, 0.004, cmd, diag)
+        step(params, state, _hover_meas(q, v_i_B, 1.0, v_W), ref, 0.004, cmd, diag)
         active.append(_col(diag, "adaptation_active"))
     assert active[0] == 0.0 and active[-1] == 1.0
     assert 10 <= int(np.argmax(active)) <= 14
@@ -169,31 +169,31 @@ def test_low_airspeed_reading_flagged_invalid_is_still_used_in_hover(caltech):
     (fault flag set), the wind estimate follows it, and C_Tz keeps adapting in hover."""
     params, state = controller_arrays(caltech, ControllerConfig())
     cmd = np.zeros(L.CMD_SIZE)
-    diag = np.zeros(DIAG_SIZE)
+    diag = _diag(params)
     ref = L.pack_reference((0.0, 0.0, -1.5))
     v_low = np.array([0.3, 0.0, 0.1])                      # below hover_blend_airspeed_mps[0] = 2 m/s
-    theta0 = state_theta_hat(state).copy()
+    theta0 = state_theta_hat(params, state).copy()
     for _ in range(500):
         m = _hover_meas(v_i_B=v_low, valid=0.0)
         m[L.MEAS_ACCEL_B + 2] = -1.05 * GRAVITY_MPS2       # 5 % more thrust than Table I predicts
-        controller_step(params, state, m, ref, 0.004, cmd, diag)
+        step(params, state, m, ref, 0.004, cmd, diag)
     assert int(_col(diag, "fault_flags")) & FAULT_PROBE
     assert _col(diag, "probe_valid_used") == 1.0 and _col(diag, "adaptation_active") == 1.0
     np.testing.assert_allclose(_col(diag, "ctrl_v_i_x_mps", 3), v_low, atol=1e-12)
-    assert state_theta_hat(state)[1] > theta0[1]           # CTz adapts upward toward the measured thrust
+    assert state_theta_hat(params, state)[1] > theta0[1]           # CTz adapts upward toward the measured thrust
     # the same reading above the hover-blend airspeed is not trusted
     m = _hover_meas(v_i_B=[5.0, 0.0, 0.0], valid=0.0)
-    controller_step(params, state, m, ref, 0.004, cmd, diag)
+    step(params, state, m, ref, 0.004, cmd, diag)
     assert _col(diag, "probe_valid_used") == 0.0 and _col(diag, "adaptation_active") == 0.0
 
 
 def test_nan_everywhere_still_gives_a_finite_command(caltech):
-    for kind in CONTROLLER_KINDS:
+    for kind in controller_ids():
         params, state = controller_arrays(caltech, ControllerConfig(kind=kind))
         cmd = np.full(L.CMD_SIZE, np.nan)
-        diag = np.zeros(DIAG_SIZE)
+        diag = _diag(params)
         for _ in range(3):
-            controller_step(params, state, np.full(L.MEAS_SIZE, np.nan), np.full(L.REF_SIZE, np.nan), np.nan,
+            step(params, state, np.full(L.MEAS_SIZE, np.nan), np.full(L.REF_SIZE, np.nan), np.nan,
                             cmd, diag)
             assert np.all(np.isfinite(cmd)) and np.all(np.isfinite(diag))
 
@@ -202,11 +202,11 @@ def _sinking(vehicle, throttle_max_pct, kind="pid", n=500):
     veh = vehicle.replace(actuators=dataclasses.replace(vehicle.actuators, throttle_max_pct=throttle_max_pct))
     params, state = controller_arrays(veh, ControllerConfig(kind=kind))
     cmd = np.zeros(L.CMD_SIZE)
-    diag = np.zeros(DIAG_SIZE)
+    diag = _diag(params)
     m = _hover_meas(v_W=(0.0, 0.0, 0.5))                         # sinking at 0.5 m/s, at the setpoint
     for _ in range(n):
-        controller_step(params, state, m, L.pack_reference((0.0, 0.0, -1.5)), 0.004, cmd, diag)
-    return state_integrator(state).copy(), diag
+        step(params, state, m, L.pack_reference((0.0, 0.0, -1.5)), 0.004, cmd, diag)
+    return state_law_field(state, params, "INTEGRATOR").copy(), diag
 
 
 def test_pid_integrator_freezes_while_the_allocation_saturates(caltech):
@@ -220,9 +220,9 @@ def test_pid_integrator_freezes_while_the_allocation_saturates(caltech):
 
 
 def test_equivalent_gains_are_shared(caltech):
-    from vtoladapt.control.kernel import P_K_V, P_LAMBDA_P
-    arrays = {k: controller_arrays(caltech, ControllerConfig(kind=k))[0] for k in CONTROLLER_KINDS}
-    for k in CONTROLLER_KINDS:
+    from vtoladapt.control.blocks import P_K_V, P_LAMBDA_P
+    arrays = {k: controller_arrays(caltech, ControllerConfig(kind=k))[0] for k in controller_ids()}
+    for k in controller_ids():
         np.testing.assert_array_equal(arrays[k][P_K_V:P_K_V + 3], arrays["pid"][P_K_V:P_K_V + 3])
         np.testing.assert_array_equal(arrays[k][P_LAMBDA_P:P_LAMBDA_P + 3], arrays["pid"][P_LAMBDA_P:P_LAMBDA_P + 3])
 
@@ -230,14 +230,14 @@ def test_equivalent_gains_are_shared(caltech):
 @pytest.mark.parametrize("kind", ["composite", "pid"])
 def test_gains_cached_per_dt_equal_gains_computed_every_tick(caltech, kind):
     """The filter and lag gains are kept in the state for the last dt: reusing them is exact."""
-    from vtoladapt.control.kernel import S_GAINS_DT
+    from vtoladapt.control.blocks import S_GAINS_DT
     config = ControllerConfig(kind=kind, omega_d_feedforward=True)
     cached = controller_arrays(caltech, config)
     fresh = controller_arrays(caltech, config)
     outputs = []
     for params, state in (cached, fresh):
         cmd = np.zeros(L.CMD_SIZE)
-        diag = np.zeros(DIAG_SIZE)
+        diag = _diag(params)
         rows = []
         for k in range(400):
             pitch = 0.1 * np.sin(0.05 * k)
@@ -246,7 +246,7 @@ def test_gains_cached_per_dt_equal_gains_computed_every_tick(caltech, kind):
             dt = (0.004, 0.004, 0.005, 0.0041)[(k // 7) % 4]        # runs of equal dt, then a change
             if state is fresh[1]:
                 state[S_GAINS_DT] = 0.0                              # forget the gains: recompute
-            controller_step(params, state, m, L.pack_reference((1.0, 0.0, -1.5)), dt, cmd, diag)
+            step(params, state, m, L.pack_reference((1.0, 0.0, -1.5)), dt, cmd, diag)
             rows.append(np.concatenate([cmd, diag]))
         outputs.append(np.array(rows))
     np.testing.assert_array_equal(outputs[0], outputs[1])

@@ -23,24 +23,24 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.linalg import expm
 
+import vtoladapt
 from vtoladapt import forces
 from vtoladapt import layout as L
 from vtoladapt.config import ConfigError
+from control_helpers import columns, new_diag, step as controller_step
 from vtoladapt.control import (
     Controller, ControllerConfig, Measurement, Reference, controller_arrays, controller_config_from_mapping,
-    controller_step,
 )
-from vtoladapt.control.kernel import (
-    CONTROLLER_DIAG_COLUMNS, DIAG_SIZE, FAULT_ADAPTATION, FAULT_VELOCITY, P_ACC_MAX,
-)
+from vtoladapt.control.blocks import FAULT_ADAPTATION, FAULT_VELOCITY, P_ACC_MAX
 from vtoladapt.control.laws import l1
-from vtoladapt.control.registry import CONTROLLERS, law_index
+from vtoladapt.control.registry import CONTROLLERS, law_key, law_of_key
 from vtoladapt.frames import GRAVITY_MPS2, quat_to_rotmat
 from vtoladapt.sim.scenario import scenario_from_mapping
 from vtoladapt.sim.driver import simulate
 from vtoladapt.wind import FAN_MAX_SPEED_MPS
 
-COL = {n: i for i, n in enumerate(CONTROLLER_DIAG_COLUMNS)}
+COL = columns(controller_arrays(vtoladapt.load_vehicle("caltech_vtol"), ControllerConfig(kind="l1"))[0])
+"""The L1 controller's diagnostics columns (its own: ``l1_adaptive_term_*``)."""
 DT_S = 0.004
 
 
@@ -172,7 +172,7 @@ def test_l1_with_its_filter_closed_is_the_baseline(caltech):
 def test_start_up_seats_the_predictor_on_the_measurement(caltech):
     params, state = _arrays(caltech)
     cmd = np.zeros(L.CMD_SIZE)
-    diag = np.zeros(DIAG_SIZE)
+    diag = new_diag(params)
     v = (0.3, -0.2, 0.1)
     controller_step(params, state, _hover_meas(v), L.pack_reference((0.0, 0.0, -1.5)), DT_S, cmd, diag)
     np.testing.assert_array_equal(_field(state, "V_HAT"), v)
@@ -185,7 +185,7 @@ def test_start_up_seats_the_predictor_on_the_measurement(caltech):
 def _accelerating(params, state, n, accel_N, v0=0.0, dt=DT_S):
     """``n`` ticks of a hover whose measured north velocity grows by ``accel_N dt`` per tick."""
     cmd = np.zeros(L.CMD_SIZE)
-    diag = np.zeros(DIAG_SIZE)
+    diag = new_diag(params)
     ref = L.pack_reference((0.0, 0.0, -1.5))
     for k in range(n):
         controller_step(params, state, _hover_meas((v0 + accel_N * dt * k, 0.0, 0.0)), ref, dt, cmd, diag)
@@ -209,7 +209,7 @@ def test_unexplained_acceleration_is_estimated_and_compensated(caltech):
     assert _field(state, "SIGMA_HAT")[0] == pytest.approx(expected, rel=1e-6)
     assert _field(state, "SIGMA_LPF")[0] == pytest.approx(_field(state, "SIGMA_HAT")[0], rel=1e-3)
     # the command leans against it: integrator column = -sigma_lpf
-    assert diag[COL["integrator_N_mps2"]] == -_field(state, "SIGMA_LPF")[0]
+    assert diag[COL["l1_adaptive_term_N_mps2"]] == -_field(state, "SIGMA_LPF")[0]
 
 
 def test_saturation_limits_the_adaptive_term(caltech):
@@ -227,7 +227,7 @@ def test_velocity_fault_freezes_bleeds_and_reseats(caltech):
     sigma0 = _field(state, "SIGMA_HAT").copy()
     assert sigma0[0] > 0.3
     cmd = np.zeros(L.CMD_SIZE)
-    diag = np.zeros(DIAG_SIZE)
+    diag = new_diag(params)
     ref = L.pack_reference((0.0, 0.0, -1.5))
     bad = _hover_meas((np.nan, 0.0, 0.0))
     n = 100
@@ -250,7 +250,7 @@ def _sample_and_hold_hover(params, state, source_hz, accel_N, duration_s=20.0, n
     white noise per source sample. Returns, per tick, ``(RUNNING, fault_flags, sigma_lpf_N)``."""
     rng = np.random.default_rng(seed)
     cmd = np.zeros(L.CMD_SIZE)
-    diag = np.zeros(DIAG_SIZE)
+    diag = new_diag(params)
     ref = L.pack_reference((0.0, 0.0, -1.5))
     n = int(round(duration_s / DT_S))
     out = np.empty((n, 3))
@@ -294,7 +294,7 @@ def test_nan_everything_gives_finite_commands(caltech):
     params, state = _arrays(caltech)
     _accelerating(params, state, 50, 0.5)
     cmd = np.zeros(L.CMD_SIZE)
-    diag = np.zeros(DIAG_SIZE)
+    diag = new_diag(params)
     for dt in (np.nan, DT_S, -1.0, DT_S):
         controller_step(params, state, np.full(L.MEAS_SIZE, np.nan), np.full(L.REF_SIZE, np.nan), dt, cmd, diag)
         assert np.all(np.isfinite(cmd)) and np.all(np.isfinite(diag))
@@ -307,7 +307,7 @@ def test_corrupted_memory_restarts_the_law_and_is_flagged(caltech):
     _accelerating(params, state, 50, 0.5)
     _field(state, "V_HAT")[1] = np.nan
     cmd = np.zeros(L.CMD_SIZE)
-    diag = np.zeros(DIAG_SIZE)
+    diag = new_diag(params)
     v = (0.7, 0.0, 0.0)
     controller_step(params, state, _hover_meas(v), L.pack_reference((0.0, 0.0, -1.5)), DT_S, cmd, diag)
     assert int(diag[COL["fault_flags"]]) & FAULT_ADAPTATION
@@ -334,7 +334,7 @@ def test_gains_follow_dt(caltech):
 def test_registry_and_configuration_accept_l1():
     info = CONTROLLERS["l1"]
     assert (info.label, info.colour, info.adaptive, info.composite) == ("L1 adaptive", "C6", True, False)
-    assert info.law is l1 and law_index("l1") == list(CONTROLLERS).index("l1")
+    assert info.law is l1 and law_of_key(law_key("l1")) is CONTROLLERS["l1"]
     cfg = controller_config_from_mapping({"kind": "l1", "l1": {"cutoff_radps": 3.0, "predictor_pole_radps": 8.0}})
     assert cfg.kind == "l1" and cfg.law_settings == l1.L1Settings(cutoff_radps=3.0, predictor_pole_radps=8.0)
     with pytest.raises(ConfigError, match="cutoff_radps"):
@@ -354,7 +354,7 @@ def test_step_api_runs_l1_exactly_like_the_kernel(caltech, rng):
     params, state = controller_arrays(caltech, cfg)
     ref = Reference.hold((0.0, 0.0, -1.5))
     cmd = np.zeros(L.CMD_SIZE)
-    diag = np.zeros(DIAG_SIZE)
+    diag = new_diag(params)
     for k in range(200):
         m = Measurement.from_parts(p_W=(0.0, 0.0, -1.5), v_W=(0.2 + 0.01 * rng.normal(), 0.0, 0.0),
                                    q_WB=(1.0, 0.0, 0.0, 0.0), omega_B=(0.0, 0.0, 0.0),

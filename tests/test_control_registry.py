@@ -10,13 +10,16 @@ from matplotlib.colors import is_color_like
 
 import vtoladapt
 from vtoladapt.config import ConfigError
-from vtoladapt.control import kernel
-from vtoladapt.control.config import ControllerConfig, SharedControllerConfig, controller_config_from_mapping
+from vtoladapt.config import choices_of
+from vtoladapt.control import step
 from vtoladapt.control.laws import check_law
 from vtoladapt.control.registry import (
-    ADAPTIVE_IDS, COMPOSITE_IDS, CONTROLLER_IDS, CONTROLLERS, controller_info, law_index,
+    CONTROLLERS, adaptive_ids, composite_ids, controller_ids, controller_info, law_key, law_of_key,
 )
+from vtoladapt.control.settings import ControllerConfig, controller_config_from_mapping
 from vtoladapt.sim.scenario import ExperimentConfig
+
+CONTROLLER_IDS = controller_ids()
 
 SRC = Path(vtoladapt.__file__).resolve().parent
 
@@ -42,24 +45,26 @@ def test_labels_and_colours_are_distinct():
 
 
 def test_derived_id_lists_follow_the_flags():
-    assert ADAPTIVE_IDS == tuple(k for k in CONTROLLER_IDS if CONTROLLERS[k].adaptive)
-    assert COMPOSITE_IDS == tuple(k for k in CONTROLLER_IDS if CONTROLLERS[k].composite)
+    assert adaptive_ids() == tuple(k for k in CONTROLLER_IDS if CONTROLLERS[k].adaptive)
+    assert composite_ids() == tuple(k for k in CONTROLLER_IDS if CONTROLLERS[k].composite)
     with pytest.raises(KeyError, match="allowed: " + ", ".join(CONTROLLER_IDS)):
         controller_info("lqr")
 
 
 def test_configuration_has_one_table_per_law_and_validates_kind_from_the_registry():
     fields = {f.name: f for f in dataclasses.fields(ControllerConfig)}
-    shared = {f.name for f in dataclasses.fields(SharedControllerConfig)}
-    assert set(fields) - shared == set(CONTROLLER_IDS)
-    assert fields["kind"].metadata["choices"] == CONTROLLER_IDS
-    assert ExperimentConfig.__dataclass_fields__["controllers"].metadata["choices"] == CONTROLLER_IDS
+    shared = set(fields)
+    assert choices_of(fields["kind"].metadata) == CONTROLLER_IDS
+    assert choices_of(ExperimentConfig.__dataclass_fields__["controllers"].metadata) == CONTROLLER_IDS
+    keys = set()
     for cid in CONTROLLER_IDS:
         cfg = controller_config_from_mapping({"kind": cid})
         assert isinstance(cfg.law_settings, CONTROLLERS[cid].settings)
-        assert cfg.kind_id == law_index(cid) == CONTROLLER_IDS.index(cid)
+        assert law_of_key(law_key(cid)) is CONTROLLERS[cid]
+        keys.add(law_key(cid))
         # a law's own key never repeats a shared one (it would be ambiguous where it belongs)
         assert not {f.name for f in dataclasses.fields(CONTROLLERS[cid].settings)} & shared
+    assert len(keys) == len(CONTROLLER_IDS)                  # the keys the step's parameters hold are distinct
     with pytest.raises(ConfigError, match="kind = 'lqr': unknown"):
         controller_config_from_mapping({"kind": "lqr"})
 
@@ -73,9 +78,22 @@ def test_a_law_gain_in_the_shared_table_names_the_table_it_moved_to():
         controller_config_from_mapping({"no_such_gain": 1.0})
 
 
-def test_the_compiled_step_dispatches_over_the_registry_in_order():
-    assert [i for i, _ in kernel._LAWS] == list(range(len(CONTROLLER_IDS)))
-    assert [fn for _, fn in kernel._LAWS] == [CONTROLLERS[k].law.update for k in CONTROLLER_IDS]
+def test_the_compiled_step_calls_the_law_of_its_parameters_as_a_first_class_function(caltech):
+    """The step holds no list of laws: ``controller_functions`` of a parameter array gives its law's
+    ``update`` and its basis's ``regressor``, and the step is compiled for functions of their fixed
+    signatures (one compilation for every law)."""
+    from numba import types
+
+    from vtoladapt.bases import basis_module
+    from vtoladapt.control import controller_arrays
+
+    for cid in CONTROLLER_IDS:
+        params, _ = controller_arrays(caltech, ControllerConfig(kind=cid))
+        fns = step.controller_functions(params)
+        assert fns[0] is CONTROLLERS[cid].law.update and fns[1] is basis_module("paper").regressor
+    assert not hasattr(step, "_LAWS")
+    for sig in step.controller_step.signatures:
+        assert all(isinstance(t, types.FunctionType) for t in sig[0])
 
 
 def _literal_id_lists(tree: ast.AST) -> list[tuple[str, ...]]:
@@ -124,6 +142,7 @@ def test_the_control_package_has_no_import_cycle():
     """Imports between the modules of vtoladapt.control, deferred ones included, form no cycle.
 
     (``config`` importing ``kernel`` inside a method while ``kernel`` imported ``config`` was one.)
+    ``state_integrator`` of the generic step imported ``laws.pid``; no generic module imports a law.
     """
     root = SRC / "control"
     modules = {}
@@ -151,4 +170,9 @@ def test_the_control_package_has_no_import_cycle():
     for name in sorted(graph):
         if name not in state:
             visit(name, [name])
-    assert graph["vtoladapt.control.kernel"] >= {"vtoladapt.control.registry"}     # the graph is read
+    assert graph["vtoladapt.control.step"] >= {"vtoladapt.control.registry"}     # the graph is read
+    # the shared modules reach the laws only through the registry
+    laws = {m for m in modules if m.startswith("vtoladapt.control.laws.")}
+    for name, deps in graph.items():
+        if not name.startswith("vtoladapt.control.laws"):
+            assert not deps & laws, f"{name} imports a law: {sorted(deps & laws)}"

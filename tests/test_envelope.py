@@ -18,12 +18,14 @@ from conftest import SHORT_FAN_SCENARIO, examples
 from vtoladapt.campaign.runner import VaryEntry, load_campaign_file, plan_campaign_file, run_campaign
 from vtoladapt.cli import main
 from vtoladapt.config import ConfigError
-from vtoladapt.control.registry import CONTROLLER_IDS
+from vtoladapt.control.registry import controller_ids
 from vtoladapt.errors import ExitCode
 from vtoladapt.experiments.envelope import (ALPHA_EXCURSION_MAX_S, PRED_ERR_BOUND_G, alpha_excursions,
                                             envelope_summary)
 from vtoladapt.experiments.envelope_readme import envelope_tables, readme_block
 from vtoladapt.sim.run_metrics import airspeed_bin_labels
+
+CONTROLLER_IDS = controller_ids()
 
 REPO = Path(__file__).resolve().parents[1]
 ENVELOPE = REPO / "scenarios" / "envelope.toml"

@@ -13,7 +13,7 @@ from vtoladapt.fitting.posterior import (POSTERIOR_FORMAT, POSTERIOR_NAMES, Post
                                          apply_posterior, controller_prior, load_posterior,
                                          posterior_dict_from_fit, posterior_from_dict,
                                          vehicle_with_posterior, write_posterior)
-from vtoladapt.control.kernel import default_theta_bounds
+from vtoladapt.control.step import default_theta_bounds
 from vtoladapt.vehicle import PARAMETER_NAMES, parameter_signs
 
 

@@ -1,8 +1,8 @@
 """The package's layers: every module belongs to one, and no module imports from a layer above its own.
 
 From the bottom: the foundation (configuration, array layouts, frames, errors, outputs and their folder
-lock, the component registries and the parts' interface), the models (the vehicle, the force model, the airflow probe's
-physics), the components (wind parts, sensor channels, the controller), the simulator, the
+lock, the component registries and the parts' interface), the models (the vehicle, the force model and its
+bases, the airflow probe's physics), the components (wind parts, sensor channels, the controller), the simulator, the
 applications built on it (experiments, fitting, the probe's tools, replay, the Gymnasium
 environment, campaigns, the pre-flight check that sets up an experiment's runs) and the command line. A module imports its own layer and those below: a
 model never reaches into the simulator, the simulator never into an application. The import graph is
@@ -19,7 +19,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
                     "vtoladapt.outputs", "vtoladapt.components", "vtoladapt.parts", "vtoladapt.progress",
                     "vtoladapt.stats", "vtoladapt._kernel_cache", "vtoladapt._version", "vtoladapt.ceilings",
                     "vtoladapt.folder_lock")),
-    ("models", ("vtoladapt.scaling", "vtoladapt.vehicle", "vtoladapt.vehicles", "vtoladapt.forces",
+    ("models", ("vtoladapt.scaling", "vtoladapt.vehicle", "vtoladapt.vehicles", "vtoladapt.forces", "vtoladapt.bases",
                 "vtoladapt.models", "vtoladapt.probe.tip", "vtoladapt.probe.sensor", "vtoladapt.probe.estimation",
                 "vtoladapt.probe.calibration", "vtoladapt.probe.flow", "vtoladapt.probe.points",
                 "vtoladapt.probe.errors", "vtoladapt.probe.nasa", "vtoladapt.probe.data")),

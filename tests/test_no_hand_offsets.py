@@ -17,11 +17,21 @@ import pytest
 import vtoladapt
 
 PACKAGE_DIR = Path(vtoladapt.__file__).resolve().parent
-SCANNED = ("layout.py", "parts.py", "sim", "wind", "sensors", "gym")
-"""The simulator's kernel modules (files and folders of the package). The controller's and the force
-model's join when their layouts are finished (#22 items 1-2)."""
+SCANNED = ("layout.py", "parts.py", "sim", "wind", "sensors", "gym", "control", "bases", "forces.py", "models.py")
+"""The kernel modules (files and folders of the package): the simulator's, the controller's and the
+force model's."""
 
 NOT_OFFSETS: dict[str, str] = {
+    "SPECIALISED_N": "the basis size the adaptation's unrolled kernels are written for (the paper's 8)",
+    "ADAPT_COMPOSITE": "enum: adaptation mode", "ADAPT_PCONST": "enum: adaptation mode",
+    "ADAPT_TRACKING": "enum: adaptation mode", "ADAPT_NONE": "enum: adaptation mode",
+    "PROJECTION_MAX_ITER": "iteration cap of the projection",
+    "MAX_ITERATIONS": "iteration cap of the airflow estimate",
+    "MAX_ITERATIONS_COLD": "iteration cap of the airflow estimate from a cold start",
+    "MAX_HALVINGS": "step halvings of the airflow estimate's line search",
+    "MAX_PARAMETERS": "capacity: parameters a basis may declare",
+    **{f"FAULT_{k}": "bit flag of the controller's fault word" for k in (
+        "POSITION", "VELOCITY", "ATTITUDE", "GYRO", "ACCEL", "PROBE", "REFERENCE", "COMMAND", "ADAPTATION", "DT")},
     "CHUNKS_PER_WORKER": "gym threading: chunks per thread",
     "MIN_CHUNK_ENVS": "gym threading: environments per chunk at least",
     "_CACHE_LINE_DOUBLES": "float64s in a 64-byte cache line (the prefetch stride)",
@@ -40,7 +50,6 @@ NOT_OFFSETS: dict[str, str] = {
     "PARQUET_FORMAT_VERSION": "the log file format's version",
     "ANALYSIS_COLUMNS_PER_RUN": "memory model: values per tick a run's analysis reads back",
     "ANALYSIS_TRANSIENT_COLUMNS": "memory model: values per tick the analysis creates and drops",
-    "CONVERGENCE_THETA_COLUMNS": "memory model: theta-hat values per tick stacked for the convergence figure",
     "STREAM_ROW_GROUP_ROWS": "memory model: rows of a streamed log's row group",
     "MAX_WAYPOINTS": "capacity: rows of [reference] waypoints",
 }

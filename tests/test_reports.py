@@ -16,9 +16,11 @@ import pytest
 from PIL import Image
 
 from vtoladapt.cli import format_vehicle, main
-from vtoladapt.control.registry import CONTROLLER_IDS
+from vtoladapt.control.registry import controller_ids
 from vtoladapt.sim.run_metrics import METRIC_INFO, metric_label
 from vtoladapt.vehicle import load_vehicle, vehicle_from_mapping
+
+CONTROLLER_IDS = controller_ids()
 
 SNAKE_KEY = re.compile(r"^[a-z0-9]+(_[a-z0-9]+)+$")
 
@@ -228,6 +230,17 @@ def test_vehicle_show_prints_units_and_valid_toml():
         for f in dataclasses.fields(getattr(veh, section)):
             assert f"# [{f.metadata['unit']}]" in lines[f.name], f.name
     assert "# [kg] take-off mass" in lines["mass_kg"]
+    assert lines["basis"].startswith('basis = "paper"  # [-] the force-model basis')
+
+
+def test_vehicle_show_keeps_the_basis_and_its_settings(tmp_path):
+    path = tmp_path / "v.toml"
+    text = open(load_vehicle("caltech_vtol").source_path).read()
+    path.write_text(text.replace('basis = "paper"', 'basis = "my_basis"') + '\n[basis_settings.my_basis]\nCY_mean = -0.2\nrows = [1, 2]\n')
+    veh = load_vehicle(path)
+    back = vehicle_from_mapping(tomllib.loads(format_vehicle(path)), "vehicle show output")
+    assert back.basis == "my_basis" and back.basis_table("my_basis") == {"CY_mean": -0.2, "rows": [1, 2]}
+    assert dataclasses.replace(back, source_path="") == dataclasses.replace(veh, source_path="")
 
 
 # --- fitting: one R-hat, readable corner plot ------------------------------------------------------------

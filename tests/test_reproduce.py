@@ -4,9 +4,13 @@ import math
 
 from PIL import Image
 
-from vtoladapt.control.registry import CONTROLLER_IDS, PAPER_ADAPTIVE_IDS
-from vtoladapt.experiments import ADAPTIVE_IDS
+from vtoladapt.control.registry import adaptive_ids, composite_ids, controller_ids, paper_adaptive_ids
 from vtoladapt.vehicle import PARAMETER_NAMES
+
+CONTROLLER_IDS = controller_ids()
+PAPER_ADAPTIVE_IDS = paper_adaptive_ids()
+ADAPTIVE_IDS = adaptive_ids()
+COMPOSITE_IDS = composite_ids()
 
 CONTROLLERS = CONTROLLER_IDS  # the paper's five, and nominal, INDI and L1
 

@@ -22,7 +22,7 @@ import pytest
 
 from vtoladapt.cli import main
 from vtoladapt.control import ControllerConfig, load_controller_config
-from vtoladapt.control.registry import CONTROLLER_IDS, CONTROLLERS
+from vtoladapt.control.registry import CONTROLLERS, controller_ids
 from vtoladapt.experiments import tuning
 from vtoladapt.experiments.distribution import variant_seeds
 from vtoladapt.sim.scenario import SCENARIO_DIR, load_scenario, scenario_from_mapping
@@ -41,7 +41,7 @@ SHARED = ["controller.K_v[0:2]", "controller.K_v[2]", "controller.Lambda_p[0:2]"
 
 
 def test_every_law_searches_the_shared_gains_and_its_own_inside_their_ranges():
-    for cid in CONTROLLER_IDS:
+    for cid in controller_ids():
         specs = tuning.tunables(cid)
         assert [t.name for t in specs[:len(SHARED)]] == SHARED          # the same shared space for every law
         config = ControllerConfig(kind=cid)
@@ -93,7 +93,7 @@ def test_the_search_spends_its_budget_and_finds_an_analytic_minimum(monkeypatch)
     """The objective replaced by a bowl in log(K_v north/east), log(cutoff), log(pole) with its
     minimum inside the box (the shared gains cut to K_v's horizontal pair, so three dimensions):
     exactly ``evaluations`` evaluations, the first the defaults, the best near the minimum."""
-    from vtoladapt.control import config as shared_config
+    from vtoladapt.control import settings as shared_config
 
     monkeypatch.setattr(shared_config, "TUNABLE", (("K_v[0:2]", 0.5, 8.0, True),))
     target = {"controller.K_v[0:2]": 3.0, "cutoff_radps": 6.0, "predictor_pole_radps": 30.0}
@@ -188,7 +188,7 @@ def test_shipped_tuned_files_cover_every_law_with_one_budget():
     """make reproduce's tuned settings: one file per law, the same budget, never worse than the
     defaults on the tuning draws, every gain inside its declared box."""
     budgets = set()
-    for cid in CONTROLLER_IDS:
+    for cid in controller_ids():
         path = tuning.shipped_tuned_file("paper_comparison", cid)
         kind, shared, law, rec = tuning.read_tuned_file(path)
         assert kind == cid
@@ -270,7 +270,7 @@ def test_readme_lists_every_declared_gain_with_its_box():
     rows = {line.strip().split("|")[1].strip().strip("`"): line for line in section.splitlines()
             if line.strip().startswith("| `")}
     rows["every law"] = next(line for line in section.splitlines() if line.startswith("  | every law"))
-    for cid in CONTROLLER_IDS:
+    for cid in controller_ids():
         for t in tuning.tunables(cid):
             row = rows["every law" if t.name in SHARED else cid]
             name = t.name.removeprefix("controller.") if t.name in SHARED else t.name

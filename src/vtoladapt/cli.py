@@ -5,6 +5,7 @@
     vtoladapt tune SCENARIO --controller ID tune a law's declared gains (one budget for every law)
     vtoladapt campaign SCENARIO --runs N    Monte-Carlo campaign on a Dask cluster
     vtoladapt vehicle list | show NAME      shipped vehicles and their parameters
+    vtoladapt controllers | bases           the control laws and force-model bases (registered ones too)
     vtoladapt tunnel / fit / fit-realdata   virtual wind tunnel and Bayesian model fitting
     vtoladapt probe calibrate / evaluate    airflow-probe calibration
     vtoladapt replay LOG --vehicle NAME     replay a real PX4 flight log (open-loop adaptation)
@@ -90,6 +91,38 @@ def _add_vehicle(sub) -> None:
     show.set_defaults(handler=_cmd_vehicle_show)
 
 
+def _add_listings(sub) -> None:
+    p = sub.add_parser("controllers", help="the control laws a scenario can fly (registered ones included)")
+    p.set_defaults(handler=_cmd_controllers)
+    p = sub.add_parser("bases", help="the force-model bases the controller can adapt (registered ones included)")
+    p.add_argument("--vehicle", default="caltech_vtol",
+                   help="shipped name or path of the vehicle whose parameter names to show (default caltech_vtol)")
+    p.set_defaults(handler=_cmd_bases)
+
+
+def _cmd_controllers(args) -> int:
+    """One line per law of the registry (ids a scenario's ``kind`` and ``--controller`` take)."""
+    from .control.registry import CONTROLLERS
+
+    for c in CONTROLLERS.values():
+        print(f"{c.id:<18} {c.label:<22} {c.description}")
+    return ExitCode.OK
+
+
+def _cmd_bases(args) -> int:
+    """One block per basis: id, label, description and its parameters for ``--vehicle``."""
+    from .bases import BASES, describe_basis
+    from .vehicle import load_vehicle
+
+    veh = load_vehicle(args.vehicle)
+    for b in BASES.values():
+        spec = describe_basis(veh, b.id)
+        print(f"{b.id:<18} {b.label:<22} {b.description}")
+        print(f"{'':<18} {spec.n} parameters: " + ", ".join(
+            f"{name} [{unit}]" for name, unit in zip(spec.names, spec.units)))
+    return ExitCode.OK
+
+
 def load_run_scenario(path, duration_s=None, seed=None, controller=None, tuned=None):
     """The scenario of ``vtoladapt run`` with its command-line overrides, fully validated.
 
@@ -101,7 +134,7 @@ def load_run_scenario(path, duration_s=None, seed=None, controller=None, tuned=N
     from dataclasses import replace
 
     from .config import ConfigError
-    from .control.config import ControllerConfig
+    from .control.settings import ControllerConfig
     from .sim.limits import check_run_size
     from .sim.scenario import Scenario, load_scenario
 
@@ -226,13 +259,18 @@ def format_vehicle(name_or_path) -> str:
         width = max((len(r[0]) for r in rows), default=0)
         return [f"{text:<{width}}  # [{unit}] {doc}" for text, unit, doc in rows]
 
+    basis_doc = next(f for f in dataclasses.fields(veh) if f.name == "basis").metadata["doc"]
     lines = [f"# vehicle {veh.name}" + (f" (from {veh.source_path})" if veh.source_path else ""),
              "# each value: [unit] and meaning; [-] = dimensionless",
-             f"name = {value(veh.name)}", f"description = {value(veh.description)}"]
+             f"name = {value(veh.name)}", f"description = {value(veh.description)}",
+             f"basis = {value(veh.basis)}  # [-] {basis_doc}"]
     for f in dataclasses.fields(veh):
         sub = getattr(veh, f.name)
         if dataclasses.is_dataclass(sub):
             lines += ["", f"[{f.name}]  # {f.metadata.get('doc', '')}"] + block(sub)
+    for basis_id, _ in veh.basis_settings:   # a basis's own settings, as the file gave them
+        table = veh.basis_table(basis_id)
+        lines += ["", f"[basis_settings.{basis_id}]"] + [f"{k} = {value(v)}" for k, v in table.items()]
     return "\n".join(lines)
 
 
@@ -259,8 +297,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true",
                         help="show the traceback of an error (accepted anywhere on the line)")
     sub = parser.add_subparsers(dest="command", required=True)
-    for register in (_add_reproduce, _add_run, register_tune, _add_vehicle, register_campaign, register_fitting,
-                     register_probe, register_replay):
+    for register in (_add_reproduce, _add_run, register_tune, _add_vehicle, _add_listings, register_campaign,
+                     register_fitting, register_probe, register_replay):
         register(sub)
     return parser
 

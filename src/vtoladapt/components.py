@@ -133,7 +133,7 @@ class Registry(Mapping):
         return module
 
     def module_name(self, info) -> str:
-        """The absolute dotted name of a member's module."""
+        """The absolute dotted name of a member's module (a package member's may be relative to ``package``)."""
         name = info.module
         own = info.id in self._own and self._members.get(info.id) is info
         return f"{self.package}.{name}" if own and self.package and "." not in name else name
@@ -150,7 +150,8 @@ class Registry(Mapping):
                 raise ValueError(f"{self.kind} {member_id!r} is registered already (from "
                                  f"{self.module_name(self._members[member_id])}); pass replace=True to replace it")
             if check_now:
-                self.check(_import_module(self.module_name(info)))
+                self._own.discard(member_id)   # a member added now names its module absolutely
+                self.check(_import_module(info.module))
                 self._checked.add(member_id)
             else:
                 self._checked.discard(member_id)
@@ -172,6 +173,7 @@ class Registry(Mapping):
 
 KIND_HOMES: dict[str, str] = {
     "law": "vtoladapt.control.registry",
+    "basis": "vtoladapt.bases",
     "wind": "vtoladapt.wind.registry",
     "sensor": "vtoladapt.sensors.registry",
 }

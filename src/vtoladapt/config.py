@@ -119,6 +119,8 @@ def setting(
     caps a list's length (rows of a table), checked before any element is: a list's memory grows
     with its length, so it answers to the memory budget before it is read. ``pattern`` is a
     regular expression a text value must match in full (e.g. names used in file names).
+    ``choices`` is a tuple, or a function returning one when a value is checked (the ids of a
+    component registry, which may gain members after import: :mod:`vtoladapt.components`).
     """
     meta = {"unit": unit, "doc": doc, "gt": gt, "ge": ge, "lt": lt, "le": le,
             "length": length, "max_items": max_items, "choices": choices, "pattern": pattern}
@@ -158,13 +160,20 @@ def _where(source: str, section: str, key: str) -> str:
     return f"{source}: [{section}] {_key_text(key)}" if section else f"{source}: {_key_text(key)}"
 
 
+def choices_of(meta: Mapping[str, Any]) -> tuple | None:
+    """The allowed values of a field now: its ``choices`` tuple, or what its ``choices`` function returns."""
+    choices = meta.get("choices")
+    return tuple(choices()) if callable(choices) else choices
+
+
 def _allowed_text(meta: Mapping[str, Any]) -> str:
     parts = []
     for name, sym in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")):
         if meta.get(name) is not None:
             parts.append(f"{sym} {meta[name]:g}")
-    if meta.get("choices"):
-        parts.append("one of " + ", ".join(repr(c) for c in meta["choices"]))
+    choices = choices_of(meta)
+    if choices:
+        parts.append("one of " + ", ".join(repr(c) for c in choices))
     text = " and ".join(parts) if parts else "any value"
     unit = meta.get("unit")
     return f"{text} ({unit})" if unit and unit != "-" else text
@@ -247,7 +256,8 @@ def _convert(value: Any, tp: Any, meta: Mapping[str, Any], where: str, source: s
         if meta.get("pattern") and not re.fullmatch(meta["pattern"], value):
             allowed = _PATTERN_TEXT.get(meta["pattern"], f"text matching {meta['pattern']}")
             raise ConfigError(f"{where} = {_shown(value)}: not allowed; allowed: {allowed}")
-        if meta.get("choices") and value not in meta["choices"]:
+        choices = choices_of(meta)
+        if choices and value not in choices:
             raise ConfigError(f"{where} = {_shown(value)}: unknown; allowed: {_allowed_text(meta)}")
         return value
     raise TypeError(f"unsupported configuration field type {tp!r} at {where}")
@@ -283,6 +293,10 @@ def _type_hints(cls: type) -> dict[str, Any]:
 def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", section: str = "") -> Any:
     """Build and validate dataclass ``cls`` from a mapping (e.g. a parsed TOML table).
 
+    A class may define ``component_tables(data, *, source, section) -> (data, kwargs)``: it builds the
+    sub-tables of registered components it owns (a user's wind part's ``[wind.<id>]``, a law's
+    ``[controller.<id>]``) and returns the rest of the table and the keyword arguments they make.
+
     Raises
     ------
     ConfigError
@@ -294,8 +308,8 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
         raise ConfigError(f"{source}: [{section}] must be a table, got {data!r}")
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
     hints = _type_hints(cls)
-    # a class that holds components registered from outside (a user's wind part in [wind.<id>]) takes
-    # their tables out first and builds them itself: {field: value} joins what is built below
+    # a class that holds components registered from outside (a user's wind part in [wind.<id>], a law's
+    # [controller.<id>]) takes their tables out first and builds them itself: they join what is built below
     components: Mapping[str, Any] = {}
     take = getattr(cls, "component_tables", None)
     if take is not None:
@@ -347,6 +361,7 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
             kwargs[name] = _convert(data[name], hints[name], f.metadata, where, source)
     # the values are converted and checked above: a Validated class's own check would repeat it
     # and, worse, name the class instead of the file
+    kwargs.update({name: value for name, value in components.items() if name not in fields})
     token = _BUILDING.set(True)
     try:
         obj = cls(**kwargs)

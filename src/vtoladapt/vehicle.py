@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .config import ConfigError, Validated, build, read_toml, refuse_internal_keys, setting
+from typing import Any, Mapping
 from .scaling import model_kernel_params, theta_to_scaled
 
 VEHICLE_DIR = Path(__file__).with_name("vehicles")
@@ -289,7 +290,17 @@ class Vehicle(Validated):
     surfaces: tuple[Surface, ...] = setting(
         "-", "control surfaces ([[surfaces]] entries, at most vtoladapt.layout.N_SURFACES)", default=(),
         max_items=4)
+    basis: str = setting("-", "the force-model basis the controller adapts (an id of vtoladapt.bases: 'paper' is the "
+                         "paper's eight parameters; a scenario's [controller] basis may name another)",
+                         default="paper", pattern=r"[A-Za-z_][A-Za-z0-9_]{0,63}")
+    basis_settings: Any = setting(
+        "-", "[basis_settings.<id>] tables: each basis's own settings (e.g. the prior of its extra columns), read "
+        "when that basis flies", default=())
     source_path: str = setting("-", "file the vehicle was read from", default="")
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "basis_settings", _frozen_tables(self.basis_settings, self.source_path))
+        super().__post_init__()
 
     @cached_property
     def aero_scale_per_m(self) -> float:
@@ -311,6 +322,13 @@ class Vehicle(Validated):
     def theta_std_scaled(self) -> np.ndarray:
         """The coefficients' standard deviations in the adaptation scaling."""
         return _read_only(theta_to_scaled(self.force_model_std.as_table_theta(), self.force_model.k1))
+
+    def basis_table(self, basis_id: str) -> dict | None:
+        """The vehicle file's ``[basis_settings.<basis_id>]`` table (a dict), or None if it has none."""
+        for key, table in self.basis_settings:
+            if key == basis_id:
+                return _thawed(table)
+        return None
 
     def _check(self, source: str) -> None:
         names = [sf.name for sf in self.surfaces]
@@ -336,6 +354,28 @@ class Vehicle(Validated):
         return dataclasses.replace(self, **changes)
 
 
+def _frozen(value: Any) -> Any:
+    """A TOML value made hashable (tables and arrays to tuples), so a vehicle stays hashable."""
+    if isinstance(value, Mapping):
+        return tuple((str(k), _frozen(v)) for k, v in value.items())
+    if isinstance(value, (list, tuple)):
+        return tuple(_frozen(v) for v in value)
+    return value
+
+
+def _thawed(value: Any) -> Any:
+    """The inverse of :func:`_frozen` for one table: ``((key, value), ...)`` back to a dict."""
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in value}
+
+
+def _frozen_tables(tables: Any, source: str) -> tuple:
+    """``[basis_settings.<id>]`` tables as ``((id, ((key, value), ...)), ...)``; a ConfigError if not tables."""
+    if isinstance(tables, tuple) and all(isinstance(t, tuple) and len(t) == 2 for t in tables):
+        return tables   # already frozen (a copy of a vehicle)
+    if not isinstance(tables, Mapping) or not all(isinstance(t, Mapping) for t in tables.values()):
+        raise ConfigError(f"{source or 'Vehicle'}: basis_settings = {tables!r:.60}: must be tables "
+                          "[basis_settings.<basis id>]")
+    return tuple((str(k), _frozen(v)) for k, v in tables.items())
 LIFT_ALLOCATION_COND_MAX = 1e6
 """Largest condition number of the lift rotors' allocation matrix a vehicle may have: the mixer
 solves it every tick, and beyond this a rounding error in a command becomes a motor's full range."""

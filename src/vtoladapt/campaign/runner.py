@@ -42,7 +42,7 @@ import numpy as np
 from .cluster import LOOPBACK, check_listen, check_scheduler, run_on_dask
 from ..config import (PATH_PATTERN, ConfigError, Validated, build, check_flag, read_toml, refuse_internal_keys,
                      setting)
-from ..control.registry import CONTROLLER_IDS
+from ..control.registry import controller_ids
 from ..outputs import OutputDir, add_force_argument, output_path, write_json, write_parquet
 
 
@@ -137,7 +137,7 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
     silently flying only its ``[controller] kind``.
     """
     from ..config import check_value
-    from ..control.config import ControllerConfig
+    from ..control.settings import ControllerConfig
     from ..ceilings import check_campaign_runs
     from ..preflight import check_flyable
     from ..sim.limits import check_worker_runs
@@ -263,7 +263,7 @@ class CampaignConfig(Validated):
     runs: int = setting("-", "number of draws, each flown by every controller", ge=1, le=MAX_CAMPAIGN_RUNS)
     seed: int = setting("-", "seed of every draw: numpy.random.default_rng(seed)", ge=0, le=2**63 - 1)
     controllers: tuple[str, ...] = setting("-", "controllers flying every draw (same seed, same conditions)",
-                                           choices=CONTROLLER_IDS)
+                                           choices=controller_ids)
     sampling: str = setting("-", "'latin_hypercube': every dimension stratified into runs equal strata "
                             "(choices: each option equally often); 'uniform': independent draws",
                             default="latin_hypercube", choices=SAMPLINGS)
@@ -273,7 +273,7 @@ class CampaignConfig(Validated):
     def _check(self, source: str) -> None:
         if not self.controllers or len(set(self.controllers)) != len(self.controllers):
             raise ConfigError(f"{source}: [campaign] controllers = {list(self.controllers)}: must be a "
-                              f"non-empty list without repeats; allowed: {', '.join(CONTROLLER_IDS)}")
+                              f"non-empty list without repeats; allowed: {', '.join(controller_ids())}")
         keys = [k for v in self.vary for k in v.keys]
         if len(set(keys)) != len(keys):
             dup = next(k for k in keys if keys.count(k) > 1)

@@ -92,9 +92,13 @@ from numba import njit
 
 from ..frames import rows_transpose_times
 from ..layout import BlockLayout, Field
-from .exact_step import constant_gain_inverse
+from .exact_step import EXACT_WORK, constant_gain_inverse
+from .linalg import cholesky_lower, cholesky_solve, factor_apply, factor_diag, gram_of_factor, inverse_factor
 
-N_THETA = 8
+SPECIALISED_N = 8
+"""The number of parameters the hot kernels are also compiled for with constant loop lengths: the paper's
+basis, the default (:data:`vtoladapt.bases.N_PHYSICS`); any other n runs the same code with loops of
+run-time length (about twice as long for n = 8)."""
 
 ADAPT_COMPOSITE = 0
 ADAPT_PCONST = 1
@@ -109,189 +113,107 @@ PROJECTION_MAX_ITER = 32
 # at offset o of x is x[o + n i + j]. The kernels take the whole array and the offset, not a
 # slice: every array view handed to a compiled function costs two atomic reference-count updates
 # (and a 2-D view a reshape call), about 30 ns on the 2-core machine, more than the arithmetic of
-# most of these 8x8 kernels. A kernel that calls no other slices its own views at entry: there
-# Numba drops their reference counting, and offset-free indices let LLVM unroll the loops.
-
-# The adaptation's memory, one block: theta-hat, the information matrix Gamma = P^-1, the
-# filtered regressor W = [Phi]_f (3 x 8) and the filtered specific force a_m (body, m/s^2).
-MEMORY = BlockLayout("adaptation memory", [
-    Field("THETA", N_THETA, "adaptation units", "theta-hat"),
-    Field("GAMMA", N_THETA * N_THETA, "adaptation units", "information matrix P^-1, row-major"),
-    Field("W", 3 * N_THETA, "m/s^2 per adaptation unit", "filtered regressor W = [Phi]_f, row-major"),
-    Field("A_M", 3, "m/s^2", "filtered specific force a_m, body axes"),
-])
-MEM_THETA, MEM_GAMMA, MEM_W, MEM_A_M = MEMORY.offsets("THETA", "GAMMA", "W", "A_M")
-MEM_SIZE = MEMORY.size
-
-# The prior, one block: theta_0, the initial theta-hat, the bounds, Gamma_0 = P_0^-1 and P_0.
-PRIOR = BlockLayout("adaptation prior", [
-    Field("THETA0", N_THETA, "adaptation units", "prior mean theta_0 (sigma-modification target)"),
-    Field("THETA_INIT", N_THETA, "adaptation units", "theta-hat at the start"),
-    Field("LOWER", N_THETA, "adaptation units", "lower bounds of theta-hat"),
-    Field("UPPER", N_THETA, "adaptation units", "upper bounds of theta-hat"),
-    Field("GAMMA0", N_THETA * N_THETA, "adaptation units", "P_0^-1, row-major"),
-    Field("P0", N_THETA * N_THETA, "adaptation units", "initial gain P_0, row-major"),
-])
-PRIOR_THETA0, PRIOR_THETA_INIT, PRIOR_LOWER, PRIOR_UPPER, PRIOR_GAMMA0, PRIOR_P0 = PRIOR.offsets(
-    "THETA0", "THETA_INIT", "LOWER", "UPPER", "GAMMA0", "P0")
-PRIOR_SIZE = PRIOR.size
-
-# The projection's scratch: its system (K[A, A] or K^-1[F, F], at most 4 x 4) and the system's
-# Cholesky factor, the right-hand side (the solution, in place) and the multipliers.
-PROJECTION_WORK = BlockLayout("projection scratch", [
-    Field("SYSTEM", (N_THETA // 2) ** 2, "-", "K[A, A] or K^-1[F, F]"),
-    Field("FACTOR", (N_THETA // 2) ** 2, "-", "its Cholesky factor"),
-    Field("RHS", N_THETA, "-", "right-hand side, then the solution"),
-    Field("MU", N_THETA, "-", "multipliers of the active bounds"),
-])
-PJ_SYSTEM, PJ_FACTOR, PJ_RHS, PJ_MU = PROJECTION_WORK.offsets("SYSTEM", "FACTOR", "RHS", "MU")
-PROJECTION_WORK_SIZE = PROJECTION_WORK.size
-
-# One step's scratch (meaningless between ticks); P_DIAG is the step's output.
-WORK = BlockLayout("adaptation scratch", [
-    Field("WTW", N_THETA * N_THETA, "-", "W^T W (composite), or the constant-P gain's inverse"),
-    Field("M", N_THETA * N_THETA, "-", "L^-1 for the Cholesky factor L of the gain's inverse"),
-    Field("L", N_THETA * N_THETA, "-", "L"),
-    Field("K", N_THETA * N_THETA, "-", "the gain K, formed only to project (before: the constant-P gain's scratch)"),
-    Field("TAU", N_THETA, "-", "tau of eq:th_adapt"),
-    Field("D0", N_THETA, "-", "K tau"),
-    Field("D", N_THETA, "-", "its projection"),
-    Field("P_DIAG", N_THETA, "adaptation units", "diag(P) after the step"),
-    Field("PROJECTION", PROJECTION_WORK.size, "-", "the projection's scratch"),
-])
-WK_WTW, WK_M, WK_L, WK_K, WK_TAU, WK_D0, WK_D, WK_P_DIAG, WK_PROJECTION = WORK.offsets(
-    "WTW", "M", "L", "K", "TAU", "D0", "D", "P_DIAG", "PROJECTION")
-WORK_SIZE = WORK.size
+# most of these small kernels. A kernel that calls no other slices its own views at entry: there
+# Numba drops their reference counting.
+#
+# The number of parameters n is the force-model basis's (vtoladapt.bases), so the blocks below
+# are declared per n and their offsets, derived from these declarations in Python, reach the
+# kernels through an offsets table (:data:`AT`, built by :func:`offsets_table`).
 
 
-# --- small dense linear algebra (n x n, flat storage, no allocation) --------------------------
-# The kernels of this module never divide by zero (Cholesky pivots are > 0 once checked), so they
-# use NumPy's error model: a division cannot raise, which leaves them no exception path and lets
-# Numba drop their reference counting (otherwise kept on every call).
-
-@njit(cache=True, error_model="numpy")
-def cholesky_lower(A, a, L, l, n) -> bool:
-    """Cholesky factor (lower) of the SPD ``n x n`` matrix at ``A[a:]`` into ``L[l:]``; False if not PD."""
-    A = A[a:a + n * n]
-    L = L[l:l + n * n]
-    for j in range(n):
-        s = A[n * j + j]
-        for k in range(j):
-            s -= L[n * j + k] * L[n * j + k]
-        if not s > 0.0:
-            return False
-        d = np.sqrt(s)
-        L[n * j + j] = d
-        r = 1.0 / d
-        for i in range(j + 1, n):
-            t = A[n * i + j]
-            for k in range(j):
-                t -= L[n * i + k] * L[n * j + k]
-            L[n * i + j] = t * r
-        for i in range(j):
-            L[n * i + j] = 0.0
-    return True
+def memory_layout(n: int) -> BlockLayout:
+    """The adaptation's memory: theta-hat, the information matrix Gamma = P^-1, the filtered
+    regressor W = [Phi]_f (3 x n) and the filtered specific force a_m (body, m/s^2)."""
+    return BlockLayout("adaptation memory", [
+        Field("THETA", n, "adaptation units", "theta-hat"),
+        Field("GAMMA", n * n, "adaptation units", "information matrix P^-1, row-major"),
+        Field("W", 3 * n, "m/s^2 per adaptation unit", "filtered regressor W = [Phi]_f, row-major"),
+        Field("A_M", 3, "m/s^2", "filtered specific force a_m, body axes"),
+    ])
 
 
-@njit(cache=True, error_model="numpy")
-def cholesky_solve(L, l, n, b, o) -> None:
-    """Solve ``L L^T x = b`` in place (``b[o:o+n]`` becomes x) given the Cholesky factor at ``L[l:]``."""
-    L = L[l:l + n * n]
-    b = b[o:o + n]
-    for i in range(n):
-        t = b[i]
-        for k in range(i):
-            t -= L[n * i + k] * b[k]
-        b[i] = t / L[n * i + i]
-    for i in range(n - 1, -1, -1):
-        t = b[i]
-        for k in range(i + 1, n):
-            t -= L[n * k + i] * b[k]
-        b[i] = t / L[n * i + i]
+def prior_layout(n: int) -> BlockLayout:
+    """The prior: theta_0, the initial theta-hat, the bounds, Gamma_0 = P_0^-1 and P_0."""
+    return BlockLayout("adaptation prior", [
+        Field("THETA0", n, "adaptation units", "prior mean theta_0 (sigma-modification target)"),
+        Field("THETA_INIT", n, "adaptation units", "theta-hat at the start"),
+        Field("LOWER", n, "adaptation units", "lower bounds of theta-hat"),
+        Field("UPPER", n, "adaptation units", "upper bounds of theta-hat"),
+        Field("GAMMA0", n * n, "adaptation units", "P_0^-1, row-major"),
+        Field("P0", n * n, "adaptation units", "initial gain P_0, row-major"),
+    ])
 
 
-@njit(cache=True, error_model="numpy")
-def inverse_factor(L, l, M, m) -> None:
-    """``M = L^-1`` (lower triangular) for a Cholesky factor ``L`` of ``A``, so ``A^-1 = M^T M``.
+def work_layout(n: int) -> BlockLayout:
+    """One step's scratch (meaningless between ticks); P_DIAG is the step's output.
 
-    ``N_THETA x N_THETA``, ``L`` at ``L[l:]`` (from :func:`cholesky_lower`), ``M`` into ``M[m:]``.
+    The projection's system (``K[A, A]`` or ``K^-1[F, F]``, at most ``n//2`` square, see
+    :func:`project_direction`) and its factor, right-hand side and multipliers; the directional
+    forgetting's products (:func:`directional_information_update`).
     """
-    n = N_THETA
-    L = L[l:l + n * n]
-    M = M[m:m + n * n]
-    for i in range(n):
-        M[n * i + i] = 1.0 / L[n * i + i]
-    for j in range(n):
-        for i in range(j + 1, n):
-            t = 0.0
-            for k in range(j, i):
-                t -= L[n * i + k] * M[n * k + j]
-            M[n * i + j] = t * M[n * i + i]
-        for i in range(j):
-            M[n * i + j] = 0.0
+    m = (n // 2) ** 2
+    return BlockLayout("adaptation scratch", [
+        Field("WTW", n * n, "-", "W^T W (composite), or the constant-P gain's inverse"),
+        Field("M", n * n, "-", "L^-1 for the Cholesky factor L of the gain's inverse"),
+        Field("L", n * n, "-", "L"),
+        Field("K", n * n, "-", "the gain K, formed only to project"),
+        Field("TAU", n, "-", "tau of eq:th_adapt"),
+        Field("D0", n, "-", "K tau"),
+        Field("D", n, "-", "its projection"),
+        Field("P_DIAG", n, "adaptation units", "diag(P) after the step"),
+        Field("SYSTEM", m, "-", "projection: K[A, A] or K^-1[F, F]"),
+        Field("FACTOR", m, "-", "projection: its Cholesky factor"),
+        Field("RHS", n, "-", "projection: right-hand side, then the solution"),
+        Field("MU", n, "-", "projection: multipliers of the active bounds"),
+        Field("DWT", 3 * n, "-", "directional forgetting: D W^T (n x 3)"),
+        Field("SWD", 3 * n, "-", "directional forgetting: (S^-1 W D)^T (n x 3)"),
+        Field("S", 9, "-", "directional forgetting: S = W Gamma W^T (3 x 3)"),
+        Field("S_FACTOR", 9, "-", "directional forgetting: S's Cholesky factor"),
+        Field("EXACT", EXACT_WORK.size + 3 * n, "-", "the constant-P law's exact step (exact_step.EXACT_WORK, "
+              "then W^T S, n x 3)"),
+    ])
 
 
-@njit(cache=True, error_model="numpy")
-def gram_of_factor(M, m, out, o) -> None:
-    """``out = M^T M`` for lower-triangular ``M`` (exactly symmetric, PD if ``M`` is invertible)."""
-    n = N_THETA
-    M = M[m:m + n * n]
-    out = out[o:o + n * n]
-    for i in range(n):
-        for j in range(i, n):
-            t = 0.0
-            for k in range(j, n):
-                t += M[n * k + i] * M[n * k + j]
-            out[n * i + j] = t
-            out[n * j + i] = t
+AT = BlockLayout("adaptation offsets", [
+    Field("N", 1, "-", "number of parameters n (the basis's)"),
+    *(Field(name, 1, "-", f"offset of the memory's {name} in the memory array")
+      for name in ("THETA", "GAMMA", "W", "A_M")),
+    *(Field(name, 1, "-", f"offset of the prior's {name} in the prior array")
+      for name in ("THETA0", "THETA_INIT", "LOWER", "UPPER", "GAMMA0", "P0")),
+    *(Field(name, 1, "-", f"offset of the scratch's {name} in the memory array")
+      for name in ("WTW", "M", "L", "K", "TAU", "D0", "D", "P_DIAG", "SYSTEM", "FACTOR", "RHS", "MU",
+                   "DWT", "SWD", "S", "S_FACTOR", "EXACT")),
+])
+"""Where the blocks sized by n are: one slot per offset (absolute, in the arrays the kernels get)."""
+(AT_N, AT_THETA, AT_GAMMA, AT_W, AT_A_M, AT_THETA0, AT_THETA_INIT, AT_LOWER, AT_UPPER, AT_GAMMA0, AT_P0,
+ AT_WTW, AT_M, AT_L, AT_K, AT_TAU, AT_D0, AT_D, AT_P_DIAG, AT_SYSTEM, AT_FACTOR, AT_RHS, AT_MU, AT_DWT,
+ AT_SWD, AT_S, AT_S_FACTOR, AT_EXACT) = AT.offsets(*(f.name for f in AT.fields))
 
 
-@njit(cache=True, error_model="numpy")
-def factor_diag(M, m, out, o) -> None:
-    """``diag(M^T M)`` for lower-triangular ``M`` (the diagonal of ``A^-1``) into ``out[o:o+n]``."""
-    n = N_THETA
-    M = M[m:m + n * n]
-    out = out[o:o + n]
-    for i in range(n):
-        t = 0.0
-        for k in range(i, n):
-            t += M[n * k + i] * M[n * k + i]
-        out[i] = t
+def standalone_arrays(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(at, x, prior)`` for one adaptation of n parameters outside the controller (replay, tests): the
+    offsets table, the memory followed by the scratch in ``x`` and the prior in ``prior`` (zeros; fill them
+    through :func:`memory_layout` and :func:`prior_layout`, e.g. ``memory_layout(n).view(x, "THETA")``)."""
+    memory, work, prior = memory_layout(n), work_layout(n), prior_layout(n)
+    return offsets_table(n, 0, 0, memory.size), np.zeros(memory.size + work.size), np.zeros(prior.size)
 
 
-@njit(cache=True, error_model="numpy")
-def factor_apply(M, m, x, o) -> None:
-    """``x <- M^T (M x)`` in place (``x[o:o+n]``) for lower-triangular ``M``: ``A^-1 x``."""
-    n = N_THETA
-    M = M[m:m + n * n]
-    x = x[o:o + n]
-    # y = M x from the last row up (row i reads x_0..x_i, which are not overwritten yet)
-    for i in range(n - 1, -1, -1):
-        t = 0.0
-        for k in range(i + 1):
-            t += M[n * i + k] * x[k]
-        x[i] = t
-    # M^T y from the first row down (row i reads y_i..y_n-1)
-    for i in range(n):
-        t = 0.0
-        for k in range(i, n):
-            t += M[n * k + i] * x[k]
-        x[i] = t
+def offsets_table(n: int, memory_at: int, prior_at: int, work_at: int) -> np.ndarray:
+    """The :data:`AT` table of n parameters whose memory starts at ``memory_at`` and scratch at
+    ``work_at`` (of the memory array) and prior at ``prior_at`` (of the prior array)."""
+    mem, prior, work = memory_layout(n), prior_layout(n), work_layout(n)
+    values = {"N": n}
+    values.update({f.name: memory_at + mem.offset(f.name) for f in mem.fields})
+    values.update({f.name: prior_at + prior.offset(f.name) for f in prior.fields})
+    values.update({f.name: work_at + work.offset(f.name) for f in work.fields})
+    return AT.pack(**values)
 
 
-@njit(cache=True, error_model="numpy")
-def spd_inverse(A, a, Ainv, ai, work, w) -> bool:
-    """Inverse of SPD ``A`` via Cholesky, ``A^-1 = L^-T L^-1``: symmetric and PD by construction.
-
-    ``N_THETA x N_THETA`` matrices at ``A[a:]`` and into ``Ainv[ai:]``; ``work[w:]`` holds two of
-    them (overwritten). Returns False (``Ainv`` untouched) if ``A`` is not PD.
-    """
-    L = w + N_THETA * N_THETA
-    if not cholesky_lower(A, a, work, L, N_THETA):
-        return False
-    inverse_factor(work, L, work, w)
-    gram_of_factor(work, w, Ainv, ai)
-    return True
+# --- small dense linear algebra: vtoladapt.control.linalg ----------------------------------------
+# The small kernels the step calls are inlined into it (``inline="always"``): the step is compiled for
+# the paper's n as a constant (SPECIALISED_N), and only inlined code sees that constant and runs loops
+# of constant length. The projection, too large to inline twice into the step, specialises itself the
+# same way.
 
 
 # --- filters and the prediction error -----------------------------------------------------------
@@ -320,13 +242,12 @@ def lowpass_gain(cutoff_hz: float, dt: float) -> float:
     return 1.0 - np.exp(-2.0 * np.pi * cutoff_hz * dt)
 
 
-@njit(cache=True, error_model="numpy")
-def prediction_error(W, w, theta, t, a_m, m) -> tuple:
+@njit(cache=True, error_model="numpy", inline="always")
+def prediction_error(W, w, theta, t, a_m, m, n) -> tuple:
     """Prediction error ``e = W theta-hat - a_m`` (eq:prediction_error), body axes, m/s^2 (3-tuple).
 
-    ``W`` (3 x 8) at ``W[w:]``, theta-hat at ``theta[t:]``, ``a_m`` at ``a_m[m:]``.
+    ``W`` (3 x n) at ``W[w:]``, theta-hat at ``theta[t:]``, ``a_m`` at ``a_m[m:]``.
     """
-    n = N_THETA
     W = W[w:w + 3 * n]
     theta = theta[t:t + n]
     e0 = -a_m[m]
@@ -339,10 +260,9 @@ def prediction_error(W, w, theta, t, a_m, m) -> tuple:
     return e0, e1, e2
 
 
-@njit(cache=True, error_model="numpy")
-def gram(W, w, G, g) -> None:
-    """``G = W^T W`` (8 x 8, exactly symmetric) for the 3 x 8 ``W`` at ``W[w:]``."""
-    n = N_THETA
+@njit(cache=True, error_model="numpy", inline="always")
+def gram(W, w, G, g, n) -> None:
+    """``G = W^T W`` (n x n, exactly symmetric) for the 3 x n ``W`` at ``W[w:]``."""
     W = W[w:w + 3 * n]
     G = G[g:g + n * n]
     for i in range(n):
@@ -362,16 +282,15 @@ def forgetting_weights(lam: float, dt: float) -> tuple:
     return 1.0, dt
 
 
-@njit(cache=True, error_model="numpy")
-def information_update(Gamma, g, Gamma0, g0, WtW, h, a, b, toward_prior=1.0) -> None:
+@njit(cache=True, error_model="numpy", inline="always")
+def information_update(Gamma, g, Gamma0, g0, WtW, h, a, b, n, toward_prior=1.0) -> None:
     """One exact step of ``Gamma' = W^T W - lambda (Gamma - Gamma_0)`` (eq:P_adapt, information form).
 
     ``Gamma <- a Gamma + (1 - a) Gamma_0 + b W^T W`` in place, with ``(a, b)`` from
-    :func:`forgetting_weights` (8 x 8 matrices at ``Gamma[g:]``, ``Gamma0[g0:]``, ``WtW[h:]``).
+    :func:`forgetting_weights` (n x n matrices at ``Gamma[g:]``, ``Gamma0[g0:]``, ``WtW[h:]``).
     ``toward_prior = 0``: the paper's pure forgetting ``Gamma' = W^T W - lambda Gamma`` (P winds up
     where W does not excite; measured against the shipped law in the README, "Deviations").
     """
-    n = N_THETA
     Gamma = Gamma[g:g + n * n]
     Gamma0 = Gamma0[g0:g0 + n * n]
     WtW = WtW[h:h + n * n]
@@ -382,10 +301,9 @@ def information_update(Gamma, g, Gamma0, g0, WtW, h, a, b, toward_prior=1.0) -> 
             Gamma[n * j + i] = v
 
 
-@njit(cache=True, error_model="numpy")
-def cap_information(Gamma, g, Gamma0, g0, trace_max) -> bool:
+@njit(cache=True, error_model="numpy", inline="always")
+def cap_information(Gamma, g, Gamma0, g0, trace_max, n) -> bool:
     """Scale the data part ``Gamma - Gamma_0`` so its trace is at most ``trace_max``; True if capped."""
-    n = N_THETA
     Gamma = Gamma[g:g + n * n]
     Gamma0 = Gamma0[g0:g0 + n * n]
     tr = 0.0
@@ -400,7 +318,7 @@ def cap_information(Gamma, g, Gamma0, g0, trace_max) -> bool:
 
 
 @njit(cache=True, error_model="numpy")
-def directional_information_update(Gamma, g, Gamma0, g0, W, wf, WtW, h, a, b, x, s) -> None:
+def directional_information_update(Gamma, g, Gamma0, g0, W, wf, WtW, h, a, b, x, dwt, swd, sm, sf, n) -> None:
     """One step of directional forgetting: ``Gamma' = W^T W - lambda M`` (information form, not in the paper).
 
     ``M = D W^T (W Gamma W^T)^-1 W D`` with ``D = Gamma - Gamma_0`` (the data part of the
@@ -412,23 +330,21 @@ def directional_information_update(Gamma, g, Gamma0, g0, W, wf, WtW, h, a, b, x,
     forgetting part of the Lyapunov derivative, ``-lambda theta~^T M theta~ / 2``, is <= 0.
 
     Discretised like :func:`information_update`: ``Gamma <- Gamma - (1 - a) M + b W^T W``, ``M``
-    from the Gamma before the step. ``W`` (3 x 8) at ``W[wf:]``, ``W^T W`` at ``WtW[h:]``;
-    ``x[s:]`` holds 66 of scratch. ``W Gamma W^T`` gets a ``1e-12`` relative ridge so that a
-    rank-deficient ``W`` (a zero row) forgets nothing along the missing row.
+    from the Gamma before the step. ``W`` (3 x n) at ``W[wf:]``, ``W^T W`` at ``WtW[h:]``; scratch
+    in ``x`` (:func:`work_layout`): ``D W^T`` (n x 3) at ``dwt``, ``(S^-1 W D)^T`` at ``swd``,
+    ``S = W Gamma W^T`` (3 x 3) at ``sm`` and its factor at ``sf``. ``S`` gets a ``1e-12``
+    relative ridge so that a rank-deficient ``W`` (a zero row) forgets nothing along the missing row.
     """
-    n = N_THETA
     Gamma = Gamma[g:g + n * n]
     Gamma0 = Gamma0[g0:g0 + n * n]
     W = W[wf:wf + 3 * n]
     WtW = WtW[h:h + n * n]
-    x = x[s:s + 66]
-    # x[0:24] = D W^T (8 x 3), x[24:48] = (S^-1 W D)^T (8 x 3), x[48:57] = S, x[57:66] its factor
     for i in range(n):
         for r in range(3):
             t = 0.0
             for j in range(n):
                 t += (Gamma[n * i + j] - Gamma0[n * i + j]) * W[n * r + j]
-            x[3 * i + r] = t
+            x[dwt + 3 * i + r] = t
     tr = 0.0
     for r in range(3):
         for c in range(r, 3):
@@ -438,24 +354,25 @@ def directional_information_update(Gamma, g, Gamma0, g0, W, wf, WtW, h, a, b, x,
                 for j in range(n):
                     gi += Gamma[n * i + j] * W[n * c + j]
                 t += W[n * r + i] * gi
-            x[48 + 3 * r + c] = t
-            x[48 + 3 * c + r] = t
-        tr += x[48 + 4 * r]
+            x[sm + 3 * r + c] = t
+            x[sm + 3 * c + r] = t
+        tr += x[sm + 4 * r]
     ridge = 1e-12 * tr + TINY
     for r in range(3):
-        x[48 + 4 * r] += ridge
-    ok = cholesky_lower(x, 48, x, 57, 3)
+        x[sm + 4 * r] += ridge
+    ok = cholesky_lower(x, sm, x, sf, 3)
     for i in range(n):
         for r in range(3):
-            x[24 + 3 * i + r] = x[3 * i + r]
+            x[swd + 3 * i + r] = x[dwt + 3 * i + r]
         if ok:
-            cholesky_solve(x, 57, 3, x, 24 + 3 * i)
+            cholesky_solve(x, sf, 3, x, swd + 3 * i)
     c = 1.0 - a
     for i in range(n):
         for j in range(i, n):
             m_ij = 0.0
             if ok:
-                m_ij = x[3 * i] * x[24 + 3 * j] + x[3 * i + 1] * x[24 + 3 * j + 1] + x[3 * i + 2] * x[24 + 3 * j + 2]
+                m_ij = (x[dwt + 3 * i] * x[swd + 3 * j] + x[dwt + 3 * i + 1] * x[swd + 3 * j + 1]
+                        + x[dwt + 3 * i + 2] * x[swd + 3 * j + 2])
             v = flush_tiny(Gamma[n * i + j] - c * m_ij + b * WtW[n * i + j])
             Gamma[n * i + j] = v
             Gamma[n * j + i] = v
@@ -463,19 +380,19 @@ def directional_information_update(Gamma, g, Gamma0, g0, W, wf, WtW, h, a, b, x,
 
 # --- projection ----------------------------------------------------------------------------------
 
-@njit(cache=True, error_model="numpy")
-def bound_sides(theta, t, lower, lo, upper, up) -> tuple:
+@njit(cache=True, error_model="numpy", inline="always")
+def bound_sides(theta, t, lower, lo, upper, up, n) -> tuple:
     """Which components of theta-hat (at ``theta[t:]``) sit on a bound: ``(at_upper, at_lower)`` bit masks.
 
     Bit ``i`` is set if component ``i`` is within ``1e-12 max(1, upper - lower)`` of that bound
     (bounds at ``lower[lo:]``, ``upper[up:]``).
     """
-    theta = theta[t:t + N_THETA]
-    lower = lower[lo:lo + N_THETA]
-    upper = upper[up:up + N_THETA]
+    theta = theta[t:t + n]
+    lower = lower[lo:lo + n]
+    upper = upper[up:up + n]
     at_upper = 0
     at_lower = 0
-    for i in range(N_THETA):
+    for i in range(n):
         tol = 1e-12 * max(1.0, upper[i] - lower[i])
         if theta[i] >= upper[i] - tol:
             at_upper |= 1 << i
@@ -495,20 +412,21 @@ def _side(at_upper, at_lower, i) -> float:
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def project_direction(K, k, G, g, x, tau, d0, d, s, at_upper, at_lower, active_start) -> tuple:
+def project_direction(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, n) -> tuple:
     """Project the update direction ``d0 = K tau`` onto the box's tangent cone in the K-metric.
 
     For an active set A (free set F) the projection holds ``d_A = 0`` and is either
     ``d = d0 - K[:, A] mu`` with ``mu = K[A, A]^-1 d0[A]``, or, the same by the Schur complement
     of ``G = K^-1``, ``d_F = G[F, F]^-1 tau[F]`` with ``mu = tau[A] - G[A, F] d_F`` (the
-    multipliers). Each iteration solves the smaller of the two systems (at most 4 x 4).
+    multipliers). Each iteration solves the smaller of the two systems (at most n//2 square).
 
     Parameters
     ----------
-    K, k : the 8 x 8 SPD gain at ``K[k:]`` (the metric is ``K^-1``).
+    K, k : the n x n SPD gain at ``K[k:]`` (the metric is ``K^-1``).
     G, g : its inverse ``K^-1`` at ``G[g:]``.
     x : array holding ``tau`` (at ``x[tau:]``), ``d0 = K tau`` (at ``x[d0:]``), the output ``d``
-        (at ``x[d:]``) and ``PROJECTION_WORK_SIZE`` of scratch at ``x[s:]``.
+        (at ``x[d:]``) and the scratch of :func:`work_layout`: the system at ``sa``, its factor at
+        ``sl`` (``(n//2)^2`` each), the right-hand side at ``rhs`` and the multipliers at ``mu``.
     at_upper, at_lower : bit masks of the components at a bound (:func:`bound_sides`).
     active_start : bit mask of the bounds to start the active-set iteration from (the previous
         tick's answer); those not at a bound now are dropped, and if none is left the iteration
@@ -521,15 +439,20 @@ def project_direction(K, k, G, g, x, tau, d0, d, s, at_upper, at_lower, active_s
         Number of active bounds (0 if none), or -1 if the iteration limit was reached (``d`` is
         then the last iterate, and the caller's clip keeps theta-hat inside); and their bit mask.
     """
-    n = N_THETA
+    if n == SPECIALISED_N:
+        return _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start,
+                        SPECIALISED_N)
+    return _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, n)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, n) -> tuple:
+    """The body of :func:`project_direction` (inlined into it twice: for the paper's n and for any n)."""
     for i in range(n):
         x[d + i] = x[d0 + i]
     if at_upper == 0 and at_lower == 0:
         return 0, 0
-    sa = s + PJ_SYSTEM
-    sl = s + PJ_FACTOR
-    rhs = s + PJ_RHS
-    mu = s + PJ_MU       # multipliers of the active bounds, in index order
+    # mu: the multipliers of the active bounds, in index order
     active = active_start & (at_upper | at_lower)
     if active == 0:
         # every bound the unconstrained direction leaves
@@ -625,16 +548,16 @@ def project_direction(K, k, G, g, x, tau, d0, d, s, at_upper, at_lower, active_s
 # --- the adaptation step ----------------------------------------------------------------------
 
 @njit(cache=True, error_model="numpy")
-def adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, forget_b, sigma,
-                    trace_max, active_set) -> tuple:
+def adaptation_step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma, trace_max,
+                    active_set) -> tuple:
     """One tick of eq:th_adapt and eq:P_adapt, the paper's law: :func:`weighted_adaptation_step` with
     unit weights, forgetting toward the prior and the gain ``P0`` (tracking mode)."""
-    return weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, forget_b, sigma,
+    return weighted_adaptation_step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma,
                                     trace_max, active_set, 1.0, 1.0, False, 1.0)
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, forget_a, forget_b, sigma,
+def weighted_adaptation_step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma,
                              trace_max, active_set, w_track, w_pred, directional, gain_scale,
                              toward_prior=1.0) -> tuple:
     """One tick of eq:th_adapt and eq:P_adapt (see the module notes), in place.
@@ -650,18 +573,21 @@ def weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, for
     Parameters
     ----------
     mode : ADAPT_COMPOSITE, ADAPT_PCONST, ADAPT_TRACKING or ADAPT_NONE.
-    x : array holding the adaptation's memory at ``x[m:]`` (``MEM_*`` layout: theta-hat and
-        Gamma = P^-1 are updated, W = [Phi]_f and a_m read) and ``WORK_SIZE`` of scratch at
-        ``x[w:]``; on return ``x[w + WK_P_DIAG:]`` holds the diagonal of P after the update
-        (of ``P0`` for the constant-P modes).
-    prior, p : the prior at ``prior[p:]`` (``PRIOR_*`` layout: theta_0, bounds, Gamma_0, P_0).
-    Phi : the unfiltered regressor (three rows of 8) at the current airflow and the last command.
+    at, a : the offsets table (:data:`AT`, from :func:`offsets_table`) at ``at[a:]``: n and where
+        the memory, the scratch (in ``x``) and the prior (in ``prior``) are.
+    x : array holding the adaptation's memory (:func:`memory_layout`: theta-hat and Gamma = P^-1
+        are updated, W = [Phi]_f and a_m read) and its scratch (:func:`work_layout`); on return
+        the scratch's ``P_DIAG`` holds the diagonal of P after the update (of ``P0`` for the
+        constant-P modes).
+    prior : array holding the prior (:func:`prior_layout`: theta_0, bounds, Gamma_0, P_0).
+    Phi, phi : the unfiltered regressor (3 x n, row-major) at ``Phi[phi:]``, at the current
+        airflow and the throttles that produced the measured force.
     R : attitude ``R_WB`` (three rows of 3).
     v_tilde_W : (3,) velocity error ``v - v_r`` (m/s, NED).
     dt : float, tick (s).
     forget_a, forget_b : :func:`forgetting_weights` of the forgetting rate (1/s) and ``dt``.
     sigma, trace_max : sigma-modification, information-trace cap.
-    w_track, w_pred, directional, gain_scale : the extensions above.
+    w_track, w_pred, directional, gain_scale, toward_prior : the extensions above.
     active_set : bit mask of the bounds the previous step's projection held (0 if none): where
         this step's projection starts (:func:`project_direction`).
 
@@ -673,34 +599,69 @@ def weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, for
         the bit mask of the active bounds; and the prediction error before the update
         (eq:prediction_error, 3-tuple).
     """
-    n = N_THETA
-    th = m + MEM_THETA
-    gam = m + MEM_GAMMA
-    wf = m + MEM_W
-    e = prediction_error(x, wf, x, th, x, m + MEM_A_M)
+    n = int(at[a + AT_N])
+    e = prediction_error(x, int(at[a + AT_W]), x, int(at[a + AT_THETA]), x, int(at[a + AT_A_M]), n)
+    n_active, active = adaptation_step_with_error(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a,
+                                                  forget_b, sigma, trace_max, active_set, w_track, w_pred,
+                                                  directional, gain_scale, e, toward_prior)
+    return n_active, active, e
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def adaptation_step_with_error(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma,
+                               trace_max, active_set, w_track, w_pred, directional, gain_scale, e,
+                               toward_prior=1.0) -> tuple:
+    """:func:`weighted_adaptation_step` given the prediction error ``e`` (eq:prediction_error, before the
+    update: what the controller's front end has formed already); returns ``(n_active, active_set)``.
+
+    Compiled twice: for the paper's n (:data:`SPECIALISED_N`, every loop of constant length) and for
+    any n; the two give the same numbers, the first in about half the time.
+    """
+    n = int(at[a + AT_N])
+    if n == SPECIALISED_N:
+        return _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma, trace_max,
+                     active_set, w_track, w_pred, directional, gain_scale, e, SPECIALISED_N, toward_prior)
+    return _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma, trace_max,
+                 active_set, w_track, w_pred, directional, gain_scale, e, n, toward_prior)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma, trace_max, active_set,
+          w_track, w_pred, directional, gain_scale, e, n, toward_prior) -> tuple:
+    """The body of :func:`adaptation_step_with_error` for ``n`` parameters (inlined: a constant ``n`` makes
+    every loop below of constant length)."""
+    th = int(at[a + AT_THETA])
+    gam = int(at[a + AT_GAMMA])
+    wf = int(at[a + AT_W])
     if mode == ADAPT_NONE:
-        return 0, 0, e
-    tau = w + WK_TAU
-    d0 = w + WK_D0
-    p_diag = w + WK_P_DIAG
+        return 0, 0
+    tau = int(at[a + AT_TAU])
+    d0 = int(at[a + AT_D0])
+    p_diag = int(at[a + AT_P_DIAG])
+    theta0 = int(at[a + AT_THETA0])
+    lower = int(at[a + AT_LOWER])
+    upper = int(at[a + AT_UPPER])
+    gamma0 = int(at[a + AT_GAMMA0])
+    p0 = int(at[a + AT_P0])
     # tau = Phi^T R^T v~ - W^T e - sigma (theta - theta0)
     rv0, rv1, rv2 = rows_transpose_times(R, v_tilde_W)
     for k in range(n):
-        t = w_track * (Phi[0][k] * rv0 + Phi[1][k] * rv1 + Phi[2][k] * rv2) \
-            - sigma * (x[th + k] - prior[p + PRIOR_THETA0 + k])
+        t = w_track * (Phi[phi + k] * rv0 + Phi[phi + n + k] * rv1 + Phi[phi + 2 * n + k] * rv2) \
+            - sigma * (x[th + k] - prior[theta0 + k])
         if mode != ADAPT_TRACKING:
             t -= w_pred * (x[wf + k] * e[0] + x[wf + n + k] * e[1] + x[wf + 2 * n + k] * e[2])
         x[tau + k] = t
-    at_upper, at_lower = bound_sides(x, th, prior, p + PRIOR_LOWER, prior, p + PRIOR_UPPER)
+    at_upper, at_lower = bound_sides(x, th, prior, lower, prior, upper, n)
     bounded = at_upper != 0 or at_lower != 0
     n_active = 0
     active = 0
+    d = int(at[a + AT_D])
+    sa, sl, rhs, mu = int(at[a + AT_SYSTEM]), int(at[a + AT_FACTOR]), int(at[a + AT_RHS]), int(at[a + AT_MU])
     if mode == ADAPT_TRACKING:
         # K = gain_scale P0. The direction P0 tau is projected with P0 and its inverse, then scaled:
         # the projection of k P0 tau in the metric (k P0)^-1 is k times that of P0 tau in the metric
         # P0^-1. (Projecting k P0 tau with P0's matrices mixed the two: the free-set system
         # K^-1[F, F], solved when five or more bounds are held, gave P0's free step whatever k.)
-        p0 = p + PRIOR_P0
         for i in range(n):
             x[p_diag + i] = gain_scale * prior[p0 + n * i + i]
             t = 0.0
@@ -708,60 +669,61 @@ def weighted_adaptation_step(mode, x, m, w, prior, p, Phi, R, v_tilde_W, dt, for
                 t += prior[p0 + n * i + j] * x[tau + j]
             x[d0 + i] = t
         if bounded:
-            n_active, active = project_direction(prior, p0, prior, p + PRIOR_GAMMA0, x, tau, d0, w + WK_D,
-                                                 w + WK_PROJECTION, at_upper, at_lower, active_set)
-        scaled = w + WK_D if bounded else d0
+            n_active, active = project_direction(prior, p0, prior, gamma0, x, tau, d0, d, sa, sl, rhs, mu,
+                                                 at_upper, at_lower, active_set, n)
+        scaled = d if bounded else d0
         for i in range(n):
             x[scaled + i] *= gain_scale
     else:
-        G = w + WK_WTW
-        gram(x, wf, x, G)
+        G = int(at[a + AT_WTW])
+        gram(x, wf, x, G, n)
         if mode == ADAPT_COMPOSITE:
             # Gamma_k+1 = a Gamma_k + (1 - a) Gamma_0 + b W^T W; K = Gamma_k+1^-1 (before the cap)
             if directional:
-                # forgetting tied to the excitation: a rejected tick (w_pred = 0) neither adds nor forgets.
-                # Scratch: M and the first two entries of L (both recomputed below)
-                directional_information_update(x, gam, prior, p + PRIOR_GAMMA0, x, wf, x, G,
-                                               1.0 - w_pred * (1.0 - forget_a), w_pred * forget_b, x, w + WK_M)
+                # forgetting tied to the excitation: a rejected tick (w_pred = 0) neither adds nor forgets
+                directional_information_update(x, gam, prior, gamma0, x, wf, x, G, 1.0 - w_pred * (1.0 - forget_a),
+                                               w_pred * forget_b, x, int(at[a + AT_DWT]), int(at[a + AT_SWD]),
+                                               int(at[a + AT_S]), int(at[a + AT_S_FACTOR]), n)
             else:
-                information_update(x, gam, prior, p + PRIOR_GAMMA0, x, G, forget_a, w_pred * forget_b, toward_prior)
+                information_update(x, gam, prior, gamma0, x, G, forget_a, w_pred * forget_b, n, toward_prior)
             G = gam
         else:
             # P = P0, solved exactly over the tick: K = phi(dt P0 W^T W) P0, formed as its inverse
-            # (scratch: the gain's block, written below only if a bound is held)
             for i in range(n):
-                x[p_diag + i] = prior[p + PRIOR_P0 + n * i + i]
-            constant_gain_inverse(x, wf, prior, p + PRIOR_P0, p + PRIOR_GAMMA0, G, w + WK_K, w_pred * dt, n)
-        M = w + WK_M
-        if not cholesky_lower(x, G, x, w + WK_L, n):
+                x[p_diag + i] = prior[p0 + n * i + i]
+            constant_gain_inverse(x, wf, prior, p0, gamma0, G, int(at[a + AT_EXACT]), w_pred * dt, n)
+        M = int(at[a + AT_M])
+        L = int(at[a + AT_L])
+        if not cholesky_lower(x, G, x, L, n):
             if mode == ADAPT_COMPOSITE:
                 for i in range(n * n):
-                    x[gam + i] = prior[p + PRIOR_GAMMA0 + i]
-            return -2, active_set, e
-        inverse_factor(x, w + WK_L, x, M)
+                    x[gam + i] = prior[gamma0 + i]
+            return -2, active_set
+        inverse_factor(x, L, x, M, n)
         for i in range(n):
             x[d0 + i] = x[tau + i]
-        factor_apply(x, M, x, d0)
+        factor_apply(x, M, x, d0, n)
         if bounded:
             # K = M^T M and K^-1 = G (Gamma before the cap below)
-            gram_of_factor(x, M, x, w + WK_K)
-            n_active, active = project_direction(x, w + WK_K, x, G, x, tau, d0, w + WK_D, w + WK_PROJECTION,
-                                                 at_upper, at_lower, active_set)
+            K = int(at[a + AT_K])
+            gram_of_factor(x, M, x, K, n)
+            n_active, active = project_direction(x, K, x, G, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower,
+                                                 active_set, n)
         if mode == ADAPT_COMPOSITE:
-            factor_diag(x, M, x, p_diag)
-            if cap_information(x, gam, prior, p + PRIOR_GAMMA0, trace_max):
-                if cholesky_lower(x, gam, x, w + WK_L, n):
-                    inverse_factor(x, w + WK_L, x, M)
-                    factor_diag(x, M, x, p_diag)
-    step = w + WK_D if bounded else d0
+            factor_diag(x, M, x, p_diag, n)
+            if cap_information(x, gam, prior, gamma0, trace_max, n):
+                if cholesky_lower(x, gam, x, L, n):
+                    inverse_factor(x, L, x, M, n)
+                    factor_diag(x, M, x, p_diag, n)
+    step = d if bounded else d0
     for i in range(n):
-        lo = prior[p + PRIOR_LOWER + i]
-        hi = prior[p + PRIOR_UPPER + i]
+        lo = prior[lower + i]
+        hi = prior[upper + i]
         v = flush_tiny(x[th + i] + dt * x[step + i])
         if not np.isfinite(v):
             v = x[th + i]
         x[th + i] = min(max(v, lo), hi)
-    return n_active, active, e
+    return n_active, active
 
 
 @njit(cache=True)
@@ -769,7 +731,9 @@ def lyapunov_function(v_tilde, q0_tilde, theta_hat, P_inv, theta_true, gamma) ->
     """The proof's ``V = v~^T v~ / 2 + (2 - 2 q~_0)/gamma + theta~^T P^-1 theta~ / 2`` (Theorem).
 
     ``theta~ = theta-hat - theta``; ``theta_true`` comes from the simulator's plant (the controller
-    never sees it); ``P_inv`` is the controller's information matrix (8 x 8).
+    never sees it); ``P_inv`` is the controller's information matrix (n x n). With an empty
+    ``theta_true`` (a basis that has no plant truth, :func:`vtoladapt.bases.truth_of`) the parameter
+    term is left out.
     """
     return lyapunov_at(v_tilde[0], v_tilde[1], v_tilde[2], q0_tilde, theta_hat, 0,
                        np.ascontiguousarray(P_inv).ravel(), 0, theta_true, gamma)
@@ -790,11 +754,11 @@ def lyapunov_at(v0, v1, v2, q0_tilde, theta_buf, i_theta, P_inv_buf, i_P_inv, th
     return V + 0.5 * q
 
 
-__all__ = ["ADAPT_COMPOSITE", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "MEM_A_M", "MEM_GAMMA",
-           "MEM_SIZE", "MEM_THETA", "MEM_W", "PRIOR_GAMMA0", "PRIOR_LOWER", "PRIOR_P0", "PRIOR_SIZE",
-           "PRIOR_THETA0", "PRIOR_THETA_INIT", "PRIOR_UPPER", "PROJECTION_WORK_SIZE", "TINY", "WK_P_DIAG",
-           "WORK_SIZE", "adaptation_step", "bound_sides", "cap_information", "cholesky_lower",
-           "cholesky_solve", "directional_information_update", "factor_apply", "factor_diag", "flush_tiny", "forgetting_weights", "gram",
-           "gram_of_factor", "information_update", "inverse_factor", "lowpass", "lowpass_gain",
-           "lyapunov_at", "lyapunov_function", "prediction_error", "project_direction", "spd_inverse",
-           "weighted_adaptation_step"]
+__all__ = ["ADAPT_COMPOSITE", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "AT", "SPECIALISED_N", "AT_A_M",
+           "AT_D", "AT_D0", "AT_DWT", "AT_FACTOR", "AT_GAMMA", "AT_GAMMA0", "AT_K", "AT_L", "AT_LOWER", "AT_M",
+           "AT_MU", "AT_N", "AT_P0", "AT_P_DIAG", "AT_RHS", "AT_S", "AT_SWD", "AT_SYSTEM", "AT_S_FACTOR", "AT_TAU",
+           "AT_THETA", "AT_THETA0", "AT_THETA_INIT", "AT_UPPER", "AT_W", "AT_WTW", "TINY", "adaptation_step",
+           "adaptation_step_with_error", "bound_sides", "cap_information", "directional_information_update",
+           "flush_tiny", "forgetting_weights", "gram", "information_update", "lowpass", "lowpass_gain",
+           "lyapunov_at", "lyapunov_function", "memory_layout", "offsets_table", "prediction_error",
+           "prior_layout", "project_direction", "standalone_arrays", "weighted_adaptation_step", "work_layout"]

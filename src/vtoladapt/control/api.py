@@ -11,10 +11,12 @@ True
 
 ``step`` does no Python-level work beyond checking its arguments (a Measurement, a Reference, a
 finite increasing time: the compiled step reads the records' arrays by offset, unchecked) and one
-call of the compiled kernel (:func:`.kernel.controller_step`): the records are thin named views of
-float64 arrays in the layouts of :mod:`vtoladapt.layout`. The same class steps every registered law (the config's
-``kind``); :attr:`Controller.state` names the shared memory and, by :meth:`ControllerState.law_field`,
-the law's own (its ``STATE`` layout).
+call of the compiled kernel (:func:`.step.controller_step_at`, which calls the law and the basis by
+the addresses the controller took when it was made): the records are thin named views of float64
+arrays in the layouts of :mod:`vtoladapt.layout`. The same class steps every registered law (the
+config's ``kind``) with every force-model basis (the config's ``basis``, default the vehicle's);
+:attr:`Controller.state` names the shared memory and, by :meth:`ControllerState.law_field`, the law's
+own (its ``STATE`` layout).
 """
 from __future__ import annotations
 
@@ -24,20 +26,23 @@ import numbers
 import numpy as np
 
 from .. import layout as L
-from .config import ControllerConfig
-from .kernel import (
-    CONTROLLER_DIAG_COLUMNS,
-    DIAG_SIZE,
+from .blocks import S_LAW
+from .settings import ControllerConfig
+from .step import (
+    basis_names,
+    controller_functions,
     controller_initial_state,
     controller_params,
-    controller_step,
+    controller_step_at,
     default_theta_bounds,
+    diagnostics_columns,
+    diagnostics_size,
+    function_table,
     law_of_params,
     state_P,
     state_P_inv,
 )
-from . import kernel as _k
-from .layouts import S_LAW
+from . import step as _k
 
 
 def _fill(a: np.ndarray, off: int, value, n: int, name: str) -> None:
@@ -197,11 +202,17 @@ class ControllerState:
     are read by :meth:`law_field` and listed by :attr:`law_fields`.
     """
 
-    __slots__ = ("_s", "_law_state")
+    __slots__ = ("_s", "_law_state", "_p")
 
-    def __init__(self, s: np.ndarray, law_state=None):
+    def __init__(self, s: np.ndarray, law_state=None, params=None):
         self._s = s
         self._law_state = law_state
+        self._p = params
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The names of theta-hat's entries (the force-model basis's parameters)."""
+        return basis_names(self._p)
 
     @property
     def law_fields(self) -> tuple[str, ...]:
@@ -216,18 +227,18 @@ class ControllerState:
 
     @property
     def theta_hat(self) -> np.ndarray:
-        """theta-hat (8,), adaptation scaling (copy)."""
-        return _k.state_theta_hat(self._s).copy()
+        """theta-hat (n,), adaptation scaling (copy); n and the names (:attr:`names`) are the basis's."""
+        return _k.state_theta_hat(self._p, self._s).copy()
 
     @property
     def P(self) -> np.ndarray:
-        """Adaptation gain P (8, 8) (copy)."""
-        return state_P(self._s)
+        """Adaptation gain P (n, n) (copy)."""
+        return state_P(self._p, self._s)
 
     @property
     def P_inv(self) -> np.ndarray:
-        """Information matrix P^-1 (8, 8) (copy)."""
-        return state_P_inv(self._s).copy()
+        """Information matrix P^-1 (n, n) (copy)."""
+        return state_P_inv(self._p, self._s).copy()
 
     @property
     def integrator(self) -> np.ndarray:
@@ -239,12 +250,12 @@ class ControllerState:
     @property
     def filtered_accel(self) -> np.ndarray:
         """Filtered specific force a_m (3,), m/s^2 body (copy)."""
-        return _k.state_filtered_accel(self._s).copy()
+        return _k.state_filtered_accel(self._p, self._s).copy()
 
     @property
     def filtered_regressor(self) -> np.ndarray:
-        """Filtered regressor W (3, 8) (copy)."""
-        return _k.state_filtered_regressor(self._s).copy()
+        """Filtered regressor W (3, n) (copy)."""
+        return _k.state_filtered_regressor(self._p, self._s).copy()
 
     @property
     def wind_estimate(self) -> np.ndarray:
@@ -274,11 +285,12 @@ class Controller:
         when it was made. Set its ``loop_rate_hz`` to the rate you call :meth:`step` at: the first
         tick and the laws' stability checks (L1's ``a_s dt``, the sigma step) use ``1/loop_rate_hz``.
     theta_0, P0_diag, theta_lower, theta_upper, theta_init : arrays, optional
-        Prior mean, initial gain (diagonal or full 8x8), bounds and initial theta-hat, all in the
-        adaptation scaling (see :func:`.kernel.controller_params`).
+        Prior mean, initial gain (diagonal or full n x n), bounds and initial theta-hat, all in the
+        adaptation scaling, n the force-model basis's (see :func:`.step.controller_params`).
     """
 
-    __slots__ = ("vehicle", "config", "_params", "_state", "_diag", "_t_last", "_dt_nominal", "_law_state")
+    __slots__ = ("vehicle", "config", "_params", "_state", "_diag", "_t_last", "_dt_nominal", "_law_state", "_fns",
+                 "_addresses", "_columns")
 
     def __init__(self, vehicle, config: ControllerConfig | None = None, theta_0=None, P0_diag=None,
                  theta_lower=None, theta_upper=None, theta_init=None):
@@ -296,8 +308,25 @@ class Controller:
                                          theta_init=theta_init)
         self._dt_nominal = 1.0 / self.config.loop_rate_hz
         self._law_state = law_of_params(self._params).law.STATE
-        self._diag = np.zeros(DIAG_SIZE)
+        self._diag = np.zeros(diagnostics_size(self._params))
+        self._columns = diagnostics_columns(self._params)
+        self._bind()
         self.reset()
+
+    def _bind(self) -> None:
+        # the law's and the basis's compiled functions, and their addresses for the compiled step (the
+        # functions are kept here so the addresses stay valid)
+        self._fns = controller_functions(self._params)
+        self._addresses = function_table(self._fns)
+
+    def __getstate__(self):
+        # compiled functions do not pickle, and their addresses belong to this process: bound again on load
+        return {k: getattr(self, k) for k in self.__slots__ if k not in ("_fns", "_addresses")}
+
+    def __setstate__(self, values) -> None:
+        for k, v in values.items():
+            object.__setattr__(self, k, v)
+        self._bind()
 
     def reset(self) -> None:
         """Back to the initial state (theta-hat = theta_init, P = P0, filters and the law's memory empty)."""
@@ -326,7 +355,8 @@ class Controller:
                 raise ValueError(f"t = {t!r}: must increase (previous step at t = {t_last!r})")
         cmd = Command.__new__(Command)
         cmd._a = np.empty(L.CMD_SIZE)
-        controller_step(self._params, self._state, measurement._a, reference._a, dt, cmd._a, self._diag)
+        controller_step_at(self._addresses, self._params, self._state, measurement._a, reference._a, dt, cmd._a,
+                           self._diag)
         self._t_last = t
         return cmd
 
@@ -356,7 +386,7 @@ class Controller:
     @property
     def state(self) -> ControllerState:
         """Named view of the controller's memory (theta_hat, P, integrator, ... and the law's own fields)."""
-        return ControllerState(self._state, self._law_state)
+        return ControllerState(self._state, self._law_state, self._params)
 
     def get_state(self) -> ControllerSnapshot:
         """A copy of the complete memory; :meth:`set_state` restores it bit for bit."""
@@ -395,14 +425,20 @@ class Controller:
         return self._params.copy()
 
     @property
+    def diagnostics_columns(self) -> tuple[str, ...]:
+        """Names of :attr:`diagnostics_array`'s entries (:func:`.step.diagnostics_columns`: the shared ones, the
+        law's own, then theta-hat and diag(P) per parameter of the basis)."""
+        return self._columns
+
+    @property
     def diagnostics_array(self) -> np.ndarray:
-        """Internals of the last step (copy), named by :data:`CONTROLLER_DIAG_COLUMNS`."""
+        """Internals of the last step (copy), named by :attr:`diagnostics_columns`."""
         return self._diag.copy()
 
     @property
     def diagnostics(self) -> dict[str, float]:
         """``{name: value}`` of the last step's internals (units in the names)."""
-        return {n: float(v) for n, v in zip(CONTROLLER_DIAG_COLUMNS, self._diag)}
+        return {n: float(v) for n, v in zip(self._columns, self._diag)}
 
 
 def _refuse_records(measurement, reference) -> None:
@@ -426,10 +462,11 @@ def _finite_time(t, t_last, what: str = "step: t") -> float:
 
 
 def controller_arrays(vehicle, config: ControllerConfig, theta_0=None, P0_diag=None, theta_lower=None,
-                      theta_upper=None, theta_init=None) -> tuple[np.ndarray, np.ndarray]:
-    """``(params, initial state)`` kernel arrays for the simulator's compiled loop."""
+                      theta_upper=None, theta_init=None, basis=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(params, initial state)`` kernel arrays for the simulator's compiled loop (its functions:
+    :func:`.step.controller_functions` of ``params``)."""
     params = controller_params(config, vehicle, theta_0=theta_0, P0_diag=P0_diag, theta_lower=theta_lower,
-                               theta_upper=theta_upper, theta_init=theta_init)
+                               theta_upper=theta_upper, theta_init=theta_init, basis=basis)
     return params, controller_initial_state(params)
 
 

@@ -14,6 +14,18 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..layout import BlockLayout, Field
+
+EXACT_WORK = BlockLayout("constant-P exact step scratch", [
+    Field("B", 9, "-", "B = W P0 W^T (3 x 3), then its eigenvalues on the diagonal"),
+    Field("Q", 9, "-", "its eigenvectors (columns, row-major)"),
+    Field("S", 9, "-", "S = Q diag(m) Q^T"),
+])
+"""The fixed part of :func:`constant_gain_inverse`'s scratch; ``W^T S`` (n x 3) follows it."""
+EX_B, EX_Q, EX_S = EXACT_WORK.offsets("B", "Q", "S")
+EX_WS = EXACT_WORK.size
+"""Where ``W^T S`` starts in the scratch."""
+
 
 @njit(cache=True, error_model="numpy")
 def symmetric_eigen3(A, a, Q, q) -> None:
@@ -85,13 +97,14 @@ def constant_gain_inverse(x, wf, prior, p0, g0, g, scratch, w_dt, n) -> None:
     """``G = K^-1 = Gamma_0 + W^T Q diag(w_dt psi/phi) Q^T W`` of the constant-P step (module notes).
 
     ``W`` (3 x n) at ``x[wf:]``, ``P_0`` and ``Gamma_0`` (n x n) at ``prior[p0:]``, ``prior[g0:]``;
-    ``G`` written at ``x[g:]`` (n x n, exactly symmetric); ``x[scratch:]`` holds ``27 + 3 n`` of
-    scratch; ``w_dt`` is the prediction-error weight times ``dt``.
+    ``G`` written at ``x[g:]`` (n x n, exactly symmetric); ``x[scratch:]`` holds :data:`EXACT_WORK`
+    then ``W^T S`` (n x 3): ``EXACT_WORK.size + 3 n`` floats; ``w_dt`` is the prediction-error weight
+    times ``dt``.
     """
-    b = scratch             # B = W P0 W^T (3 x 3), then its eigenvalues on the diagonal
-    qv = scratch + 9        # eigenvectors
-    sm = scratch + 18       # S = Q diag(m) Q^T
-    ws = scratch + 27       # W^T S (8 x 3, row-major: 8 rows)
+    b = scratch + EX_B
+    qv = scratch + EX_Q
+    sm = scratch + EX_S
+    ws = scratch + EX_WS
     for r in range(3):
         for c in range(r, 3):
             t = 0.0
@@ -133,4 +146,4 @@ def constant_gain_inverse(x, wf, prior, p0, g0, g, scratch, w_dt, n) -> None:
             x[g + n * j + i] = v
 
 
-__all__ = ["constant_gain_inverse", "phi_psi", "symmetric_eigen3"]
+__all__ = ["EXACT_WORK", "constant_gain_inverse", "phi_psi", "symmetric_eigen3"]

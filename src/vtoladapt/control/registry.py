@@ -1,14 +1,18 @@
 """The one registry of controllers: id, label, colour, what kind of law each is, and its module.
 
 Configuration validation (the ``kind`` choices and the ``[controller.<id>]`` tables), scenarios,
-experiments, the step API, the compiled step's dispatch and the CLI read the list of controllers
-from here and nowhere else. A new control law is one new module in :mod:`vtoladapt.control.laws`
-(the interface is in :mod:`vtoladapt.control`) and one entry below. :data:`CONTROLLERS` is the
-``"law"`` kind of :mod:`vtoladapt.components` (the package's laws, then those registered by a call
-or an entry point).
+experiments, the step API and the CLI read the list of controllers from here and nowhere else,
+and always *now* (the functions below, never a tuple frozen at import): a law registered after
+import is accepted everywhere. A new control law is one new module (the interface is in
+:mod:`vtoladapt.control`) and one :class:`ControllerInfo`: an entry below for the package's own,
+``vtoladapt.components.register("law", info)`` or an entry point in the group ``vtoladapt.law``
+for a user's. :data:`CONTROLLERS` is the ``"law"`` kind of :mod:`vtoladapt.components`. The
+compiled step is handed the law's ``update`` as a first-class function
+(:func:`vtoladapt.control.step.controller_functions`), so it needs no list of laws either.
 """
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass
 from types import ModuleType
 
@@ -75,16 +79,37 @@ CONTROLLERS: Registry = Registry("law", check_law, (
                    "velocity predictor's piecewise-constant adaptation (Hovakimyan & Cao 2010)", "l1"),
 ), package=f"{__package__}.laws")
 
-CONTROLLER_IDS: tuple[str, ...] = tuple(CONTROLLERS)
-ADAPTIVE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if c.adaptive)
-COMPOSITE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if c.composite)
-PAPER_ADAPTIVE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if c.adaptive and c.paper)
-"""The paper's adaptive controllers (I to III), which its comparison claims are about."""
-PAPER_BASELINE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if not c.adaptive and c.paper)
-"""The paper's baselines (IV PID and V PD)."""
-THETA_ADAPTIVE_IDS: tuple[str, ...] = tuple(k for k, c in CONTROLLERS.items() if c.adapts_theta)
-"""The laws whose theta-hat moves (L1 adapts a force estimate and holds theta-hat = theta_0): the
-only ones a parameter-convergence experiment can judge."""
+
+
+def controller_ids() -> tuple[str, ...]:
+    """The registered controllers' ids, in registration order (the package's first)."""
+    return CONTROLLERS.ids()
+
+
+def adaptive_ids() -> tuple[str, ...]:
+    """The laws that adapt online (theta-hat, or a force estimate as L1 does)."""
+    return tuple(k for k, c in CONTROLLERS.items() if c.adaptive)
+
+
+def composite_ids() -> tuple[str, ...]:
+    """The laws whose prediction error is one of the composite metrics."""
+    return tuple(k for k, c in CONTROLLERS.items() if c.composite)
+
+
+def paper_adaptive_ids() -> tuple[str, ...]:
+    """The paper's adaptive controllers (I to III), which its comparison claims are about."""
+    return tuple(k for k, c in CONTROLLERS.items() if c.adaptive and c.paper)
+
+
+def paper_baseline_ids() -> tuple[str, ...]:
+    """The paper's baselines (IV PID and V PD)."""
+    return tuple(k for k, c in CONTROLLERS.items() if not c.adaptive and c.paper)
+
+
+def theta_adaptive_ids() -> tuple[str, ...]:
+    """The laws whose theta-hat moves (L1 adapts a force estimate and holds theta-hat = theta_0): the only
+    ones a parameter-convergence experiment can judge."""
+    return tuple(k for k, c in CONTROLLERS.items() if c.adapts_theta)
 
 
 def controller_info(controller_id: str) -> ControllerInfo:
@@ -92,10 +117,24 @@ def controller_info(controller_id: str) -> ControllerInfo:
     try:
         return CONTROLLERS[controller_id]
     except KeyError:
-        raise KeyError(f"unknown controller {controller_id!r}; allowed: {', '.join(CONTROLLER_IDS)}") from None
+        raise KeyError(f"unknown controller {controller_id!r}; allowed: {', '.join(controller_ids())}") from None
 
 
-def law_index(controller_id: str) -> int:
-    """The number the compiled step dispatches on: the law's position in :data:`CONTROLLER_IDS`."""
+def law_key(controller_id: str) -> float:
+    """The number a controller's parameter array stores for its law: CRC-32 of the id (exact in a float64),
+    so the look-up does not depend on the order in which laws were registered."""
     controller_info(controller_id)
-    return CONTROLLER_IDS.index(controller_id)
+    return float(zlib.crc32(controller_id.encode()))
+
+
+def law_of_key(key: float) -> ControllerInfo:
+    """The registered law whose :func:`law_key` is ``key``; ``KeyError`` otherwise."""
+    for info in CONTROLLERS.values():
+        if float(zlib.crc32(info.id.encode())) == key:
+            return info
+    raise KeyError(f"no registered control law has key {key!r} (registered: {', '.join(controller_ids())}); "
+                   "was the law that built these parameters unregistered?")
+
+
+__all__ = ["CONTROLLERS", "ControllerInfo", "adaptive_ids", "composite_ids", "controller_ids", "controller_info",
+           "law_key", "law_of_key", "paper_adaptive_ids", "paper_baseline_ids", "theta_adaptive_ids"]

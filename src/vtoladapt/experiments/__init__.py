@@ -33,7 +33,6 @@ also ``ablation.<config>.claims.<name>`` (config ``all_on`` or ``<effect>_off``)
 """
 from __future__ import annotations
 
-from ..control.registry import ADAPTIVE_IDS, COMPOSITE_IDS
 from .claims import CLAIM_UNITS, check_claims
 from .figures import (CONTROLLER_COLORS, CONTROLLER_LABELS, PLOT_FILTER_HZ, PRED_ERR_COLUMNS,
                       controller_style, figure_campaign, figure_parameter_convergence,
@@ -50,7 +49,7 @@ from .running import reproduce, run_comparison, run_convergence, run_experiment
 __all__ = [
     "ABLATION_EFFECTS", "WIND_CONDITIONS", "ablation", "comparison_distribution",
     "convergence_distribution", "variant_seeds", "wind_table",
-    "ADAPTIVE_IDS", "CLAIM_UNITS", "COMPOSITE_IDS", "CONTROLLER_COLORS", "CONTROLLER_LABELS",
+    "CLAIM_UNITS", "CONTROLLER_COLORS", "CONTROLLER_LABELS",
     "PLOT_FILTER_HZ", "PRED_ERR_COLUMNS", "Report", "THETA_SCALED_UNITS", "build_report",
     "check_claims", "comparison_metrics", "controller_style", "convergence_metrics",
     "fan_speed_series", "fan_throttle_series", "figure_campaign", "figure_parameter_convergence",

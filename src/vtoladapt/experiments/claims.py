@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from typing import Optional
 
-from ..control.registry import COMPOSITE_IDS, PAPER_ADAPTIVE_IDS, PAPER_BASELINE_IDS
+from ..control.registry import composite_ids, paper_adaptive_ids, paper_baseline_ids
 from ..sim.run_metrics import airspeed_bin_labels
 
 CLAIM_UNITS: dict[str, str] = {
@@ -56,7 +56,7 @@ def check_claims(comparison: Optional[dict], convergence: Optional[dict]) -> dic
             claims["pd_large_errors_at_high_wind"] = _claim(
                 "pd_large_errors_at_high_wind", v, 3.0, v >= 3.0,
                 "PD's velocity error at fan >= 60 % is at least 3x C. Adapt's")
-        adaptive = [k for k in PAPER_ADAPTIVE_IDS if k in c]  # the paper's claims are about I-III
+        adaptive = [k for k in paper_adaptive_ids() if k in c]  # the paper's claims are about I-III
         if "pid" in c and adaptive and "overshoot_after_fan_off_mps" in c["pid"]:
             worst = max(c[k]["overshoot_after_fan_off_mps"] for k in adaptive)
             v = c["pid"]["overshoot_after_fan_off_mps"] / worst
@@ -64,14 +64,14 @@ def check_claims(comparison: Optional[dict], convergence: Optional[dict]) -> dic
                 "pid_overshoots_when_fan_stops", v, 1.0, v > 1.0,
                 "PID's peak velocity error after the fan stops exceeds every adaptive controller's "
                 "(ratio to the worst adaptive)")
-        baselines = [k for k in PAPER_BASELINE_IDS if k in c]
+        baselines = [k for k in paper_baseline_ids() if k in c]
         if adaptive and baselines:
             v = max(c[k]["vel_err_rms_mps"] for k in adaptive) / min(c[k]["vel_err_rms_mps"] for k in baselines)
             claims["adaptive_track_best"] = _claim(
                 "adaptive_track_best", v, 1.0, v < 1.0,
                 "every adaptive controller's RMS velocity error is below PID's and PD's (worst "
                 "adaptive / best baseline)")
-        comp = [k for k in COMPOSITE_IDS if k in c and "pred_err_p95_g" in c[k]]
+        comp = [k for k in composite_ids() if k in c and "pred_err_p95_g" in c[k]]
         if comp:
             bins = {}
             for label in airspeed_bin_labels():

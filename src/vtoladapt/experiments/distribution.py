@@ -24,7 +24,7 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from ..control.registry import COMPOSITE_IDS
+from ..control.registry import composite_ids
 from ..sim.scenario import Scenario
 from ..stats import fraction_holding, median_iqr
 from .claims import CLAIM_SOURCES, check_claims, is_paper_claim
@@ -84,7 +84,7 @@ def comparison_variant(scenario: Scenario, progress: Progress = None, workers: O
                        controllers: Optional[dict] = None) -> dict:
     """Every controller of the comparison flies ``scenario``; their metrics and the claims.
 
-    ``controllers``: id -> :class:`~vtoladapt.control.config.ControllerConfig` to fly instead of the
+    ``controllers``: id -> :class:`~vtoladapt.control.settings.ControllerConfig` to fly instead of the
     scenario's own with ``kind`` switched (the tuned settings); whatever position gain a law flies,
     its velocity error ``v~`` is measured with the scenario's ``Lambda_p`` (one yardstick for every
     law); ``workers``: threads for this variant's runs (default one per core; 1 when variants run
@@ -219,9 +219,9 @@ def convergence_distribution(scenario: Scenario, n: int, progress: Progress = No
 
 def claim_controllers(ids: Sequence[str]) -> tuple[str, ...]:
     """The controllers of ``ids`` the comparison's claims judge (the paper's five): the ablation flies only these."""
-    from ..control.registry import PAPER_ADAPTIVE_IDS, PAPER_BASELINE_IDS
+    from ..control.registry import paper_adaptive_ids, paper_baseline_ids
 
-    needed = set(PAPER_ADAPTIVE_IDS) | set(PAPER_BASELINE_IDS) | set(COMPOSITE_IDS)
+    needed = set(paper_adaptive_ids()) | set(paper_baseline_ids()) | set(composite_ids())
     return tuple(i for i in ids if i in needed)
 
 

@@ -42,7 +42,7 @@ from typing import Iterable, Optional, Sequence
 
 import numpy as np
 
-from ..control.registry import ADAPTIVE_IDS, COMPOSITE_IDS, PAPER_BASELINE_IDS
+from ..control.registry import adaptive_ids, composite_ids, paper_baseline_ids
 from ..sim.run_metrics import AIRSPEED_BINS_MPS, airspeed_bin_labels, run_metrics
 from ..stats import fraction_holding, median_iqr
 
@@ -56,8 +56,6 @@ MIN_BIN_TIME_S = 1.0
 """Least flight time in an airspeed bin for a per-bin RMS velocity error (s)."""
 TARGET_FRACTION = 0.95
 """Each target should hold in at least this fraction of the draws."""
-BASELINE_IDS = PAPER_BASELINE_IDS
-"""The controllers every adaptive controller should beat: the paper's baselines (IV PID, V PD)."""
 HEADLINE_CONTROLLER = "composite"
 """The controller the prediction-error and alpha targets are judged on (others in the per-controller table)."""
 
@@ -146,7 +144,7 @@ def envelope_run_metrics(result, scenario) -> dict:
         row[k] = nan
     if len(result) < 2:
         return row
-    composite = scenario.controller.kind in COMPOSITE_IDS
+    composite = scenario.controller.kind in composite_ids()
     # a log with NaN in it still gets the metrics of its finite part (nan-aware below)
     with np.errstate(invalid="ignore"):
         metrics = run_metrics(result, schedule_throttle_pct(scenario, result.time_s))
@@ -211,11 +209,11 @@ def _alpha_brief(run: dict, which: str, bin_label: str = "") -> Optional[bool]:
 
 def _beats(runs: dict, cid: str, metric: str = "vel_err_rms_mps") -> Optional[bool]:
     """``cid`` has a lower ``metric`` than every baseline (None: a value missing)."""
-    if cid not in runs or any(b not in runs for b in BASELINE_IDS):
+    if cid not in runs or any(b not in runs for b in paper_baseline_ids()):
         return None
     mine = runs[cid][metric]
     if metric != "vel_err_rms_mps":  # within an airspeed bin: judged where all have a value
-        others = [runs[b][metric] for b in BASELINE_IDS]
+        others = [runs[b][metric] for b in paper_baseline_ids()]
         if not (_finite(mine) and all(_finite(o) for o in others)):
             return None
         return bool(all(mine < o for o in others))
@@ -223,7 +221,7 @@ def _beats(runs: dict, cid: str, metric: str = "vel_err_rms_mps") -> Optional[bo
         return False
     # a baseline that diverged (its RMS covers only the time before) or went non-finite is beaten
     return bool(all(runs[b]["diverged"] > 0 or not _finite(runs[b][metric]) or mine < runs[b][metric]
-                    for b in BASELINE_IDS))
+                    for b in paper_baseline_ids()))
 
 
 def judge_draw(runs: dict[str, dict]) -> dict:
@@ -241,7 +239,7 @@ def judge_draw(runs: dict[str, dict]) -> dict:
     out["alpha_protect_brief"] = _alpha_brief(head, "protect") if head else None
     out["alpha_stall_brief"] = _alpha_brief(head, "stall") if head else None
     out["finite_logs"] = all(r["finite"] > 0 for r in runs.values()) if runs else None
-    adaptive = [c for c in ADAPTIVE_IDS if c in runs]
+    adaptive = [c for c in adaptive_ids() if c in runs]
     per = {c: _beats(runs, c) for c in adaptive}
     out["beats_pid_pd"] = (all(per.values()) if adaptive and None not in per.values() else None)
     for lab in labels:
@@ -255,7 +253,7 @@ def judge_draw(runs: dict[str, dict]) -> dict:
         out[f"alpha_protect_brief:{cid}"] = _alpha_brief(run, "protect")
         out[f"alpha_stall_brief:{cid}"] = _alpha_brief(run, "stall")
         out[f"finite_logs:{cid}"] = bool(run["finite"] > 0)
-        if cid not in BASELINE_IDS:
+        if cid not in paper_baseline_ids():
             out[f"beats_pid_pd:{cid}"] = _beats(runs, cid)
     return out
 
@@ -313,9 +311,9 @@ def envelope_summary(columns: dict[str, Sequence], campaign: Optional[dict] = No
             "alpha_abs_max_deg": median_iqr(r["alpha_abs_max_deg"] for r in own).as_dict(),
             "mixer_saturated_fraction": median_iqr(r["mixer_saturated_fraction"] for r in own).as_dict(),
         }
-        if cid not in BASELINE_IDS:
+        if cid not in paper_baseline_ids():
             entry["beats_pid_pd"] = frac(f"beats_pid_pd:{cid}")
-        if cid in COMPOSITE_IDS:
+        if cid in composite_ids():
             entry["pred_err_p95_g_worst_bin"] = median_iqr(
                 max((r[_bin_key("pred_err_p95_g", lab)] for lab in labels
                      if _finite(r[_bin_key("pred_err_p95_g", lab)])), default=None) for r in own).as_dict()
@@ -329,8 +327,8 @@ def envelope_summary(columns: dict[str, Sequence], campaign: Optional[dict] = No
                        "alpha_time_fraction_max": ALPHA_TIME_FRACTION_MAX,
                        "min_bin_time_s": MIN_BIN_TIME_S, "target_fraction": TARGET_FRACTION,
                        "airspeed_bins_mps": list(AIRSPEED_BINS_MPS[:-1]) + ["inf"],
-                       "adaptive": [c for c in ADAPTIVE_IDS if c in controllers],
-                       "baselines": list(BASELINE_IDS)},
+                       "adaptive": [c for c in adaptive_ids() if c in controllers],
+                       "baselines": list(paper_baseline_ids())},
         "targets": targets,
         "by_airspeed": by_airspeed,
         "groups": groups,

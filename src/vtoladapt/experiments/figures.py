@@ -9,22 +9,44 @@ top).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
-from ..control.registry import COMPOSITE_IDS, CONTROLLER_IDS, CONTROLLERS
+from ..control.registry import CONTROLLERS, composite_ids, controller_ids
 from ..frames import GRAVITY_MPS2
 from ..sim.run_metrics import metric_label
 from ..sim.results import SimulationResult
 from ..sim.scenario import Scenario
-from ..vehicle import PARAMETER_NAMES
-from .metrics import THETA_SCALED_UNITS, fan_speed_series, fan_throttle_series
+from .metrics import fan_speed_series, fan_throttle_series
 from .report import _save_figure
 
-CONTROLLER_LABELS = {k: c.label for k, c in CONTROLLERS.items()}
-CONTROLLER_COLORS = {k: c.colour for k, c in CONTROLLERS.items()}
+
+class _RegistryField(Mapping):
+    """``{controller id: its registry entry's field}``, read from the registry at each look-up (a law
+    registered after import has its label and colour)."""
+
+    def __init__(self, field: str):
+        self.field = field
+
+    def __getitem__(self, key: str):
+        try:
+            info = CONTROLLERS[key]
+        except KeyError:
+            raise KeyError(key) from None
+        return getattr(info, self.field)
+
+    def __iter__(self):
+        return iter(CONTROLLERS)
+
+    def __len__(self) -> int:
+        return len(CONTROLLERS)
+
+
+CONTROLLER_LABELS: Mapping[str, str] = _RegistryField("label")
+CONTROLLER_COLORS: Mapping[str, str] = _RegistryField("colour")
 PRED_ERR_COLUMNS = ("pred_err_x_mps2", "pred_err_y_mps2", "pred_err_z_mps2")
 MEAS_V_I_COLUMNS = ("meas_v_i_x_mps", "meas_v_i_y_mps", "meas_v_i_z_mps")
 PLOT_FILTER_HZ = 1.0
@@ -39,7 +61,8 @@ def controller_style(controller_id: str) -> dict:
     """Matplotlib line properties of a controller: registry colour, its own dash pattern, and a
     width that shrinks down the registry so a later controller drawn over an earlier one on the
     same curve leaves the earlier one visible around it."""
-    i = CONTROLLER_IDS.index(controller_id) if controller_id in CONTROLLER_IDS else len(CONTROLLER_IDS)
+    ids = controller_ids()
+    i = ids.index(controller_id) if controller_id in ids else len(ids)
     return {"color": CONTROLLER_COLORS.get(controller_id, f"C{i % 10}"),
             "ls": _LINESTYLES[i % len(_LINESTYLES)], "lw": max(0.9, 2.2 - 0.2 * i),
             "label": CONTROLLER_LABELS.get(controller_id, controller_id), "zorder": 2 + i}
@@ -123,12 +146,17 @@ def new_figure(nrows: int, ncols: int, figsize: tuple, **kwargs):
 # --- convergence -----------------------------------------------------------------------------------
 def plot_parameter_convergence(scenario: Scenario, results: list[SimulationResult]):
     """theta-hat of every random-start run over time, 1-3 sigma bands across runs, fan wind."""
+    from .metrics import _basis
+
     t = results[0].time_s
+    names = results[0].theta_names
+    units = dict(zip(names, _basis(scenario).scaled_units))
     theta = np.stack([r.theta_hat for r in results])
-    truth = np.array(results[0].metadata["theta_true_scaled"])
+    truth = np.array(results[0].metadata["theta_true_scaled"])  # empty where the basis has no plant truth
     wind = fan_speed_series(scenario, t)
-    fig, axes = new_figure(4, 2, figsize=(11, 10), sharex=True)
-    for i, name in enumerate(PARAMETER_NAMES):
+    rows = (len(names) + 1) // 2
+    fig, axes = new_figure(rows, 2, figsize=(11, 2.5 * rows), sharex=True, squeeze=False)
+    for i, name in enumerate(names):
         ax = axes[i // 2, i % 2]
         mean = theta[:, :, i].mean(axis=0)
         std = theta[:, :, i].std(axis=0, ddof=1)
@@ -139,8 +167,9 @@ def plot_parameter_convergence(scenario: Scenario, results: list[SimulationResul
         for run in theta:
             _plot(ax, t, run[:, i], color="C0", lw=0.4, alpha=0.5)
         _plot(ax, t, mean, color="C0", lw=1.5, label="mean θ̂" if i == 0 else None)
-        ax.axhline(truth[i], color="k", ls=":", lw=1, label="plant's linear part" if i == 0 else None)
-        ax.set_ylabel(f"{name} [{THETA_SCALED_UNITS[name]}]")
+        if truth.size == len(names):
+            ax.axhline(truth[i], color="k", ls=":", lw=1, label="plant's linear part" if i == 0 else None)
+        ax.set_ylabel(f"{name} [{units[name]}]")
         ax.grid(alpha=0.3)
         ax2 = ax.twinx()
         _plot(ax2, t, wind, color="0.5", lw=1.0, ls="--", label="fan wind" if i == 0 else None)
@@ -182,7 +211,7 @@ def plot_tracking_comparison(scenario: Scenario, results: dict[str, SimulationRe
     for cid, res in results.items():
         _plot(axes[1], t, np.linalg.norm(res.velocity_error_W, axis=1), **controller_style(cid))
     axes[1].set_ylabel("‖velocity error‖ [m/s]")
-    for cid in COMPOSITE_IDS:
+    for cid in composite_ids():
         if cid in results:
             e = np.linalg.norm(results[cid].columns_like(PRED_ERR_COLUMNS), axis=1) / GRAVITY_MPS2
             _plot(axes[2], t, _lowpass(e, dt, PLOT_FILTER_HZ), **controller_style(cid))
@@ -216,7 +245,7 @@ def plot_tracking_axes(scenario: Scenario, results: dict[str, SimulationResult])
             _plot(ax, t, res.velocity_error_W[:, j], **controller_style(cid))
         ax.set_ylabel(f"velocity error {axis} [m/s]")
         ax = axes[j, 1]
-        for cid in COMPOSITE_IDS:
+        for cid in composite_ids():
             if cid in results:
                 e = results[cid][PRED_ERR_COLUMNS[j]] / GRAVITY_MPS2
                 _plot(ax, t, _lowpass(e, dt, PLOT_FILTER_HZ), **controller_style(cid))
@@ -259,7 +288,7 @@ def plot_single_run(scenario: Scenario, result: SimulationResult):
     axes[1].set_ylabel("velocity error [m/s]")
     theta = result.theta_hat
     rel = theta / np.where(theta[0] != 0, theta[0], 1.0)
-    for i, name in enumerate(PARAMETER_NAMES):
+    for i, name in enumerate(result.theta_names):
         _plot(axes[2], t, rel[:, i], lw=0.9, ls=_LINESTYLES[i // 4 % len(_LINESTYLES)], label=name)
     axes[2].set_ylabel("θ̂ / θ̂(0) [-]")
     if all(c in result for c in PRED_ERR_COLUMNS):

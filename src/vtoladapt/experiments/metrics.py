@@ -10,13 +10,7 @@ from ..sim.run_metrics import run_metrics
 from ..sim.results import SimulationResult
 from ..sim.scenario import Scenario
 from ..vehicle import PARAMETER_NAMES
-
-THETA_SCALED_UNITS: dict[str, str] = {
-    "CTx": "m/s²", "CTz": "m/s²", "CS": "m^(k1−1) s^(−k1)", "CD0": "-", "CD1": "1/rad",
-    "CD2": "1/rad²", "CL0": "-", "CL1": "1/rad"}
-"""Unit of each theta-hat entry in the adaptation scaling (throttle u as a fraction in [0, 1],
-forces per unit mass), the scaling the controller adapts and the logs hold. CS multiplies
-``u^k1 V^(2-k1)`` (eq:model_Fs), so its unit, (m/s^2) / (m/s)^(2-k1), depends on k1."""
+from ..bases.paper import SCALED_UNITS as THETA_SCALED_UNITS  # noqa: F401  (the paper's basis's; re-exported)
 
 
 def fan_throttle_series(scenario: Scenario, t: np.ndarray) -> np.ndarray:
@@ -116,17 +110,26 @@ def comparison_metrics(scenario: Scenario, results: dict[str, SimulationResult])
     return {"scenario": scenario.name, "controllers": out}
 
 
+def _basis(scenario: Scenario):
+    """The force-model basis the scenario's controller adapts."""
+    from ..bases import describe_basis
+
+    return describe_basis(scenario.load_vehicle(), scenario.controller.basis)
+
+
 def convergence_metrics(scenario: Scenario, results: list[SimulationResult]) -> dict:
-    """Spread of theta-hat across runs at the end over at the start, per parameter."""
-    theta = np.stack([r.theta_hat for r in results])  # runs x T x 8
+    """Spread of theta-hat across runs at the end over at the start, per parameter (of the controller's basis)."""
+    names = results[0].theta_names
+    theta = np.stack([r.theta_hat for r in results])  # runs x T x n
     std_start = theta[:, 0, :].std(axis=0, ddof=1)
     std_end = theta[:, -1, :].std(axis=0, ddof=1)
     ratio = {name: float(std_end[i] / std_start[i]) if std_start[i] > 0 else float("nan")
-             for i, name in enumerate(PARAMETER_NAMES)}
+             for i, name in enumerate(names)}
     fan = fan_throttle_series(scenario, results[0].time_s)
     per_run = [run_metrics(r, fan) for r in results]
     force_start, force_end = _predicted_force_spread(scenario, results, theta)
-    theta_0 = scenario.load_vehicle().theta_scaled
+    theta_0 = _basis(scenario).theta_scaled
+    truth = results[0].metadata["theta_true_scaled"]
     return {
         # what the data identify: the force each run's theta-hat predicts at the final operating
         # point (collinear parameters may wander; their combination should not)
@@ -135,9 +138,10 @@ def convergence_metrics(scenario: Scenario, results: list[SimulationResult]) -> 
         "predicted_force_std_ratio": force_end / force_start if force_start > 0 else float("nan"),
         "scenario": scenario.name, "runs": len(results),
         "param_std_ratio": ratio,
-        "theta_hat_final_mean_scaled": dict(zip(PARAMETER_NAMES, theta[:, -1, :].mean(axis=0).tolist())),
-        "theta_hat_final_std_scaled": dict(zip(PARAMETER_NAMES, std_end.tolist())),
-        "theta_true_scaled": dict(zip(PARAMETER_NAMES, results[0].metadata["theta_true_scaled"])),
+        "theta_hat_final_mean_scaled": dict(zip(names, theta[:, -1, :].mean(axis=0).tolist())),
+        "theta_hat_final_std_scaled": dict(zip(names, std_end.tolist())),
+        # the plant's truth in the basis (none where the basis has no plant truth)
+        "theta_true_scaled": dict(zip(names, truth)) if len(truth) == len(names) else None,
         "vel_err_rms_mps_per_run": [m["vel_err_rms_mps"] for m in per_run],
         "pred_err_p95_g_per_run": [m.get("pred_err_p95_g", float("nan")) for m in per_run],
         # which directions of theta each run's data determine (eigen-spectrum of its information)
@@ -147,8 +151,9 @@ def convergence_metrics(scenario: Scenario, results: list[SimulationResult]) -> 
 
 def _predicted_force_spread(scenario: Scenario, results: list[SimulationResult], theta: np.ndarray):
     """Norm of the across-run std of ``Phi(v_i, u) theta-hat`` at the runs' mean final operating
-    point, with theta-hat at the start and at the end (m/s^2)."""
-    from ..models import regressor
+    point, with theta-hat at the start and at the end (m/s^2); ``Phi`` the controller's basis's."""
+    from ..bases import evaluate, input_rows
+    from ..models import THROTTLE_FULL_PCT
 
     vehicle = scenario.load_vehicle()
     names = ("ctrl_v_i_x_mps", "ctrl_v_i_y_mps", "ctrl_v_i_z_mps", "cmd_u_x_frac", "cmd_u_z_frac")
@@ -156,7 +161,8 @@ def _predicted_force_spread(scenario: Scenario, results: list[SimulationResult],
     v_i = last[:, :3].mean(axis=0)
     u_x = 100.0 * last[:, 3].mean()
     u_z = 100.0 * last[:, 4].mean()
-    Phi = regressor(v_i, u_x, u_z, vehicle)
+    x = input_rows(v_i, u_x / THROTTLE_FULL_PCT, u_z / THROTTLE_FULL_PCT, vehicle.model_kernel)
+    Phi = evaluate(_basis(scenario), x)[0]
     f_start = theta[:, 0, :] @ Phi.T
     f_end = theta[:, -1, :] @ Phi.T
     return (float(np.linalg.norm(f_start.std(axis=0, ddof=1))),
@@ -173,11 +179,13 @@ DOMINANT_COMPONENT_MIN = 0.3
 """A parameter is named in an eigenvector's description if its component's magnitude is at least this."""
 
 
-def identifiability(information_sum: np.ndarray, theta_0: np.ndarray, adapt_time_s: float) -> dict:
+def identifiability(information_sum: np.ndarray, theta_0: np.ndarray, adapt_time_s: float,
+                    names: tuple[str, ...] = PARAMETER_NAMES) -> dict:
     """The eigen-spectrum of a run's un-forgotten information ``sum w W^T W dt`` and the directions it determines.
 
     The information is taken in *relative* coordinates, ``theta = diag(|theta_0|) (1 + delta)``, so
-    that the eight parameters, in eight different units, are comparable: ``A = D S D / T`` with
+    that the n parameters (``names``, the basis's; the paper's eight by default), in different units, are
+    comparable: ``A = D S D / T`` with
     ``D = diag(|theta_0|)`` (1 where theta_0 = 0) and ``T`` the time the law adapted. An eigenvalue
     ``mu`` of ``A`` says that a relative change ``delta`` along its eigenvector changes the predicted
     specific force by ``sqrt(mu) |delta|`` RMS over the run: the direction's *sensitivity*
@@ -190,11 +198,11 @@ def identifiability(information_sum: np.ndarray, theta_0: np.ndarray, adapt_time
     magnitude >= :data:`DOMINANT_COMPONENT_MIN`), ``determined`` flags and their count, and the
     threshold used.
 
-    Raises ValueError unless ``information_sum`` is a finite, symmetric (8, 8) matrix (or its 64
-    entries), ``theta_0`` eight finite numbers and ``adapt_time_s`` a finite time > 0 s (with no
+    Raises ValueError unless ``information_sum`` is a finite, symmetric (n, n) matrix (or its n^2
+    entries), ``theta_0`` n finite numbers and ``adapt_time_s`` a finite time > 0 s (with no
     time adapted there is no information, and dividing by it would report every direction determined).
     """
-    n = len(PARAMETER_NAMES)
+    n = len(names)
     S = np.asarray(information_sum, dtype=float)
     if S.shape not in ((n, n), (n * n,)):
         raise ValueError(f"identifiability: information_sum has shape {S.shape}; allowed: ({n}, {n}) or ({n * n},)")
@@ -207,10 +215,10 @@ def identifiability(information_sum: np.ndarray, theta_0: np.ndarray, adapt_time
     T = float(adapt_time_s)
     if not (math.isfinite(T) and T > 0.0):
         raise ValueError(f"identifiability: adapt_time_s = {adapt_time_s!r}: must be a finite time > 0 s")
-    return _spectrum(S, th0, T)
+    return _spectrum(S, th0, T, names)
 
 
-def _spectrum(S: np.ndarray, theta_0: np.ndarray, adapt_time_s: float) -> dict:
+def _spectrum(S: np.ndarray, theta_0: np.ndarray, adapt_time_s: float, names: tuple[str, ...]) -> dict:
     """:func:`identifiability` without the checks (a run's own sum, possibly after no adapting at all)."""
     scale = np.where(np.asarray(theta_0) != 0.0, np.abs(theta_0), 1.0)
     A = scale[:, None] * S * scale[None, :] / max(adapt_time_s, 1e-12)
@@ -222,13 +230,13 @@ def _spectrum(S: np.ndarray, theta_0: np.ndarray, adapt_time_s: float) -> dict:
     directions = []
     for k in range(len(mu)):
         v = V[:, k] * (1.0 if V[np.argmax(np.abs(V[:, k])), k] > 0 else -1.0)  # largest component positive
-        dom = sorted(((PARAMETER_NAMES[i], float(v[i])) for i in range(len(v)) if abs(v[i]) >= DOMINANT_COMPONENT_MIN),
+        dom = sorted(((names[i], float(v[i])) for i in range(len(v)) if abs(v[i]) >= DOMINANT_COMPONENT_MIN),
                      key=lambda p: -abs(p[1]))
         directions.append({
             "sensitivity_mps2": float(sens[k]),
             "determined": bool(sens[k] >= IDENTIFIABILITY_SENSITIVITY_MIN_MPS2),
             "dominant": " ".join(f"{'+' if c > 0 else '-'}{abs(c):.2f} {n}" for n, c in dom),
-            "components": dict(zip(PARAMETER_NAMES, (float(c) for c in v))),
+            "components": dict(zip(names, (float(c) for c in v))),
         })
     return {
         "threshold_sensitivity_mps2": IDENTIFIABILITY_SENSITIVITY_MIN_MPS2,
@@ -246,5 +254,6 @@ def run_identifiability(result: SimulationResult, theta_0: np.ndarray) -> dict |
     dt = float(result.metadata.get("dt_control_s", np.median(np.diff(result.time_s))))
     t_adapt = float(np.sum(result["adaptation_active"] > 0.5)) * dt
     # a run that never adapted has an all-zero sum: its spectrum (nothing determined) is still reported
-    n = len(PARAMETER_NAMES)
-    return _spectrum(np.asarray(S, dtype=float).reshape(n, n), theta_0, t_adapt)
+    names = result.theta_names
+    n = len(names)
+    return _spectrum(np.asarray(S, dtype=float).reshape(n, n), theta_0, t_adapt, names)

@@ -24,7 +24,6 @@ from typing import Iterable, Optional
 from .. import outputs
 from ..control.registry import CONTROLLERS
 from ..sim.run_metrics import METRIC_INFO, metric_display_value
-from ..vehicle import PARAMETER_NAMES
 
 TEMPLATE_DIR = Path(__file__).with_name("templates")
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
@@ -148,9 +147,11 @@ def convergence_section(conv: dict) -> Section:
             f"operating point spreads {fmt_number(conv['predicted_force_std_start_mps2'])} m/s² across "
             f"runs at the start and {fmt_number(conv['predicted_force_std_end_mps2'])} m/s² at the end "
             f"(ratio {fmt_number(conv['predicted_force_std_ratio'])}).")
-    rows = tuple((Cell(n), Cell(_unit_text(THETA_SCALED_UNITS[n])), _num(conv["param_std_ratio"][n]),
-                  _num(conv["theta_hat_final_mean_scaled"][n]), _num(conv["theta_true_scaled"][n]))
-                 for n in PARAMETER_NAMES)
+    truth = conv.get("theta_true_scaled") or {}
+    rows = tuple((Cell(n), Cell(_unit_text(THETA_SCALED_UNITS.get(n, "adaptation units"))),
+                  _num(conv["param_std_ratio"][n]), _num(conv["theta_hat_final_mean_scaled"][n]),
+                  _num(truth.get(n, float("nan"))))
+                 for n in conv["param_std_ratio"])
     table = Table("Spread of each parameter across runs at the end over that at the start; θ̂ in the "
                   "adaptation scaling (throttle u ∈ [0, 1], forces per unit mass):",
                   ("parameter", "unit", "spread at end / at start", "final mean θ̂",

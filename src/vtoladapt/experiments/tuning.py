@@ -1,7 +1,7 @@
 """One tuning budget for every law: ``vtoladapt tune SCENARIO --controller ID``.
 
 Every law's search space is the same shared gains plus its own. The shared gains are declared once,
-in :data:`vtoladapt.control.config.TUNABLE` (``K_v`` and ``Lambda_p`` horizontal and vertical,
+in :data:`vtoladapt.control.settings.TUNABLE` (``K_v`` and ``Lambda_p`` horizontal and vertical,
 ``Lambda_q`` roll and pitch: the loop gains every law flies, and why those, in that module's
 notes), named here ``controller.<key>`` (``"controller.K_v[0:2]"``). Each law declares its own in
 its module: ``TUNABLE``, a tuple of ``(setting, low, high, log_scale)``. ``setting`` is a key of the
@@ -119,14 +119,15 @@ def box_edge(value: float, low: float, high: float, log_scale: bool) -> Optional
 
 def tunables(cid: str) -> tuple[Tunable, ...]:
     """The gains ``vtoladapt tune`` searches for law ``cid``: the shared gains
-    (:data:`vtoladapt.control.config.TUNABLE`, named ``controller.<key>``), then the law's own
+    (:data:`vtoladapt.control.settings.TUNABLE`, named ``controller.<key>``), then the law's own
     (its module's ``TUNABLE``), each checked against its setting.
 
     Raises ``ValueError`` naming the declaration and the entry if a name is not a setting of the law
     (or of ``[controller]``), a component is out of range, the box is empty, a log box does not
     start above 0, the box leaves the setting's allowed range, or a law declares a shared gain again.
     """
-    from ..control import config as shared_module
+    from ..control import settings as shared_module
+    from ..control.settings import ControllerConfig
     from ..control.registry import CONTROLLERS
 
     info = CONTROLLERS[cid]
@@ -143,8 +144,9 @@ def tunables(cid: str) -> tuple[Tunable, ...]:
         if m is None:
             raise ValueError(f"{where}: '{name}' is not a setting name, name[i] or name[i:j]")
         shared, key = m.group(1) is not None, m.group(2)
-        cls = shared_module.SharedControllerConfig if shared else info.settings
-        fields = {f.name: f for f in dataclasses.fields(cls)}
+        cls = ControllerConfig if shared else info.settings
+        # [controller]'s own keys (its law tables are not among them)
+        fields = {f.name: f for f in dataclasses.fields(cls) if not (shared and f.name == "laws")}
         if key not in fields:
             raise ValueError(f"{where}: {'[controller]' if shared else f'[controller.{cid}]'} has no key '{key}'")
         default = getattr(cls(), key)
@@ -369,7 +371,7 @@ def read_tuned_file(path) -> tuple[str, dict, dict, dict]:
     controller settings file (:func:`vtoladapt.control.load_controller_config`); ``ConfigError``
     naming the file otherwise."""
     from ..config import read_toml
-    from ..control.config import load_controller_config
+    from ..control.settings import load_controller_config
 
     load_controller_config(path)                 # the file itself is a valid controller config
     data = read_toml(path)
@@ -388,7 +390,7 @@ def tuned_controller(config, path):
     """``config`` (a scenario's ControllerConfig) flying the law of the tuned file ``path`` with its
     gains: its ``kind``, the shared keys it sets and its law table replace the scenario's, every other
     setting stays. ``ConfigError`` naming the file if it is not a tuned settings file."""
-    from ..control.config import controller_config_from_mapping
+    from ..control.settings import controller_config_from_mapping
 
     kind, shared, law, _ = read_tuned_file(path)
     # validated as a table of the file (the messages name it); its values as the settings hold them
@@ -424,16 +426,17 @@ def _cmd_tune(args) -> int:
     from dataclasses import replace as _replace
 
     from ..config import check_flag
-    from ..control.registry import CONTROLLER_IDS
+    from ..control.registry import controller_ids
     from ..errors import ExitCode
     from ..sim.limits import check_run_size
     from ..outputs import OutputDir, write_json, write_text
     from ..sim.scenario import load_scenario
 
-    ids = list(CONTROLLER_IDS) if "all" in args.controller else list(dict.fromkeys(args.controller))
+    known = controller_ids()
+    ids = list(known) if "all" in args.controller else list(dict.fromkeys(args.controller))
     for cid in ids:
-        if cid not in CONTROLLER_IDS:
-            raise ConfigError(f"--controller {cid!r}: allowed: {', '.join(CONTROLLER_IDS)} or all")
+        if cid not in known:
+            raise ConfigError(f"--controller {cid!r}: allowed: {', '.join(known)} or all")
     evaluations = int(check_flag("--evaluations", args.evaluations, ge=1, le=10000))
     draws = int(check_flag("--draws", args.draws, ge=1, le=1000))
     scenario = load_scenario(args.scenario)

@@ -1,10 +1,14 @@
 """Bayesian regression of the force model by MCMC: the paper's Model Fitting section, Table I.
 
 Every observation is one axis of one balance reading, per unit flight mass (m/s^2):
-``y = X(phi) beta + e``, with ``beta`` the adaptation-scaled
-``theta = [CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1]`` (eq:fThat + eq:fAhat through the control
-regressor :func:`vtoladapt.forces.regressor_rows`) and ``phi`` the few parameters that do not
-enter linearly (``k1, k2`` of eq:model_Fs and the noise level). This module builds that problem
+``y = X(phi) beta + e``, with ``beta`` the adaptation-scaled theta of the controller's force-model
+basis (:mod:`vtoladapt.bases`; the paper's ``[CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1]``, eq:fThat +
+eq:fAhat through the control regressor :func:`vtoladapt.forces.regressor_rows`, then any extra
+columns of the basis) and ``phi`` the few parameters that do not enter linearly (``k1, k2`` of
+eq:model_Fs and the noise level). A basis's extra columns are evaluated once, by its compiled
+regressor at the rows' flow and throttles (with the vehicle's ``k1``, ``k2``: an extra column's
+shape is not fitted), zero with the wing off where the basis marks them the wing's, and scaled
+with the density like every column. This module builds that problem
 (:func:`prepare_table1_data`, :func:`table1_problem`) and fits it (:func:`fit_table1`) with the
 generic machinery:
 
@@ -24,7 +28,8 @@ import numpy as np
 from numba import njit
 
 from .. import forces
-from ..models import THROTTLE_FULL_PCT, theta_scale
+from ..bases import N_PHYSICS, BasisSpec, describe_basis, evaluate, input_rows
+from ..models import THROTTLE_FULL_PCT, model_kernel_params, theta_scale
 from ..vehicle import PARAMETER_NAMES, Vehicle
 from .data import FitDataError, ForceBalanceData
 from .linear_gaussian import closed_form_posterior, marginal_kernel, stats_from_design
@@ -65,7 +70,7 @@ def table1_stats_kernel(base, nz, nnz, cs_pos, cs_vals, y, r, inv_m, s_abs, s_re
                         XtWX, XtWy, yWy, slog) -> None:
     """Weighted sufficient statistics of the Table I regression for W noise/(k1, k2) values.
 
-    ``base`` (n, 8) is the regressor without its C_S column; ``nz[i, :nnz[i]]`` lists the columns
+    ``base`` (n, p) is the regressor without its C_S column; ``nz[i, :nnz[i]]`` lists the columns
     of observation i that can be nonzero (C_S included for side-force observations, whose values
     are ``cs_vals[w, cs_pos[i]]``). Noise: ``sigma = s_abs inv_m + s_rel r``. Exploits the
     sparsity of the regressor (a wing row has 5 nonzero columns, a rotor row 1 per axis).
@@ -118,6 +123,9 @@ TABLE1_PARAM_NAMES = ("k1", "k2", "log10_sigma_abs_N", "sigma_rel")
 #: Zero-mean and two orders of magnitude wider than any plausible value: the data decide.
 DEFAULT_PRIOR_SD_SCALED = {"CTx": 1000.0, "CTz": 1000.0, "CS": 100.0, "CD0": 100.0, "CD1": 100.0,
                            "CD2": 100.0, "CL0": 100.0, "CL1": 100.0}
+EXTRA_PRIOR_SD_SCALED = 100.0
+"""Prior standard deviation of a basis's extra column (adaptation scaling), zero-mean, unless
+``prior_sd_scaled`` names it: as wide as the aerodynamic coefficients'."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,32 +142,44 @@ class Table1Data:
     u_x: np.ndarray
     u_z: np.ndarray
     rho_ratio: np.ndarray
-    Phi_base: np.ndarray        # (N, 3, 8), the C_S column is recomputed for each (k1, k2)
+    Phi_base: np.ndarray        # (N, 3, p), the C_S column is recomputed for each (k1, k2)
     side_rows: np.ndarray       # indices of rows where G can be nonzero
     y_B: np.ndarray             # (N, 3) m/s^2
     vehicle_name: str
+    basis: BasisSpec | None = None   # the force-model basis fitted (None: the paper's)
 
     @property
     def n_rows(self) -> int:
         """Number of balance readings."""
         return self.data.n_rows
 
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The fitted coefficients' names (the basis's)."""
+        return PARAMETER_NAMES if self.basis is None else self.basis.names
+
     def regressor(self, k1: float, k2: float) -> np.ndarray:
-        """The full regressor (N, 3, 8) at ``(k1, k2)``, straight from :func:`forces.regressor_rows`."""
-        return regressor_for_rows(self.v_i_B, self.u_x, self.u_z, self.data.wing_on,
-                                  self.data.density(self.rho_ref_kgpm3), self.rho_ref_kgpm3,
-                                  self.aero_scale_ref_per_m, k1, k2, self.stall_angle_deg)
+        """The full regressor (N, 3, p) at ``(k1, k2)``: :func:`forces.regressor_rows` for the paper's columns,
+        then the basis's extra columns (which do not depend on k1, k2)."""
+        Phi = regressor_for_rows(self.v_i_B, self.u_x, self.u_z, self.data.wing_on,
+                                 self.data.density(self.rho_ref_kgpm3), self.rho_ref_kgpm3,
+                                 self.aero_scale_ref_per_m, k1, k2, self.stall_angle_deg)
+        if self.Phi_base.shape[2] > N_PHYSICS:
+            Phi = np.concatenate([Phi, self.Phi_base[:, :, N_PHYSICS:]], axis=2)
+        return Phi
 
 
 def prepare_table1_data(data: ForceBalanceData, vehicle: Vehicle, *,
                         mass_kg: float | None = None, wing_area_m2: float | None = None,
-                        rho_ref_kgpm3: float | None = None) -> Table1Data:
-    """Turn force-balance data into the per-unit-mass regression of eq:fThat + eq:fAhat.
+                        rho_ref_kgpm3: float | None = None, basis: BasisSpec | None = None) -> Table1Data:
+    """Turn force-balance data into the per-unit-mass regression of the force model (eq:fThat + eq:fAhat,
+    and any extra columns of the basis: ``basis``, default the vehicle's).
 
     The flight mass is ``mass_kg``, else the file's ``mass_kg`` column, else the vehicle's mass;
     the wing area and the reference density (to which the coefficients refer) default to the
     vehicle's.
     """
+    spec = describe_basis(vehicle) if basis is None else basis
     m = float(mass_kg or data.mass_kg or vehicle.mass.mass_kg)
     S = float(wing_area_m2 or vehicle.geometry.wing_area_m2)
     rho_ref = float(rho_ref_kgpm3 or vehicle.envelope.air_density_kgpm3)
@@ -173,13 +193,21 @@ def prepare_table1_data(data: ForceBalanceData, vehicle: Vehicle, *,
     rho = data.density(rho_ref)
     stall = vehicle.envelope.stall_angle_deg
     Phi = regressor_for_rows(v_i_B, u_x, u_z, data.wing_on, rho, rho_ref, scale, 1.0, 2.0, stall)
+    if spec.n > N_PHYSICS:
+        # the basis's extra columns at the rows' flow (reference density) and throttles, the vehicle's k1, k2
+        model = model_kernel_params(scale, vehicle.force_model.k1, vehicle.force_model.k2, stall)
+        extra = evaluate(spec, input_rows(v_i_B, u_x, u_z, model))[:, :, N_PHYSICS:]
+        wing = np.asarray(spec.wing[N_PHYSICS:])
+        extra[np.ix_(~np.asarray(data.wing_on, bool), np.arange(3), np.flatnonzero(wing))] = 0.0
+        extra *= (rho / rho_ref)[:, None, None]
+        Phi = np.concatenate([Phi, extra], axis=2)
     Phi[:, :, forces.I_CS] = 0.0
     side = np.nonzero((u_z > 0) & (data.airspeed_mps > 0)
                       & (np.hypot(v_i_B[:, 0], v_i_B[:, 1]) > 0))[0]
     return Table1Data(data=data, mass_kg=m, wing_area_m2=S, rho_ref_kgpm3=rho_ref,
                       aero_scale_ref_per_m=scale, stall_angle_deg=stall, v_i_B=v_i_B, u_x=u_x, u_z=u_z,
                       rho_ratio=rho / rho_ref, Phi_base=Phi, side_rows=side,
-                      y_B=data.force_B_N / m, vehicle_name=vehicle.name)
+                      y_B=data.force_B_N / m, vehicle_name=vehicle.name, basis=spec)
 
 
 def identifiability(td: Table1Data) -> dict[str, str]:
@@ -192,6 +220,9 @@ def identifiability(td: Table1Data) -> dict[str, str]:
         j = PARAMETER_NAMES.index(name)
         if col_norm[j] == 0.0:
             out[name] = reasons.get(name, "no row with the wing on and airspeed > 0")
+    for j, name in enumerate(td.names[N_PHYSICS:], start=N_PHYSICS):
+        if col_norm[j] == 0.0:
+            out[name] = "no row gives the basis's column a value (its force is zero at every reading)"
     if td.side_rows.size == 0:
         why = "no row with the lift rotors on and airspeed > 0 (the rotor side-force sweep)"
         out.update({"CS": why, "k1": why, "k2": why})
@@ -221,9 +252,15 @@ def table1_problem(td: Table1Data, *, reading_scale: np.ndarray | None = None,
     if td.side_rows.size == 0:
         fixed.setdefault("k1", 1.0)
         fixed.setdefault("k2", 2.0)
+    names = td.names
+    p = len(names)
     sd = dict(DEFAULT_PRIOR_SD_SCALED)
+    sd.update({n: EXTRA_PRIOR_SD_SCALED for n in names[N_PHYSICS:]})
+    unknown_sd = [k for k in (prior_sd_scaled or {}) if k not in names]
+    if unknown_sd:
+        raise ValueError(f"prior_sd_scaled: unknown coefficient {unknown_sd[0]!r}; allowed: {', '.join(names)}")
     sd.update(prior_sd_scaled or {})
-    prior_sd = np.array([sd[n] for n in PARAMETER_NAMES], float)
+    prior_sd = np.array([sd[n] for n in names], float)
     free = [k for k in TABLE1_PARAM_NAMES if k not in fixed]
     bounds_all = {"k1": K1_BOUNDS, "k2": K2_BOUNDS, "log10_sigma_abs_N": LOG10_SIGMA_ABS_BOUNDS,
                   "sigma_rel": SIGMA_REL_BOUNDS}
@@ -232,7 +269,7 @@ def table1_problem(td: Table1Data, *, reading_scale: np.ndarray | None = None,
     y = td.y_B.reshape(3 * n)
     r = np.abs(td.y_B if reading_scale is None else np.asarray(reading_scale, float)).reshape(3 * n)
     inv_m = 1.0 / td.mass_kg
-    base = td.Phi_base.reshape(3 * n, 8)
+    base = td.Phi_base.reshape(3 * n, p)
     side = td.side_rows
     v_side = np.ascontiguousarray(td.v_i_B[side])
     uz_side = np.ascontiguousarray(td.u_z[side])
@@ -245,7 +282,7 @@ def table1_problem(td: Table1Data, *, reading_scale: np.ndarray | None = None,
 
     def design_and_sigma(phi):
         Wn = phi.shape[0]
-        X = np.broadcast_to(base, (Wn, 3 * n, 8)).copy()
+        X = np.broadcast_to(base, (Wn, 3 * n, p)).copy()
         if side.size:
             cols = np.empty((Wn, side.size, 2))
             side_force_columns(v_side, uz_side, ratio_side,
@@ -267,7 +304,7 @@ def table1_problem(td: Table1Data, *, reading_scale: np.ndarray | None = None,
     nzmask = base != 0.0
     nzmask[cs_pos >= 0, forces.I_CS] = True
     nnz = nzmask.sum(axis=1).astype(np.int64)
-    nz = np.zeros((3 * n, 8), np.int64)
+    nz = np.zeros((3 * n, p), np.int64)
     for i in np.nonzero(nnz)[0]:
         cols_i = np.nonzero(nzmask[i])[0]
         nz[i, :cols_i.size] = cols_i
@@ -280,8 +317,8 @@ def table1_problem(td: Table1Data, *, reading_scale: np.ndarray | None = None,
             side_force_columns(v_side, uz_side, ratio_side,
                                np.ascontiguousarray(value(phi, "k1")),
                                np.ascontiguousarray(value(phi, "k2")), cols)
-        XtWX = np.empty((Wn, 8, 8))
-        XtWy = np.empty((Wn, 8))
+        XtWX = np.empty((Wn, p, p))
+        XtWy = np.empty((Wn, p))
         yWy = np.empty(Wn)
         slog = np.empty(Wn)
         table1_stats_kernel(base_c, nz, nnz, cs_pos, cols.reshape(Wn, 2 * side.size), y, r, inv_m,
@@ -298,7 +335,7 @@ def table1_problem(td: Table1Data, *, reading_scale: np.ndarray | None = None,
         "coefficients": {
             "distribution": "independent Gaussian, mean 0, on the adaptation-scaled coefficients "
                             "(throttle as a fraction; see vtoladapt.models.theta_to_scaled)",
-            "sd_scaled": {k: sd[k] for k in PARAMETER_NAMES},
+            "sd_scaled": {k: sd[k] for k in names},
         },
         "k1": "uniform on (0, 2)" if "k1" in pos else f"fixed at {fixed['k1']}",
         "k2": "uniform on (pi/2, 10) rad" if "k2" in pos else f"fixed at {fixed['k2']}",
@@ -309,7 +346,7 @@ def table1_problem(td: Table1Data, *, reading_scale: np.ndarray | None = None,
         "likelihood": "each axis of each reading independent Gaussian, std = sigma_abs_N / mass "
                       "+ sigma_rel * |first-pass model prediction| (m/s^2)",
     }
-    return MarginalProblem(y=y, coef_names=PARAMETER_NAMES, prior_mean=np.zeros(8),
+    return MarginalProblem(y=y, coef_names=names, prior_mean=np.zeros(p),
                            prior_sd=prior_sd, param_names=tuple(free), param_bounds=bounds,
                            design_and_sigma=design_and_sigma, starts=starts, stats=stats,
                            prior_text=prior_text)
@@ -321,8 +358,8 @@ class Table1Fit:
 
     table1_data: Table1Data
     marginal: MarginalFit
-    names: tuple[str, ...]          # the 8 theta names, k1, k2, sigma_abs_N, sigma_rel
-    draws: np.ndarray               # (S', W, 12), Table I units (throttle in percent)
+    names: tuple[str, ...]          # the basis's theta names (the paper's 8 first), k1, k2, sigma_abs_N, sigma_rel
+    draws: np.ndarray               # (S', W, p + 4), Table I units (throttle in percent)
     fixed: dict
     not_identified: dict
     reading_scale: np.ndarray
@@ -350,9 +387,22 @@ class Table1Fit:
         return out
 
     @property
+    def theta_names(self) -> tuple[str, ...]:
+        """The fitted coefficients' names (the basis's)."""
+        return self.table1_data.names
+
+    @property
     def theta_table_mean(self) -> np.ndarray:
-        """Posterior mean of theta over all draws (the first eight parameters)."""
-        return self.draws[:, :, :8].reshape(-1, 8).mean(axis=0)
+        """Posterior mean of theta over all draws (the basis's p coefficients)."""
+        p = len(self.theta_names)
+        return self.draws[:, :, :p].reshape(-1, p).mean(axis=0)
+
+    def scale(self, k1: float) -> np.ndarray:
+        """Table-I units -> adaptation scaling of the p coefficients at ``k1``: the paper's columns' scale
+        (:func:`vtoladapt.scaling.theta_scale`), then the basis's own for its extra columns."""
+        spec = self.table1_data.basis
+        extra = np.asarray(spec.scale[N_PHYSICS:]) if spec is not None else np.zeros(0)
+        return np.concatenate([theta_scale(k1), extra])
 
     def prediction_B(self, theta_table: np.ndarray | None = None, k1: float | None = None,
                      k2: float | None = None) -> np.ndarray:
@@ -361,15 +411,16 @@ class Table1Fit:
         k1 = s["k1"]["mean"] if k1 is None else k1
         k2 = s["k2"]["mean"] if k2 is None else k2
         th = self.theta_table_mean if theta_table is None else np.asarray(theta_table, float)
-        return self.table1_data.regressor(k1, k2) @ (th * theta_scale(k1))
+        return self.table1_data.regressor(k1, k2) @ (th * self.scale(k1))
 
 
 def fit_table1(data: ForceBalanceData, vehicle: Vehicle, rng: np.random.Generator, *,
                settings: SamplerSettings | None = None, fixed: dict[str, float] | None = None,
                prior_sd_scaled: dict[str, float] | None = None, mass_kg: float | None = None,
                wing_area_m2: float | None = None, rho_ref_kgpm3: float | None = None,
-               reading_scale: np.ndarray | None = None) -> Table1Fit:
-    """Fit Table I (CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1, k1, k2) to force-balance data.
+               reading_scale: np.ndarray | None = None, basis: BasisSpec | None = None) -> Table1Fit:
+    """Fit Table I (CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1, k1, k2), and a basis's extra columns, to
+    force-balance data.
 
     Two passes: a MAP fit with the noise weights from the measured readings gives a model
     prediction, whose size then sets the relative part of the noise in the final MCMC (so that
@@ -388,9 +439,11 @@ def fit_table1(data: ForceBalanceData, vehicle: Vehicle, rng: np.random.Generato
         Hold some of ``k1, k2, log10_sigma_abs_N, sigma_rel`` at given values.
     prior_sd_scaled : dict, optional
         Override prior standard deviations (adaptation scaling) by coefficient name.
+    basis : BasisSpec, optional
+        The force-model basis (default: the vehicle's, :func:`vtoladapt.bases.describe_basis`).
     """
     td = prepare_table1_data(data, vehicle, mass_kg=mass_kg, wing_area_m2=wing_area_m2,
-                             rho_ref_kgpm3=rho_ref_kgpm3)
+                             rho_ref_kgpm3=rho_ref_kgpm3, basis=basis)
     if reading_scale is None:
         first = table1_problem(td, fixed=fixed, prior_sd_scaled=prior_sd_scaled)
         if first.param_names:
@@ -416,13 +469,14 @@ def fit_table1(data: ForceBalanceData, vehicle: Vehicle, rng: np.random.Generato
 
     k1 = phi_col("k1")
     k2 = phi_col("k2")
+    extra = [np.full_like(k1, s) for s in td.basis.scale[N_PHYSICS:]]
     scale = np.stack([np.full_like(k1, THROTTLE_FULL_PCT**2), np.full_like(k1, THROTTLE_FULL_PCT**2),
-                      THROTTLE_FULL_PCT**k1] + [np.ones_like(k1)] * 5, axis=-1)
+                      THROTTLE_FULL_PCT**k1] + [np.ones_like(k1)] * 5 + extra, axis=-1)
     theta_table = mfit.coef_draws / scale
     draws = np.concatenate([theta_table, k1[..., None], k2[..., None],
                             (10.0 ** phi_col("log10_sigma_abs_N"))[..., None],
                             phi_col("sigma_rel")[..., None]], axis=-1)
-    names = PARAMETER_NAMES + ("k1", "k2", "sigma_abs_N", "sigma_rel")
+    names = td.names + ("k1", "k2", "sigma_abs_N", "sigma_rel")
     return Table1Fit(table1_data=td, marginal=mfit, names=names, draws=draws, fixed=fixed_all,
                      not_identified=identifiability(td), reading_scale=np.asarray(reading_scale))
 

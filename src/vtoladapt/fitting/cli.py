@@ -87,6 +87,8 @@ def register_cli(subparsers) -> dict[str, argparse.ArgumentParser]:
     fit.add_argument("--vehicle", default="caltech_vtol",
                      help="vehicle giving wing area, flight mass and reference density "
                           "(default caltech_vtol)")
+    fit.add_argument("--basis", default=None,
+                     help="force-model basis to fit (an id of vtoladapt.bases; default: the vehicle's)")
     fit.add_argument("--seed", type=int, default=0, help="seed of the numpy Generator (default 0)")
     fit.add_argument("--truth", type=Path, default=None,
                      help="a tunnel side file (DATA.truth.json): adds z-scores against the truth")
@@ -249,8 +251,14 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
     from .report import write_fit_outputs
 
+    from ..bases import describe_basis
+
     veh = _vehicle(args.vehicle)
     seed = _seed(args.seed)
+    try:
+        basis = describe_basis(veh, args.basis)
+    except ConfigError as exc:
+        raise ConfigError(f"--basis: {exc}") from None
     mass = wing = rho = None
     if args.mass_kg is not None:
         mass = check_value(MassProperties, "mass_kg", args.mass_kg, "--mass-kg")
@@ -275,7 +283,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     target = OutputDir(args.out, "fit", force=args.force)
     t0 = time.perf_counter()
     fit = fit_table1(data, veh, np.random.default_rng(seed), settings=settings,
-                     mass_kg=mass, wing_area_m2=wing, rho_ref_kgpm3=rho)
+                     mass_kg=mass, wing_area_m2=wing, rho_ref_kgpm3=rho, basis=basis)
     elapsed = time.perf_counter() - t0
     with target:
         paths = write_fit_outputs(fit, target.path, data_path=args.data, truth_info=truth_info,

@@ -11,8 +11,6 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from .. import forces
-from ..models import theta_scale
-from ..vehicle import PARAMETER_NAMES
 
 LABELS = {"CTx": r"$C_{Tx}$", "CTz": r"$C_{Tz}$", "CS": r"$C_S$", "CD0": r"$C_{D0}$",
           "CD1": r"$C_{D1}$", "CD2": r"$C_{D2}$", "CL0": r"$C_{L0}$", "CL1": r"$C_{L1}$",
@@ -40,11 +38,12 @@ def plot_corner(fit, path, truth: dict | None = None, max_points: int = 2000) ->
 
 
 def corner_figure(fit, truth: dict | None = None, max_points: int = 2000) -> Figure:
-    """Pairwise posterior of the ten Table I quantities: histograms on the diagonal, draws below.
+    """Pairwise posterior of the fitted quantities (the basis's coefficients, the paper's ten Table I
+    quantities first, then k1, k2): histograms on the diagonal, draws below.
 
     ``truth`` (name -> value), if given, is drawn as red lines (virtual-tunnel data).
     """
-    names = list(PARAMETER_NAMES) + ["k1", "k2"]
+    names = [n for n in fit.names if n not in ("sigma_abs_N", "sigma_rel")]   # the coefficients, k1, k2
     idx = [fit.names.index(n) for n in names]
     flat = fit.draws.reshape(-1, fit.draws.shape[2])[:, idx]
     rng = np.random.default_rng(0)      # only to pick which draws to plot
@@ -149,7 +148,7 @@ def side_force_points(fit) -> dict:
     th_no_cs[forces.I_CS] = 0.0
     rows = td.side_rows
     Phi = td.regressor(k1, k2)[rows]
-    resid = td.y_B[rows] - Phi @ (th_no_cs * theta_scale(k1))
+    resid = td.y_B[rows] - Phi @ (th_no_cs * fit.scale(k1))
     v = td.v_i_B[rows]
     h = np.hypot(v[:, 0], v[:, 1])
     cb, sb = v[:, 0] / h, v[:, 1] / h

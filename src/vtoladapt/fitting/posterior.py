@@ -4,10 +4,13 @@ File format (``format = "vtoladapt.posterior"``, ``format_version = 1``)
 -----------------------------------------------------------------------
 A JSON object with
 
-* ``parameters``: for each of ``CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1, k1, k2`` an object
+* ``basis`` (optional, default ``"paper"``): the force-model basis fitted (:mod:`vtoladapt.bases`)
+  and ``basis_names`` (optional, default the paper's eight): its parameters, the paper's
+  ``CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1`` first;
+* ``parameters``: for each of the basis's names and ``k1, k2`` an object
   ``{"mean", "std", "ci95": [lo, hi], "mcse", "unit"}`` in Table I units (throttle in percent,
   forces per unit flight mass, alpha in rad);
-* ``covariance``: ``{"names": [...], "matrix": [[...]]}``, the posterior covariance of those ten;
+* ``covariance``: ``{"names": [...], "matrix": [[...]]}``, the posterior covariance of those;
 * ``noise``: the balance-noise estimate (``sigma_abs_N``, ``sigma_rel``), same layout;
 * ``diagnostics``: split R-hat, effective sample size and autocorrelation time (steps) per
   parameter, chain length, walkers, burn-in, acceptance, ``converged`` and the criteria;
@@ -15,19 +18,21 @@ A JSON object with
   wing area, reference air density the coefficients refer to), and optionally ``truth_check``
   (z-scores against a virtual tunnel's true coefficients).
 
-Only ``format``, ``format_version`` and ``parameters`` (the ten means and stds) are required by
-:func:`load_posterior`; a hand-written file with just those works.
+Only ``format``, ``format_version`` and ``parameters`` (the means and stds) are required by
+:func:`load_posterior`; a hand-written file with just those works (the paper's basis).
 
 From a posterior to the controller (:func:`controller_prior`)
 -------------------------------------------------------------
 * ``theta_0`` = the posterior means, converted to the adaptation scaling with the posterior's
-  ``k1`` (:func:`vtoladapt.models.theta_to_scaled`);
+  ``k1`` (:func:`vtoladapt.models.theta_to_scaled`; a basis's extra columns with its own scale);
 * the theta-hat bounds are ``theta_0 -+ max(n_sigma * std, fraction * |theta_0|)`` per parameter,
   with ``std`` the posterior standard deviation (scaled the same way) and ``n_sigma``,
   ``fraction`` the vehicle's ``[adaptation] bound_sigmas`` (3) and ``bound_fraction``, cut at 0
   where physics gives the coefficient's sign: the same rule the vehicle file applies to Table I's
-  std (:func:`vtoladapt.control.kernel.theta_bounds`), now with the fitted spread;
-* ``P0`` = the vehicle's ``[adaptation] P0_diag`` (Table III) unless given.
+  std (:func:`vtoladapt.control.step.theta_bounds`), now with the fitted spread;
+* ``P0`` = the basis's (the vehicle's ``[adaptation] P0_diag``, Table III, for the paper's) unless given.
+
+A posterior flies only with the basis it was fitted in (:func:`apply_posterior` refuses another).
 
 Fly with a posterior by using both :func:`vehicle_with_posterior` (the controller's force model
 then has the fitted k1, k2, which the C_S column of the regressor depends on) and
@@ -45,13 +50,13 @@ from typing import NamedTuple
 import numpy as np
 
 from ..config import ConfigError, build
-from ..models import theta_to_scaled
 from ..vehicle import PARAMETER_NAMES, ForceModelCoefficients, ForceModelStd, Vehicle
 
 POSTERIOR_FORMAT = "vtoladapt.posterior"
 POSTERIOR_VERSION = 1
 POSTERIOR_NAMES = PARAMETER_NAMES + ("k1", "k2")
-"""The ten fitted quantities, in the paper's order then k1, k2."""
+"""The ten fitted quantities of the paper's basis, in the paper's order then k1, k2 (a basis with extra
+columns has them after the paper's eight: :attr:`Posterior.fitted_names`)."""
 
 
 class PosteriorError(ConfigError):
@@ -69,13 +74,14 @@ class Posterior:
 
     Attributes
     ----------
-    theta_table, std_table : numpy.ndarray, shape (8,)
-        Means and standard deviations of ``CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1``.
+    theta_table, std_table : numpy.ndarray, shape (p,)
+        Means and standard deviations of the basis's coefficients (:attr:`names`; the paper's
+        ``CTx, CTz, CS, CD0, CD1, CD2, CL0, CL1`` first).
     k1, k2, k1_std, k2_std : float
     ci95 : dict
         name -> (lo, hi), 95 % credible interval.
-    covariance : numpy.ndarray (10, 10) or None
-        Over :data:`POSTERIOR_NAMES`.
+    covariance : numpy.ndarray (p + 2, p + 2) or None
+        Over :attr:`fitted_names`.
     diagnostics, reference, raw : dict
         As in the file (``raw`` is the whole parsed file).
     source : str
@@ -93,6 +99,13 @@ class Posterior:
     reference: dict
     raw: dict
     source: str = "<posterior>"
+    basis: str = "paper"
+    names: tuple[str, ...] = PARAMETER_NAMES
+
+    @property
+    def fitted_names(self) -> tuple[str, ...]:
+        """The basis's names, then ``k1``, ``k2``."""
+        return tuple(self.names) + ("k1", "k2")
 
     def mean(self, name: str) -> float:
         """Posterior mean of parameter ``name`` (Table I units)."""
@@ -120,7 +133,16 @@ def posterior_from_dict(d: dict, source: str = "<posterior>") -> Posterior:
     params = d.get("parameters")
     if not isinstance(params, dict):
         raise PosteriorError(f"{source}: missing 'parameters' object")
-    for name in POSTERIOR_NAMES:
+    basis = d.get("basis", "paper")
+    names = d.get("basis_names", list(PARAMETER_NAMES))
+    if not (isinstance(basis, str) and basis.isidentifier()):
+        raise PosteriorError(f"{source}: basis = {basis!r}: must be the id of a force-model basis")
+    if (not isinstance(names, list) or not all(isinstance(n, str) and n.isidentifier() for n in names)
+            or tuple(names[:len(PARAMETER_NAMES)]) != PARAMETER_NAMES or len(set(names)) != len(names)):
+        raise PosteriorError(f"{source}: basis_names = {names!r:.80}: must list the basis's parameters, the "
+                             f"paper's {', '.join(PARAMETER_NAMES)} first")
+    fitted = tuple(names) + ("k1", "k2")
+    for name in fitted:
         entry = params.get(name)
         if not isinstance(entry, dict):
             raise PosteriorError(f"{source}: parameters.{name}: missing (need mean and std)")
@@ -137,24 +159,24 @@ def posterior_from_dict(d: dict, source: str = "<posterior>") -> Posterior:
     c = d.get("covariance")
     if c is not None:
         try:
-            names = list(c["names"])
+            names_cov = list(c["names"])
             M = np.asarray(c["matrix"], dtype=float)
         except (KeyError, TypeError, ValueError):
             raise PosteriorError(f"{source}: covariance: must be {{'names': [...], 'matrix': [[...]]}}") from None
-        if M.shape != (len(names), len(names)) or not np.all(np.isfinite(M)):
+        if M.shape != (len(names_cov), len(names_cov)) or not np.all(np.isfinite(M)):
             raise PosteriorError(f"{source}: covariance.matrix: must be a finite "
-                                 f"{len(names)}x{len(names)} matrix, got shape {M.shape}")
-        if names != list(POSTERIOR_NAMES):
-            idx = [names.index(n) for n in POSTERIOR_NAMES if n in names]
-            if len(idx) != len(POSTERIOR_NAMES):
-                raise PosteriorError(f"{source}: covariance.names: must list {list(POSTERIOR_NAMES)}")
+                                 f"{len(names_cov)}x{len(names_cov)} matrix, got shape {M.shape}")
+        if names_cov != list(fitted):
+            idx = [names_cov.index(n) for n in fitted if n in names_cov]
+            if len(idx) != len(fitted):
+                raise PosteriorError(f"{source}: covariance.names: must list {list(fitted)}")
             M = M[np.ix_(idx, idx)]
         cov = M
     for key in ("diagnostics", "reference"):
         if d.get(key) is not None and not isinstance(d[key], dict):
             raise PosteriorError(f"{source}: {key} = {str(d[key])[:40]}: must be a JSON object")
-    mean = np.array([params[n]["mean"] for n in PARAMETER_NAMES], float)
-    std = np.array([params[n]["std"] for n in PARAMETER_NAMES], float)
+    mean = np.array([params[n]["mean"] for n in names], float)
+    std = np.array([params[n]["std"] for n in names], float)
     if not 0.0 < params["k1"]["mean"] < 2.0:
         raise PosteriorError(f"{source}: parameters.k1.mean = {params['k1']['mean']!r}: must be in (0, 2)")
     if not params["k2"]["mean"] > 0.5 * math.pi:
@@ -162,9 +184,9 @@ def posterior_from_dict(d: dict, source: str = "<posterior>") -> Posterior:
     return Posterior(
         theta_table=mean, std_table=std, k1=float(params["k1"]["mean"]), k2=float(params["k2"]["mean"]),
         k1_std=float(params["k1"]["std"]), k2_std=float(params["k2"]["std"]),
-        ci95={n: tuple(params[n]["ci95"]) if params[n].get("ci95") else None for n in POSTERIOR_NAMES},
+        ci95={n: tuple(params[n]["ci95"]) if params[n].get("ci95") else None for n in fitted},
         covariance=cov, diagnostics=dict(d.get("diagnostics") or {}),
-        reference=dict(d.get("reference") or {}), raw=d, source=source)
+        reference=dict(d.get("reference") or {}), raw=d, source=source, basis=basis, names=tuple(names))
 
 
 def load_posterior(path: str | Path) -> Posterior:
@@ -203,6 +225,21 @@ class ControllerPrior(NamedTuple):
     upper_bounds_scaled: np.ndarray
 
 
+def basis_of(posterior: Posterior, vehicle: Vehicle):
+    """The :class:`vtoladapt.bases.BasisSpec` a posterior was fitted in, for ``vehicle``; a PosteriorError if
+    the basis is unknown or its names differ from the file's."""
+    from ..bases import describe_basis
+
+    try:
+        spec = describe_basis(vehicle, posterior.basis)
+    except ConfigError as exc:
+        raise PosteriorError(f"{posterior.source}: {exc}") from None
+    if spec.names != tuple(posterior.names):
+        raise PosteriorError(f"{posterior.source}: basis_names = {list(posterior.names)}: the {spec.id} basis has "
+                             f"{list(spec.names)}")
+    return spec
+
+
 def controller_prior(posterior: Posterior, vehicle: Vehicle, *, P0_diag=None,
                      bound_sigmas: float | None = None, bound_fraction=None) -> ControllerPrior:
     """theta_0, P0 and theta-hat bounds from a posterior (rule in the module docstring).
@@ -211,31 +248,39 @@ def controller_prior(posterior: Posterior, vehicle: Vehicle, *, P0_diag=None,
     ----------
     posterior : Posterior
     vehicle : Vehicle
-        Supplies P0 (Table III) and the bound rule's ``bound_sigmas`` and ``bound_fraction``.
+        Supplies, through the posterior's basis, P0 (Table III for the paper's) and the bound rule's
+        ``bound_sigmas``, ``bound_fraction`` and signs.
     P0_diag, bound_sigmas, bound_fraction : optional
-        Override the vehicle's values (P0 in the adaptation scaling).
+        Override the basis's values (P0 in the adaptation scaling).
 
     Returns
     -------
     ControllerPrior
-        ``(theta_0_scaled, P0_diag_scaled, lower_bounds_scaled, upper_bounds_scaled)``, each (8,).
+        ``(theta_0_scaled, P0_diag_scaled, lower_bounds_scaled, upper_bounds_scaled)``, each (p,).
     """
-    ad = vehicle.adaptation
-    n_sigma = float(ad.bound_sigmas if bound_sigmas is None else bound_sigmas)
-    frac = np.asarray(ad.bound_fraction if bound_fraction is None else bound_fraction, float)
-    P0 = np.asarray(ad.P0_diag if P0_diag is None else P0_diag, float)
+    from ..bases import N_PHYSICS
+    from ..scaling import theta_scale
+
+    spec = basis_of(posterior, vehicle)
+    p = spec.n
+    n_sigma = float(spec.bound_sigmas if bound_sigmas is None else bound_sigmas)
+    frac = np.asarray(spec.bound_fraction if bound_fraction is None else bound_fraction, float)
+    P0 = np.asarray(spec.P0_diag if P0_diag is None else P0_diag, float)
     for name, arr in (("bound_fraction", frac), ("P0_diag", P0)):
-        if arr.shape != (8,) or not np.all(np.isfinite(arr)):
-            raise PosteriorError(f"controller_prior: {name} must be 8 finite numbers, got {arr!r}")
+        if arr.shape != (p,) or not np.all(np.isfinite(arr)):
+            raise PosteriorError(f"controller_prior: {name} must be {p} finite numbers (the {spec.id} basis's), "
+                                 f"got {arr!r}")
     if np.any(P0 <= 0):
         raise PosteriorError(f"controller_prior: P0_diag = {P0.tolist()}: every entry must be > 0")
     if np.any(frac < 0) or not (math.isfinite(n_sigma) and n_sigma >= 0):
         raise PosteriorError("controller_prior: bound_fraction and bound_sigmas must be >= 0")
-    theta0 = theta_to_scaled(posterior.theta_table, posterior.k1)
-    std = theta_to_scaled(posterior.std_table, posterior.k1)
-    from ..control.kernel import theta_bounds  # the controller's own rule, one place
+    # the paper's columns scale with the posterior's own k1; a basis's extra columns with the basis's scale
+    scale = np.concatenate([theta_scale(posterior.k1), np.asarray(spec.scale[N_PHYSICS:])])
+    theta0 = np.asarray(posterior.theta_table, dtype=float) * scale
+    std = np.asarray(posterior.std_table, dtype=float) * scale
+    from ..control.step import theta_bounds  # the controller's own rule, one place
 
-    lower, upper = theta_bounds(theta0, std, frac, n_sigma)
+    lower, upper = theta_bounds(theta0, std, frac, n_sigma, spec.sign)
     return ControllerPrior(theta0, P0.copy(), lower, upper)
 
 
@@ -260,12 +305,18 @@ def vehicle_with_posterior(vehicle: Vehicle, posterior: Posterior) -> Vehicle:
                            description=f"{vehicle.description} [force model: {posterior.source}]")
 
 
-def apply_posterior(vehicle: Vehicle, path: str | Path) -> tuple[Vehicle, ControllerPrior]:
+def apply_posterior(vehicle: Vehicle, path: str | Path, basis: str | None = None) -> tuple[Vehicle, ControllerPrior]:
     """Load ``path`` and return the vehicle with its force model and the controller prior.
 
-    This is what a scenario's ``[controller] posterior = "path/to/posterior.json"`` means.
+    This is what a scenario's ``[controller_prior] posterior = "path/to/posterior.json"`` means.
+    ``basis`` is the basis the controller flies (default: the vehicle's); a posterior of another
+    basis is refused, naming both.
     """
     post = load_posterior(path)
+    flies = basis or vehicle.basis
+    if post.basis != flies:
+        raise PosteriorError(f"{path}: basis = {post.basis!r}: the controller flies the {flies!r} basis (its "
+                             f"[controller] basis, or the vehicle's); fit with that basis or fly {post.basis!r}")
     veh = vehicle_with_posterior(vehicle, post)
     return veh, controller_prior(post, veh)
 
@@ -282,8 +333,8 @@ def posterior_dict_from_fit(fit, *, data_path: str | Path | None = None,
                             settings=None) -> dict:
     """The posterior file's content for a :class:`vtoladapt.fitting.bayes.Table1Fit`.
 
-    ``truth_theta_table`` (8,) and ``truth_k`` = (k1, k2), when given (a virtual tunnel's
-    truth), add ``truth_check`` with the z-score ``(mean - truth) / std`` of each parameter.
+    ``truth_theta_table`` (the paper's 8, or the basis's p) and ``truth_k`` = (k1, k2), when given (a
+    virtual tunnel's truth), add ``truth_check`` with the z-score ``(mean - truth) / std`` of each parameter.
     """
     from .._version import __version__
 
@@ -296,13 +347,17 @@ def posterior_dict_from_fit(fit, *, data_path: str | Path | None = None,
         e = s[name]
         return {"mean": e["mean"], "std": e["std"], "ci95": e["ci95"], "mcse": e["mcse"], "unit": unit}
 
-    params = {n: entry(n, units[n]) for n in POSTERIOR_NAMES}
+    spec = td.basis
+    theta_names = fit.theta_names
+    units.update(dict(zip(spec.names, spec.units)) if spec is not None else {})
+    fitted = tuple(theta_names) + ("k1", "k2")
+    params = {n: entry(n, units[n]) for n in fitted}
     noise = {"sigma_abs_N": entry("sigma_abs_N", "N"), "sigma_rel": entry("sigma_rel", "-")}
-    idx = [fit.names.index(n) for n in POSTERIOR_NAMES]
+    idx = [fit.names.index(n) for n in fitted]
     flat = fit.draws.reshape(-1, fit.draws.shape[2])[:, idx]
     cov = np.cov(flat, rowvar=False)
     chain_tau = dict(zip(m.problem.param_names, (float(t) for t in m.tau_steps)))
-    diag_names = POSTERIOR_NAMES + ("sigma_abs_N", "sigma_rel")
+    diag_names = fitted + ("sigma_abs_N", "sigma_rel")
     tau = {n: s[n]["tau_steps"] for n in diag_names}
     sampled_tau_max = max(chain_tau.values()) if chain_tau else 1.0
     rhat_all = {n: s[n]["rhat"] for n in diag_names}
@@ -339,7 +394,7 @@ def posterior_dict_from_fit(fit, *, data_path: str | Path | None = None,
         "units_note": "Table I units: throttle u in percent, forces per unit flight mass (m/s^2), "
                       "alpha in rad; coefficients refer to reference.air_density_kgpm3",
         "parameters": params,
-        "covariance": {"names": list(POSTERIOR_NAMES), "matrix": cov.tolist()},
+        "covariance": {"names": list(fitted), "matrix": cov.tolist()},
         "noise": noise,
         "diagnostics": diagnostics,
         "priors": m.problem.prior_text,
@@ -355,8 +410,13 @@ def posterior_dict_from_fit(fit, *, data_path: str | Path | None = None,
         "reference": {"vehicle": td.vehicle_name, "mass_kg": td.mass_kg,
                       "wing_area_m2": td.wing_area_m2, "air_density_kgpm3": td.rho_ref_kgpm3},
     }
+    if spec is not None and spec.id != "paper":
+        d = {**{k: d[k] for k in ("format", "format_version", "software")}, "basis": spec.id,
+             "basis_names": list(spec.names), **{k: v for k, v in d.items() if k not in ("format", "format_version",
+                                                                                          "software")}}
     if truth_theta_table is not None:
-        truth = dict(zip(PARAMETER_NAMES, np.asarray(truth_theta_table, float)))
+        truth_names = theta_names if len(truth_theta_table) == len(theta_names) else PARAMETER_NAMES
+        truth = dict(zip(truth_names, np.asarray(truth_theta_table, float)))
         if truth_k is not None:
             truth["k1"], truth["k2"] = truth_k
         d["truth_check"] = {n: {"truth": float(t), "z": (params[n]["mean"] - t) / params[n]["std"]
@@ -366,5 +426,5 @@ def posterior_dict_from_fit(fit, *, data_path: str | Path | None = None,
 
 
 __all__ = ["ControllerPrior", "POSTERIOR_FORMAT", "POSTERIOR_NAMES", "POSTERIOR_VERSION", "Posterior",
-           "PosteriorError", "apply_posterior", "controller_prior", "load_posterior",
+           "PosteriorError", "apply_posterior", "basis_of", "controller_prior", "load_posterior",
            "parameter_units", "posterior_dict_from_fit", "posterior_from_dict", "vehicle_with_posterior", "write_posterior"]

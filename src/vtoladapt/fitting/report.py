@@ -63,14 +63,16 @@ def table1_markdown(post: dict, vehicle: Vehicle | None = None) -> str:
     rhat_text = f"{rhat_value:.4f} ({rhat_name})"
     ess = d.get("ess", {})
     tau = d.get("autocorr_time_steps", {})
-    for n in POSTERIOR_NAMES:
+    fitted = tuple(post.get("basis_names", PARAMETER_NAMES)) + ("k1", "k2")
+    for n in fitted:
         e = p[n]
-        row = (f"| {TEX[n]} | {e.get('unit', '')} | {e['mean']:.6g} | {e['std']:.4g} | "
+        row = (f"| {TEX.get(n, n)} | {e.get('unit', '')} | {e['mean']:.6g} | {e['std']:.4g} | "
                f"[{e['ci95'][0]:.5g}, {e['ci95'][1]:.5g}] | {rhat.get(n, float('nan')):.4f} | "
                f"{ess.get(n, float('nan')):.0f} | {tau.get(n, float('nan')):.1f} |")
         if vehicle is not None:
             fm, fs = vehicle.force_model, vehicle.force_model_std
-            row += f" {getattr(fm, n):.4g} ± {getattr(fs, n):.3g} |"
+            row += (f" {getattr(fm, n):.4g} ± {getattr(fs, n):.3g} |" if n in POSTERIOR_NAMES
+                    else " (the basis's prior) |")
         if truth:
             t = truth.get(n)
             row += (f" {t['truth']:.6g} | {t['z']:+.2f} |" if t and t.get("z") is not None else " | |")

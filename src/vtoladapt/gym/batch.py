@@ -28,7 +28,7 @@ from typing import Optional
 import numpy as np
 from numba import typed
 
-from ..control.kernel import P_TAU_MAX, P_U_MAX
+from ..control.blocks import P_TAU_MAX, P_U_MAX
 from ..control.trajectory import trajectory_from_reference
 from ..layout import CMD_SIZE, MEAS_SIZE, PLANT_INPUT_SIZE, REF_P_W, TRUTH_SIZE, X_P_W, X_SIZE, BlockLayout, Field
 from ..sensors import mocap

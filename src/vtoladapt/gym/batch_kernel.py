@@ -36,7 +36,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from ..control.kernel import set_last_command
+from ..control.step import set_last_command
 from ..layout import (CMD_SIZE, CMD_TAU_B, CMD_U_X, CMD_U_Z, MEAS_OMEGA_B, MEAS_P_W, MEAS_Q_WB, MEAS_V_I_B,
                       MEAS_V_I_VALID, MEAS_V_W, REF_P_W, X_P_W, X_Q_WB, X_SIZE, BlockLayout, Field)
 from ..sim.loop import tick_actuate, tick_sense, tick_time
@@ -263,7 +263,7 @@ def _step_env(rng, i, o, actions, settings, tau_max, ref_table, S, off, P, pidx,
         if residual:
             # the adaptation's regressor must see the throttles actually applied
             set_last_command(ctrl_s, cmd[CMD_U_X], cmd[CMD_U_Z])
-        tick_actuate(x, truth, meas, work, plant_p, mixer_p, faults, ctrl_s, ref_table[k], cmd, diag,
+        tick_actuate(x, truth, meas, work, plant_p, mixer_p, faults, (ctrl_fns, ctrl_p, ctrl_s), ref_table[k], cmd, diag,
                      row[off[B_MOTOR]:off[B_MOTOR + 1]], tick_time(k, dt, chunk_ticks), dt, n_sub, no_log)
         k += 1
         K[i] = k

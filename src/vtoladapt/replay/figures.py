@@ -7,7 +7,6 @@ import numpy as np
 
 from ..frames import GRAVITY_MPS2
 from ..outputs import save_figure
-from ..vehicle import PARAMETER_NAMES
 from .estimator import ReplayResult
 
 
@@ -62,7 +61,7 @@ def plot_replay(result: ReplayResult, path: Path) -> Path:
     ax = axes[6]
     half = 0.5 * (result.theta_upper - result.theta_lower)
     rel = (result.theta_hat - result.theta_0) / half
-    for k, name in enumerate(PARAMETER_NAMES):
+    for k, name in enumerate(result.names):
         ax.plot(t, rel[:, k], lw=1, label=name)
     ax.axhline(1.0, color="0.5", lw=0.5, ls=":")
     ax.axhline(-1.0, color="0.5", lw=0.5, ls=":")

@@ -15,7 +15,6 @@ import numpy as np
 
 from ..frames import GRAVITY_MPS2
 from ..outputs import write_json, write_parquet
-from ..vehicle import PARAMETER_NAMES
 from .estimator import ReplayResult
 from .flightlog import ReplayError
 
@@ -60,11 +59,9 @@ def compute_metrics(result: ReplayResult) -> dict:
         bins.append({"airspeed_mps": [lo, None if math.isinf(hi) else hi], "samples": int(m.sum()),
                      "adapted_rms_g": a["rms_g"], "adapted_p95_g": a["p95_g"],
                      "prior_rms_g": p["rms_g"], "prior_p95_g": p["p95_g"]})
-    k1 = result.vehicle.force_model.k1
-    from ..models import theta_from_scaled
-
-    theta_final = theta_from_scaled(result.theta_hat[-1], k1)
-    theta_0 = theta_from_scaled(result.theta_0, k1)
+    names = result.names
+    theta_final = result.basis.from_scaled(result.theta_hat[-1])
+    theta_0 = result.basis.from_scaled(result.theta_0)
     return {
         "format": METRICS_FORMAT, "version": METRICS_VERSION,
         "log": {"source": log.source, "format": log.log_format, "duration_s": log.duration_s,
@@ -82,11 +79,11 @@ def compute_metrics(result: ReplayResult) -> dict:
                              "units": "g (9.80665 m/s^2), norm of the filtered 3-axis error "
                                       "W theta - a_m over the used samples"},
         "by_airspeed_bin": bins,
-        "theta": {"units": "Table I (throttle in percent, forces per unit mass)",
-                  "names": list(PARAMETER_NAMES),
-                  "theta_0": dict(zip(PARAMETER_NAMES, map(float, theta_0))),
-                  "final": dict(zip(PARAMETER_NAMES, map(float, theta_final))),
-                  "at_bound": [name for i, name in enumerate(PARAMETER_NAMES)
+        "theta": {"units": "Table I (throttle in percent, forces per unit mass)", "basis": result.basis.id,
+                  "names": list(names),
+                  "theta_0": dict(zip(names, map(float, theta_0))),
+                  "final": dict(zip(names, map(float, theta_final))),
+                  "at_bound": [name for i, name in enumerate(names)
                                if result.theta_hat[-1, i] <= result.theta_lower[i] + 1e-9 * max(1.0, abs(result.theta_lower[i]))
                                or result.theta_hat[-1, i] >= result.theta_upper[i] - 1e-9 * max(1.0, abs(result.theta_upper[i]))]},
         "settings": {k: getattr(result.settings, k) for k in result.settings.__dataclass_fields__},
@@ -117,7 +114,7 @@ def write_timeseries(result: ReplayResult, path: Path) -> None:
         cols[f"e_{a}_mps2"] = result.e_mps2[:, i]
         cols[f"e_prior_{a}_mps2"] = result.e_prior_mps2[:, i]
     th = result.theta_hat_table
-    for i, name in enumerate(PARAMETER_NAMES):
+    for i, name in enumerate(result.names):
         cols[f"theta_{name}"] = th[:, i]
     table = pa.table(cols)
     table = table.replace_schema_metadata({

@@ -18,7 +18,7 @@ from ..config import ConfigError
 from ..errors import check_interrupt
 from ..frames import quat_from_euler
 from ..layout import BlockLayout
-from ..parts import PART_ROW, Assembly
+from ..parts import Assembly
 from .mixer import mixer_params
 from .plant import hover_trim_motor
 from .results import SimulationResult
@@ -45,8 +45,9 @@ class PreparedRun:
     ``wind_parts`` and ``sensor_parts`` are the run's wind parts and sensor channels
     (:class:`vtoladapt.parts.Assembly`: their parameter layout and the table the loop calls them
     through); their parameter and state arrays are ``wind_params``, ``wind_state``,
-    ``sensor_params``, ``sensor_state``. ``controller_fns`` is the controller's function table
-    (empty: the laws are not handed over as parts yet). ``log_layout`` is the layout of the run's log
+    ``sensor_params``, ``sensor_state``. ``controller_fns`` holds the addresses of the controller's law
+    ``update`` and basis ``regressor`` (:func:`vtoladapt.control.step.function_table`; they live
+    in their modules for the process). ``log_layout`` is the layout of the run's log
     rows (:func:`vtoladapt.sim.loop.log_layout`).
     """
 
@@ -74,6 +75,7 @@ class PreparedRun:
     prior_description: str
     plant_coefficients: dict
     log_layout: BlockLayout
+    basis_id: str = "paper"
 
     def scratch(self) -> tuple:
         """Fresh scratch of a tick: ``(truth, meas, cmd, diag, motor_cmd, work)``, zeros (the loop's
@@ -92,6 +94,7 @@ class PreparedRun:
         """The loop's ``sensors`` argument: ``(table, params, state, draws)`` (fresh draws scratch)."""
         return self.sensor_parts.table, self.sensor_params, self.sensor_state, np.zeros(self.sensor_parts.draws_size)
 
+
 def prepare(scenario: Scenario) -> PreparedRun:
     """Convert a validated scenario into kernel arrays. All random draws come from the scenario seed.
 
@@ -104,11 +107,14 @@ def prepare(scenario: Scenario) -> PreparedRun:
     from ..sensors import SensorContext
     from .faults import SURFACE_KINDS, faults_to_kernel
     from .loop import diagnostics_columns, log_layout
+    from ..bases import truth_of
+    from ..control.step import controller_functions, function_table
 
     vehicle = scenario.load_vehicle()
     plant = scenario.plant.resolved(vehicle, scenario.seed)
     rng = np.random.default_rng(scenario.seed)
     ctrl_vehicle, theta0, P0_diag, lower, upper, prior_description = controller_prior(scenario, vehicle)
+    basis = controller_basis(scenario, ctrl_vehicle)
     theta_init = None
     if scenario.controller_prior.initial_theta == "random":
         frac = scenario.controller_prior.random_fraction
@@ -119,7 +125,7 @@ def prepare(scenario: Scenario) -> PreparedRun:
     try:
         ctrl_params, ctrl_state = controller_arrays(
             ctrl_vehicle, scenario.controller, theta_0=theta0, P0_diag=P0_diag, theta_lower=lower,
-            theta_upper=upper, theta_init=theta_init)
+            theta_upper=upper, theta_init=theta_init, basis=basis)
     except ConfigError as exc:  # a rule needing the prior (the sigma step's P0): the scenario's mistake
         raise ConfigError(f"{where}: {exc}") from None
     ic = scenario.initial
@@ -139,42 +145,56 @@ def prepare(scenario: Scenario) -> PreparedRun:
             raise ConfigError(f"{where}: [faults][{i}] {f.kind}: surface = {f.surface}: {vehicle.name} has "
                               f"{len(vehicle.surfaces)} control surfaces; allowed: 1 to {len(vehicle.surfaces)}")
     fault_schedule, fault_state = faults_to_kernel(scenario.faults, scenario.dt_control_s)
+    # the plant's truth in the controller's basis, for the logged Lyapunov function only (empty where the
+    # basis has none: the function's parameter term is then left out)
+    theta_true = truth_of(basis, plant.true_coefficients(vehicle))
     return PreparedRun(
         scenario=scenario, vehicle=vehicle, x0=x0, fault_schedule=fault_schedule, fault_state=fault_state,
         envelope=scenario.envelope.to_kernel(),
         plant_params=plant.to_kernel(vehicle), mixer_params=mixer_params(ctrl_vehicle, scenario.allocation.surfaces),
-        controller_params=ctrl_params, controller_state=ctrl_state, controller_fns=no_functions(),
+        controller_params=ctrl_params, controller_state=ctrl_state,
+        controller_fns=function_table(controller_functions(ctrl_params)),
         wind_parts=wind_parts, wind_params=wind_parts.params, wind_state=wind_state,
         sensor_parts=sensor_parts, sensor_params=sensor_parts.params, sensor_state=sensor_state,
-        reference_table=reference, theta_true=plant.theta_true_scaled(vehicle),
+        reference_table=reference, theta_true=np.zeros(0) if theta_true is None else theta_true,
         gamma=scenario.controller.gamma, rng=rng, prior_description=prior_description,
-        plant_coefficients=plant.true_coefficients(vehicle), log_layout=log_layout(diagnostics_columns(ctrl_params)))
+        plant_coefficients=plant.true_coefficients(vehicle), log_layout=log_layout(diagnostics_columns(ctrl_params)),
+        basis_id=basis.id)
 
 
-def no_functions() -> np.ndarray:
-    """An empty function table (:data:`vtoladapt.parts.PART_ROW` rows): the controller's, until its laws
-    are handed to the loop as parts."""
-    return np.zeros((0, PART_ROW.size), dtype=np.int64)
+def controller_basis(scenario: Scenario, vehicle: Vehicle):
+    """The force-model basis the controller adapts (:class:`vtoladapt.bases.BasisSpec`): the scenario's
+    ``[controller] basis``, else the vehicle's; an unknown id is the scenario file's mistake."""
+    from ..bases import describe_basis
+
+    try:
+        return describe_basis(vehicle, scenario.controller.basis)
+    except ConfigError as exc:
+        where = scenario.source_path or f"scenario {scenario.name!r}"
+        raise ConfigError(f"{where}: {exc}") from None
+
 
 def controller_prior(scenario: Scenario, vehicle: Vehicle):
     """The flight computer's model: ``(vehicle, theta_0, P0 diagonal, lower, upper, description)``.
 
-    Without a posterior it is the vehicle file (Table I, Table III). With one, the vehicle's force
-    model becomes the posterior's (its k1, k2 too, so the regressor and theta_0 agree) and P0 and
-    the theta-hat bounds follow :func:`vtoladapt.fitting.controller_prior`. The plant keeps its
-    own truth either way.
+    Without a posterior it is the basis's prior for the vehicle (the paper's: Table I, Table III).
+    With one, the vehicle's force model becomes the posterior's (its k1, k2 too, so the regressor
+    and theta_0 agree) and P0 and the theta-hat bounds follow
+    :func:`vtoladapt.fitting.controller_prior`; the posterior must be of the controller's basis. The
+    plant keeps its own truth either way.
     """
-    from ..control.kernel import default_theta_bounds
+    from ..control.step import default_theta_bounds
 
     path = scenario.posterior_path()
     if path is None:
-        theta0 = vehicle.theta_scaled.copy()
-        lower, upper = default_theta_bounds(vehicle, theta0)
-        return vehicle, theta0, np.array(vehicle.adaptation.P0_diag), lower, upper, \
-            f"Table I of {vehicle.name} (published means)"
+        basis = controller_basis(scenario, vehicle)
+        theta0 = basis.theta_scaled.copy()
+        lower, upper = default_theta_bounds(vehicle, theta0, basis=basis)
+        return vehicle, theta0, np.array(basis.P0_diag), lower, upper, \
+            f"{basis.source} (published means)"
     from ..fitting.posterior import apply_posterior
 
-    ctrl_vehicle, (theta0, P0, lower, upper) = apply_posterior(vehicle, path)
+    ctrl_vehicle, (theta0, P0, lower, upper) = apply_posterior(vehicle, path, basis=scenario.controller.basis)
     return ctrl_vehicle, theta0, P0, lower, upper, f"posterior {path}"
 
 
@@ -185,6 +205,7 @@ def run_chunk(run: PreparedRun, x: np.ndarray, k0: int, k1: int, log: np.ndarray
     KeyboardInterrupt first if Ctrl-C was pressed (:func:`vtoladapt.errors.check_interrupt`): a
     Ctrl-C Python dropped inside a C callback still stops every caller's run at its next chunk.
     """
+    from ..control.step import controller_functions
     from .loop import run_closed_loop
 
     check_interrupt()
@@ -195,6 +216,7 @@ def run_chunk(run: PreparedRun, x: np.ndarray, k0: int, k1: int, log: np.ndarray
         (run.controller_fns, run.controller_params, run.controller_state), run.reference_table[k0:k1],
         k0 * sc.dt_control_s, sc.dt_control_s, sc.plant_substeps, run.rng, run.theta_true, run.gamma, log)
     return int(done), int(reason)
+
 
 def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) -> SimulationResult:
     """Run ``scenario`` and return its :class:`SimulationResult` (log and metadata).
@@ -231,7 +253,7 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
 def run_metadata(run: PreparedRun, x: np.ndarray, n_done: int, reason: int, k_last: int, wall: float) -> dict:
     """The metadata of a finished run (:attr:`SimulationResult.metadata`): ``n_done`` ticks, ended by
     envelope ``reason`` (0: none) with state ``x``, ``k_last`` the last tick of the chunk it ended in."""
-    from ..control.kernel import information_sum
+    from ..control.step import basis_names, information_sum
 
     scenario = run.scenario
     diverged_at_s = None
@@ -244,6 +266,7 @@ def run_metadata(run: PreparedRun, x: np.ndarray, n_done: int, reason: int, k_la
     return {
         "scenario": scenario.name, "scenario_path": scenario.source_path, "vehicle": run.vehicle.name,
         "controller": scenario.controller.kind, "seed": scenario.seed,
+        "basis": run.basis_id, "theta_names": list(basis_names(run.controller_params)),
         "dt_control_s": scenario.dt_control_s, "plant_substeps": scenario.plant_substeps,
         "duration_s": scenario.duration_s, "wall_time_s": wall,
         "controller_prior": run.prior_description,
@@ -255,7 +278,7 @@ def run_metadata(run: PreparedRun, x: np.ndarray, n_done: int, reason: int, k_la
         "faults": [dataclasses.asdict(f) for f in scenario.faults],
         "plant_coefficients": run.plant_coefficients,
         # the adaptation's un-forgotten information sum (identifiability; zero for non-adaptive laws)
-        "information_sum": information_sum(run.controller_state).tolist(),
+        "information_sum": information_sum(run.controller_params, run.controller_state).tolist(),
     }
 
 
@@ -305,15 +328,16 @@ def _has_disk_cache(dispatcher) -> bool:
 
 def _controller_step_compiled() -> None:
     """Compile (or load) the controller step for the simulator loop's argument types."""
-    from ..control.kernel import DIAG_SIZE, controller_step
+    from ..control.step import controller_functions, controller_step, diagnostics_size
     from .scenario import scenario_from_mapping
 
     run = prepare(scenario_from_mapping({"name": "warm-up", "vehicle": "caltech_vtol", "duration_s": 0.004},
                                         "<warm-up>"))
     meas = np.zeros(layout.MEAS_SIZE)
     meas[layout.MEAS_Q_WB] = 1.0
-    controller_step(run.controller_params, run.controller_state, meas, run.reference_table[0], 0.004,
-                    np.zeros(layout.CMD_SIZE), np.zeros(DIAG_SIZE))
+    p = run.controller_params
+    controller_step(controller_functions(p), p, run.controller_state, meas, run.reference_table[0], 0.004,
+                    np.zeros(layout.CMD_SIZE), np.zeros(diagnostics_size(p)))
 
 
 def _plant_wind_sensors_compiled(run: PreparedRun) -> None:
@@ -342,7 +366,7 @@ def load_kernels(scenario: Scenario) -> None:
     and sensors; the loop, compiled last, loads the controller from the cache the other process
     wrote. On a warm cache nothing is started and only the loop's cached code is loaded.
     """
-    from ..control.kernel import controller_step
+    from ..control.step import controller_step
     from .loop import run_closed_loop
 
     helper = None

@@ -14,12 +14,30 @@ from ..config import MEMORY_BUDGET_BYTES, ConfigError, check_memory
 from ..ceilings import FLOAT_BYTES
 
 
-def log_columns() -> int:
-    """Columns of a simulation log (one float64 each per control tick): :func:`vtoladapt.sim.loop.log_layout`
-    with the controller's diagnostics."""
-    from .loop import log_layout
+def log_columns(scenario=None) -> int:
+    """Columns of a simulation log (one float64 each per control tick): of ``scenario``'s controller (its
+    basis's n parameters, its law's diagnostics; of a comparison the widest of its laws'), or without a
+    scenario of the paper's eight-parameter basis and the registered law with the most diagnostics."""
+    from .loop import log_size
+    from ..control.step import diagnostics_size_for
 
-    return log_layout().size
+    if scenario is None:
+        return log_size(diagnostics_size_for(8))
+    n = basis_size(scenario)
+    laws = (scenario.experiment.controllers if scenario.experiment.kind == "comparison"
+            else (scenario.controller.kind,))
+    return log_size(max(diagnostics_size_for(n, law) for law in laws))
+
+
+def basis_size(scenario) -> int:
+    """n, the parameters of the force-model basis ``scenario``'s controller adapts (8 if it names an unknown
+    basis: that is refused, naming the file, when the run is prepared)."""
+    from ..bases import describe_basis
+
+    try:
+        return describe_basis(scenario.load_vehicle(), scenario.controller.basis).n
+    except ConfigError:
+        return 8
 
 
 def experiment_runs(scenario) -> int:
@@ -40,8 +58,6 @@ ANALYSIS_COLUMNS_PER_RUN = 38
 ANALYSIS_TRANSIENT_COLUMNS = 64
 """Values per tick of the run being analysed that its metrics and figures create and drop again (norms,
 errors, filtered series): measured 56 for the one-hour single run (peak minus a short run's)."""
-CONVERGENCE_THETA_COLUMNS = 8
-"""theta-hat of every convergence run, stacked for its figure."""
 STREAM_ROW_GROUP_ROWS = 15_000
 """Rows of the row group a streamed run holds (60 s at 250 Hz; :data:`vtoladapt.sim.longrun.ROW_GROUP_S`),
 held twice while it is written (the buffer and its Arrow copy)."""
@@ -63,10 +79,10 @@ def run_memory(scenario, variants: int | None = None, workers: int | None = None
     ticks = float(scenario.n_ticks)
     runs = experiment_runs(scenario)
     workers = min(runs, workers or os.cpu_count() or 1)
-    cols = log_columns()
+    cols = log_columns(scenario)
     row_group = min(ticks, STREAM_ROW_GROUP_ROWS) * cols * 2
     flying = workers * (ticks * (REF_SIZE + 1) + row_group)
-    theta = CONVERGENCE_THETA_COLUMNS if scenario.experiment.kind == "convergence" else 0
+    theta = basis_size(scenario) if scenario.experiment.kind == "convergence" else 0  # theta-hat stacked for the figure
     analysing = ticks * (runs * (ANALYSIS_COLUMNS_PER_RUN + theta) + ANALYSIS_TRANSIENT_COLUMNS)
     phases = {f"flying {workers} run(s) at a time: {ticks:.0f} ticks x ({REF_SIZE} reference + 1 time) "
               f"+ a {min(ticks, STREAM_ROW_GROUP_ROWS):.0f}-row group x {cols} columns x 2": flying,
@@ -105,8 +121,9 @@ def check_worker_runs(scenario, where: str, workers: int) -> None:
     from ..layout import REF_SIZE
 
     check_ticks(scenario, where)
-    per_tick = log_columns() + REF_SIZE + 1 + ANALYSIS_TRANSIENT_COLUMNS
-    check_memory(f"{workers} run(s) at a time in memory x {scenario.n_ticks} ticks x ({log_columns()} log + "
+    cols = log_columns(scenario)
+    per_tick = cols + REF_SIZE + 1 + ANALYSIS_TRANSIENT_COLUMNS
+    check_memory(f"{workers} run(s) at a time in memory x {scenario.n_ticks} ticks x ({cols} log + "
                  f"{REF_SIZE + 1} reference and time + {ANALYSIS_TRANSIENT_COLUMNS} transient) x {FLOAT_BYTES} bytes",
                  float(workers) * scenario.n_ticks * per_tick * FLOAT_BYTES, where,
                  "shorten duration_s, lengthen dt_control_s or use fewer workers")
@@ -117,7 +134,7 @@ def in_memory_run_bytes(scenario) -> float:
     the tick times, one float64 each per control tick (``log_columns() + REF_SIZE + 1`` per tick)."""
     from ..layout import REF_SIZE
 
-    return float(scenario.n_ticks) * (log_columns() + REF_SIZE + 1) * FLOAT_BYTES
+    return float(scenario.n_ticks) * (log_columns(scenario) + REF_SIZE + 1) * FLOAT_BYTES
 
 
 def check_in_memory_runs(scenarios, where: str) -> None:
@@ -129,7 +146,8 @@ def check_in_memory_runs(scenarios, where: str) -> None:
     for sc in scenarios:
         check_ticks(sc, sc.source_path or f"scenario {sc.name!r}", at_least=1)
     ticks = sum(sc.n_ticks for sc in scenarios)
-    check_memory(f"{len(scenarios)} run(s), {ticks} ticks in all x ({log_columns()} log + {REF_SIZE} reference "
+    cols = max((log_columns(sc) for sc in scenarios), default=log_columns())
+    check_memory(f"{len(scenarios)} run(s), {ticks} ticks in all x ({cols} log + {REF_SIZE} reference "
                  f"+ 1 time) columns x {FLOAT_BYTES} bytes", sum(in_memory_run_bytes(sc) for sc in scenarios),
                  where, "shorten duration_s, lengthen dt_control_s or fly fewer runs at once")
 
@@ -225,6 +243,9 @@ def _settings_rows(cls: type, prefix: str = "") -> list[tuple[str, str, str]]:
             rows += _settings_rows(inner, sub)
         elif inner in (int, float):
             rows.append((key, f.metadata.get("unit", ""), _range_text(f.metadata)))
+    # tables named by a registry rather than by a field (a law's [controller.<id>])
+    for name, sub in getattr(cls, "sub_tables", dict)().items():
+        rows += _settings_rows(sub, f"{prefix}{name}.")
     return rows
 
 

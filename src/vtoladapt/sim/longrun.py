@@ -162,7 +162,7 @@ def stream_many(runs: Sequence[tuple[Scenario, Path]], workers: Optional[int] = 
 def stream_run(scenario: Scenario, out: str | Path, chunk_s: float = 60.0) -> LongRunReport:
     """Run ``scenario`` streaming its log to ``out`` (:func:`stream_to_parquet`, one row group per
     ``chunk_s``) and measure, after each row group, what a long run could wear out."""
-    from ..control.kernel import state_P_inv, state_theta_hat
+    from ..control.step import state_P_inv, state_theta_hat
     from .driver import controller_prior
 
     health = {"R_err": 0.0, "P_sym": 0.0, "theta_out": 0.0, "eig_min": np.inf, "eig_max": -np.inf,
@@ -176,12 +176,12 @@ def stream_run(scenario: Scenario, out: str | Path, chunk_s: float = 60.0) -> Lo
             health["groups"] += 1
             q = run.log_layout.view(rows, "STATE")[:, X_Q_WB:X_Q_WB + 4]
             health["R_err"] = max(health["R_err"], float(rotation_orthonormality_error(q).max()))
-        P = np.linalg.inv(state_P_inv(run.controller_state))
+        P = np.linalg.inv(state_P_inv(run.controller_params, run.controller_state))
         health["P_sym"] = max(health["P_sym"], float(np.linalg.norm(P - P.T) / np.linalg.norm(P)))
         eig = np.linalg.eigvalsh(0.5 * (P + P.T))
         health["eig_min"] = min(health["eig_min"], float(eig[0]))
         health["eig_max"] = max(health["eig_max"], float(eig[-1]))
-        th = state_theta_hat(run.controller_state)
+        th = state_theta_hat(run.controller_params, run.controller_state)
         health["theta_out"] = max(health["theta_out"], float(np.max(np.maximum(lower - th, 0.0))),
                                   float(np.max(np.maximum(th - upper, 0.0))))
         rss = _rss_MB()

@@ -29,9 +29,9 @@ steps, the package's and a user's alike.
 
 Arguments travel in small tuples, one per component: ``wind = (table, params, state, draws)`` and
 ``sensors`` likewise; ``faults = (schedule, state)``; ``controller = (fns, params, state)``, where
-``fns`` is the controller's function table (empty until the controller's laws are handed over as
-parts too); ``log = (row, theta_true, gamma)``. The log row's layout (:func:`log_layout`) is built
-per run from the blocks it records: a fixed head (time, state, wind, flow, specific force,
+``fns`` is the controller's function table (its law's ``update`` and its basis's ``regressor``:
+:func:`vtoladapt.control.step.function_table`); ``log = (row, theta_true, gamma)``. The log row's
+layout (:func:`log_layout`) is built per run from the blocks it records: a fixed head (time, state, wind, flow, specific force,
 measurement, reference, command, motors), the controller's diagnostics (their columns come from the
 controller, :func:`diagnostics_columns`) and a fixed tail (Lyapunov function, active faults).
 
@@ -49,16 +49,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..control.adaptation import lyapunov_at
-from ..control.kernel import (
-    CONTROLLER_DIAG_COLUMNS,
-    DIAG_Q_TILDE,
-    DIAG_V_TILDE,
-    S_GAMMA,
-    S_THETA,
-    controller_step,
-    set_last_command,
-)
+from ..control.step import controller_lyapunov, controller_step, functions_at, set_last_command
 from ..forces import airflow_angles
 from ..layout import (
     CMD_SIZE,
@@ -134,28 +125,24 @@ _L_DIAG = LOG_HEAD.size
 _LT_LYAP, _LT_FAULTS = LOG_TAIL.offsets("LYAPUNOV", "FAULTS")
 
 
-def diagnostics_columns(controller_params=None) -> tuple[str, ...]:
-    """The columns of the controller's diagnostics (the ``diag`` array) for a controller parameter array.
+def diagnostics_columns(controller_params) -> tuple[str, ...]:
+    """The columns of the controller's diagnostics (the ``diag`` array) for a controller parameter array:
+    its law's and its basis's (:func:`vtoladapt.control.step.diagnostics_columns`)."""
+    from ..control.step import diagnostics_columns as columns_of
 
-    Every law logs the shared diagnostics block today (:data:`vtoladapt.control.kernel.CONTROLLER_DIAG_COLUMNS`);
-    the log's layout asks here, per run, so a controller whose laws declare their own columns changes
-    only this function.
-    """
-    return tuple(CONTROLLER_DIAG_COLUMNS)
+    return columns_of(controller_params)
 
 
-def log_layout(diag_columns=None) -> BlockLayout:
+def log_layout(diag_columns) -> BlockLayout:
     """The log row of a run: :data:`LOG_HEAD`, the controller's diagnostics, :data:`LOG_TAIL`."""
-    cols = diagnostics_columns() if diag_columns is None else tuple(diag_columns)
+    cols = tuple(diag_columns)
     return BlockLayout("log row", [*LOG_HEAD.fields, Field("DIAG", len(cols), "-", "the controller's diagnostics",
                                                            columns=cols), *LOG_TAIL.fields])
 
 
-LOG_COLUMNS: tuple[str, ...] = log_layout().columns
-"""Names of the log columns of a run with today's controller diagnostics, in order; units are in the
-names (see README, "Log columns"). A run's own are :attr:`vtoladapt.sim.driver.PreparedRun.log_layout`."""
-N_LOG = len(LOG_COLUMNS)
-N_DIAG = len(CONTROLLER_DIAG_COLUMNS)
+def log_size(n_diag: int) -> int:
+    """The log row's length for ``n_diag`` diagnostics columns (a run's own: ``PreparedRun.log_layout``)."""
+    return LOG_HEAD.size + n_diag + LOG_TAIL.size
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -196,7 +183,7 @@ def tick_sense(x, truth, meas, work, plant_p, wind, sensors, faults, envelope, c
     sensors_at(sensor_table, sensor_p, sensor_s, t, dt, x, truth, sensor_draws, meas)
     apply_measurement_faults(faults[0], faults[1], t, dt, meas)
     if run_controller:
-        controller_step(controller[1], controller[2], meas, ref, dt, cmd, diag)
+        controller_step(functions_at(controller[0]), controller[1], controller[2], meas, ref, dt, cmd, diag)
     return REASON_OK
 
 
@@ -215,7 +202,7 @@ def report_mixed(ctrl_state, motor_cmd, saturated) -> None:
 
 
 @njit(cache=True, nogil=True, _nrt=False)
-def tick_actuate(x, truth, meas, work, plant_p, mixer_p, faults, ctrl_state, ref, cmd, diag, motor_cmd, t, dt,
+def tick_actuate(x, truth, meas, work, plant_p, mixer_p, faults, controller, ref, cmd, diag, motor_cmd, t, dt,
                  n_sub, log) -> None:
     """Second half of the tick at time ``t``: steps 5-7 (allocate ``cmd``, actuator faults, log, advance the
     plant by ``dt``).
@@ -228,17 +215,17 @@ def tick_actuate(x, truth, meas, work, plant_p, mixer_p, faults, ctrl_state, ref
     ``work`` (:data:`TICK_WORK`) must hold the first RK4 stage :func:`tick_sense` evaluated at this ``x``.
     """
     saturated = allocate(cmd, meas, mixer_p, motor_cmd, work, _TW_ALLOC)
-    report_mixed(ctrl_state, motor_cmd, saturated)
+    report_mixed(controller[2], motor_cmd, saturated)
     apply_actuator_faults(faults[0], faults[1], t, mixer_p[MX_U_MAX], motor_cmd)
     row = log[0]
     if row.shape[0] > 0:
         write_log_row(row, x, truth, meas, ref, cmd, diag, motor_cmd, saturated, active_mask(faults[0], t),
-                      ctrl_state, log[1], log[2], t, work)
+                      controller, log[1], log[2], t, work)
     plant_advance(x, motor_cmd, truth[TRUTH_V_WIND_W:TRUTH_V_WIND_W + 3], plant_p, dt / n_sub, n_sub, True, work)
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
-def write_log_row(row, x, truth, meas, ref, cmd, diag, motor_cmd, saturated, faults_active, ctrl_state, theta_true,
+def write_log_row(row, x, truth, meas, ref, cmd, diag, motor_cmd, saturated, faults_active, controller, theta_true,
                   gamma, t, work) -> None:
     """One log row (:func:`log_layout` with ``diag.shape[0]`` diagnostics)."""
     row[_L_T] = t
@@ -267,8 +254,7 @@ def write_log_row(row, x, truth, meas, ref, cmd, diag, motor_cmd, saturated, fau
     for i in range(n_diag):
         row[_L_DIAG + i] = diag[i]
     tail = _L_DIAG + n_diag
-    row[tail + _LT_LYAP] = lyapunov_at(diag[DIAG_V_TILDE], diag[DIAG_V_TILDE + 1], diag[DIAG_V_TILDE + 2],
-                                       diag[DIAG_Q_TILDE], ctrl_state, S_THETA, ctrl_state, S_GAMMA, theta_true, gamma)
+    row[tail + _LT_LYAP] = controller_lyapunov(controller[1], controller[2], diag, theta_true, gamma)
     row[tail + _LT_FAULTS] = faults_active
 
 
@@ -299,6 +285,6 @@ def run_closed_loop(x, scratch, plant_p, mixer_p, wind, sensors, faults, envelop
                             rng, True, cmd, diag)
         if reason != REASON_OK:
             return k, reason
-        tick_actuate(x, truth, meas, work, plant_p, mixer_p, faults, controller[2], ref, cmd, diag, motor_cmd, t, dt,
+        tick_actuate(x, truth, meas, work, plant_p, mixer_p, faults, controller, ref, cmd, diag, motor_cmd, t, dt,
                      n_sub, (log[k], theta_true, gamma))
     return n_ticks, check_envelope(x, envelope, ref_table[n_ticks - 1])

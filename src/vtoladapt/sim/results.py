@@ -118,9 +118,15 @@ class SimulationResult:
         return self.position_W - self.columns_like(("ref_p_N_m", "ref_p_E_m", "ref_p_D_m"))
 
     @property
+    def theta_names(self) -> tuple[str, ...]:
+        """The names of theta-hat's entries: the controller's force-model basis's parameters (the paper's
+        eight unless the run's metadata names others)."""
+        return tuple(self.metadata.get("theta_names", PARAMETER_NAMES))
+
+    @property
     def theta_hat(self) -> np.ndarray:
-        """``(T, 8)`` theta-hat in the adaptation scaling, if the controller logs it."""
-        return self.columns_like([f"theta_hat_{n}" for n in PARAMETER_NAMES])
+        """``(T, n)`` theta-hat in the adaptation scaling, if the controller logs it (columns :attr:`theta_names`)."""
+        return self.columns_like([f"theta_hat_{n}" for n in self.theta_names])
 
     @property
     def diverged_at_s(self) -> float | None:

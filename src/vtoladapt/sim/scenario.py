@@ -17,9 +17,9 @@ from typing import Optional
 
 from ..config import (NAME_PATTERN, PATH_PATTERN, ApplicableKeys, ConfigError, Validated, build, read_toml,
                       refuse_internal_keys, setting)
-from ..control.config import (SCENARIO_DT_DEFAULT_S, SCENARIO_DT_RANGE_S, ControllerConfig, check_rate_matches_dt,
-                              rate_from_dt)
-from ..control.registry import CONTROLLER_IDS, THETA_ADAPTIVE_IDS
+from ..control.settings import (SCENARIO_DT_DEFAULT_S, SCENARIO_DT_RANGE_S, ControllerConfig,
+                                check_rate_matches_dt, rate_from_dt)
+from ..control.registry import controller_ids, theta_adaptive_ids
 from .faults import MAX_FAULTS, FaultConfig
 from .monitor import EnvelopeConfig
 from .plant import PlantConfig
@@ -127,9 +127,15 @@ class ExperimentConfig(Validated):
         "variant i has seed i of SeedSequence([seed, 0xD157]) and so its own plant draw, turbulence "
         "and sensor noise (vtoladapt.experiments.distribution)", default=1, ge=1, le=10000)
     controllers: tuple[str, ...] = setting(
-        "-", "controllers compared (kind = comparison)",
-        default=CONTROLLER_IDS,
-        choices=CONTROLLER_IDS)
+        "-", "controllers compared (kind = comparison); default (empty): every registered controller",
+        default=(), choices=controller_ids)
+
+    def __post_init__(self) -> None:
+        # the default is every controller registered when the configuration is made (a law registered
+        # after import included), not a list frozen at import
+        if not self.controllers:
+            object.__setattr__(self, "controllers", controller_ids())
+        super().__post_init__()
 
     def _check(self, source: str) -> None:
         if len(set(self.controllers)) != len(self.controllers) or not self.controllers:
@@ -186,9 +192,9 @@ class Scenario(Validated):
     source_path: str = setting("-", "file the scenario was read from", default="")
 
     def _check(self, source: str) -> None:
-        if self.experiment.kind == "convergence" and self.controller.kind not in THETA_ADAPTIVE_IDS:
+        if self.experiment.kind == "convergence" and self.controller.kind not in theta_adaptive_ids():
             raise ConfigError(f"{source}: [controller] kind = {self.controller.kind!r}: a convergence experiment "
-                              f"judges how theta-hat converges; allowed: {', '.join(THETA_ADAPTIVE_IDS)} "
+                              f"judges how theta-hat converges; allowed: {', '.join(theta_adaptive_ids())} "
                               f"(the others hold theta-hat = theta_0)")
         self.check_loop_rate(source)
         if self.experiment.kind == "comparison":  # each compared law flies these shared settings

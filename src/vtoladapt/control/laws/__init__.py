@@ -1,8 +1,9 @@
 """The control laws, one module each; the interface they share is in :mod:`vtoladapt.control`.
 
 Each module here is listed once in :data:`vtoladapt.control.registry.CONTROLLERS`. This package
-also holds :class:`LawContext`, what a law's ``fill_params`` gets besides its own settings, and
-:func:`check_law`, which tells whether a module meets the interface.
+also holds :class:`LawContext`, what a law's ``fill_params`` gets besides its own settings,
+:func:`law_update`, the decorator of a law's compiled ``update``, and :func:`check_law`, which
+tells whether a module meets the interface.
 """
 from __future__ import annotations
 
@@ -11,22 +12,38 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import cfunc, njit, types
 
 from ...config import ConfigError
 from ...layout import BlockLayout
+from ..blocks import T_ADAPT_ACTIVE, T_F_R, T_LAW_FAULTS, T_R_WB
 
-REQUIRED = ("Settings", "PARAMS", "STATE", "fill_params", "init_state", "update")
+REQUIRED = ("Settings", "PARAMS", "STATE", "DIAG", "fill_params", "init_state", "update")
 """The names every law module defines (see :mod:`vtoladapt.control`)."""
+
+UPDATE_SIGNATURE = types.void(types.float64[::1], types.float64[::1], types.float64[::1], types.float64[::1])
+"""``update(params, state, tick, diag)``: the whole parameter and state arrays, the tick block (a view of the
+state, :data:`vtoladapt.control.blocks.TICK`) and the whole diagnostics array."""
+
+
+def law_update(fn):
+    """Compile a law's ``update`` as a Numba ``cfunc`` of :data:`UPDATE_SIGNATURE`.
+
+    Cached on disk and compiled without reference counting (``_nrt=False``: it must not allocate), like
+    every kernel of the simulator's tick; the controller step receives it as a first-class function
+    argument, so the step is compiled once for every law, a user's included.
+    """
+    return cfunc(UPDATE_SIGNATURE, cache=True, _nrt=False, error_model="numpy")(fn)
 
 
 @dataclass(frozen=True)
 class LawContext:
     """What a law's ``fill_params`` may read besides its own settings (all in SI units).
 
-    ``config`` is the whole :class:`~vtoladapt.control.config.ControllerConfig` (the shared gains);
-    ``vehicle`` the controller's model of the aircraft; ``theta_0`` (8,) the prior mean and
-    ``P0`` (8, 8) the initial adaptation gain, both in the adaptation scaling; ``dt_nominal_s``
-    the nominal tick (s).
+    ``config`` is the whole :class:`~vtoladapt.control.settings.ControllerConfig` (the shared gains);
+    ``vehicle`` the controller's model of the aircraft; ``theta_0`` (n,) the prior mean and
+    ``P0`` (n, n) the initial adaptation gain, both in the adaptation scaling (n is the force-model
+    basis's, ``basis``: its :class:`vtoladapt.bases.BasisSpec`); ``dt_nominal_s`` the nominal tick (s).
     """
 
     config: Any
@@ -34,11 +51,37 @@ class LawContext:
     theta_0: np.ndarray
     P0: np.ndarray
     dt_nominal_s: float
+    basis: Any = None
 
     @property
     def P0_max_eig(self) -> float:
         """Largest eigenvalue of ``P0`` (for the explicit sigma step's stability check)."""
         return float(np.linalg.eigvalsh(self.P0).max())
+
+
+@njit(cache=True, inline="always")
+def tick3(tick, o) -> tuple:
+    """The 3-vector of the tick block at ``o`` (``T_V_TILDE``, ``T_V_R_DOT``, ...), as a tuple."""
+    return (tick[o], tick[o + 1], tick[o + 2])
+
+
+@njit(cache=True, inline="always")
+def tick_R(tick) -> tuple:
+    """The tick's attitude ``R_WB`` as three row tuples."""
+    o = T_R_WB
+    return ((tick[o], tick[o + 1], tick[o + 2]), (tick[o + 3], tick[o + 4], tick[o + 5]),
+            (tick[o + 6], tick[o + 7], tick[o + 8]))
+
+
+@njit(cache=True, inline="always")
+def finish(tick, f_r, adapt_active, faults) -> None:
+    """What every law's ``update`` leaves in the tick: the force command ``f_r`` (m/s^2 NED, gravity included),
+    whether theta-hat was updated and the law's ``FAULT_*`` bits."""
+    tick[T_F_R] = f_r[0]
+    tick[T_F_R + 1] = f_r[1]
+    tick[T_F_R + 2] = f_r[2]
+    tick[T_ADAPT_ACTIVE] = 1.0 if adapt_active else 0.0
+    tick[T_LAW_FAULTS] = faults
 
 
 def check_sigma_step(sigma: float, ctx: LawContext, table: str) -> None:
@@ -62,9 +105,14 @@ def check_law(module) -> None:
         raise TypeError(f"control law {name}: missing {', '.join(missing)} (see vtoladapt.control)")
     if not (isinstance(module.Settings, type) and dataclasses.is_dataclass(module.Settings)):
         raise TypeError(f"control law {name}: Settings must be a dataclass")
-    for block in ("PARAMS", "STATE"):
+    for block in ("PARAMS", "STATE", "DIAG"):
         if not isinstance(getattr(module, block), BlockLayout):
             raise TypeError(f"control law {name}: {block} must be a vtoladapt.layout.BlockLayout")
+    sig = getattr(module.update, "_sig", None)
+    if sig is None or tuple(sig.args) != tuple(UPDATE_SIGNATURE.args) or sig.return_type != types.void:
+        raise TypeError(f"control law {name}: update must be a numba cfunc of {UPDATE_SIGNATURE} (decorate it "
+                        "with vtoladapt.control.laws.law_update)")
 
 
-__all__ = ["LawContext", "REQUIRED", "check_law", "check_sigma_step"]
+__all__ = ["LawContext", "REQUIRED", "UPDATE_SIGNATURE", "check_law", "check_sigma_step", "finish", "law_update",
+           "tick3", "tick_R"]

@@ -2,19 +2,28 @@
 
 Not a law (it is not in the registry): :mod:`.composite`, :mod:`.composite_pconst` and
 :mod:`.tracking_only` call :func:`adaptive_estimate` with their adaptation mode
-(:mod:`vtoladapt.control.adaptation`) and their own state offsets.
+(:mod:`vtoladapt.control.adaptation`), their own state slot for the projection's active set and
+their own diagnostics column for it (:data:`DIAG`, which each of them declares as its ``DIAG``).
+The adaptation's scratch is the shared ``WORK`` block sized by the basis.
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
+from ...bases import IN_V_I_B
+from ...layout import BlockLayout, Field
 from .. import adaptation as ad
-from ..frontend import prediction_error
-from ..layouts import (
-    DIAG_P_DIAG, DIAG_PROJ_ACTIVE, FAULT_ADAPTATION, N_THETA, P_P0, P_PRIOR, P_V_LO,
-    S_ESTIMATE, S_GAMMA, S_INFO_SUM, S_SAT_PREV, S_V_I_LAW, S_W_F,
-)
+from .. import linalg
+from ..blocks import (A_D_P_DIAG, A_GAMMA, A_INFO_SUM, A_N, A_P0, A_PHI, A_W, A_WK_L, A_WK_M, A_WK_WTW, FAULT_ADAPTATION,
+                      P_AD, P_V_LO, S_INPUT, S_SAT_PREV, T_DT, T_E, T_MAY_ADAPT, T_V_TILDE)
+from . import tick3, tick_R
+
+DIAG = BlockLayout("adaptive law diagnostics", [
+    Field("PROJ_ACTIVE", 1, "-", "number of bounds the projection held this tick (-1: its iteration limit)",
+          columns=("projection_active_bounds",)),
+])
+"""The diagnostics every adaptive law declares (its ``DIAG``)."""
 
 
 @njit(cache=True)
@@ -28,9 +37,10 @@ def model_validity(params, state, alpha_trust_rad, alpha_stall_rad) -> float:
     Backward flow (``|alpha|`` near pi) is beyond stall. The wing's force, and so the model's error,
     scale with ``V^2``: below the hover blend (``V_lo``) the weight returns to 1 as ``(V/V_lo)^2``.
     """
-    vx = state[S_V_I_LAW]
-    vz = state[S_V_I_LAW + 2]
-    V2 = vx * vx + state[S_V_I_LAW + 1] * state[S_V_I_LAW + 1] + vz * vz
+    v = S_INPUT + IN_V_I_B
+    vx = state[v]
+    vz = state[v + 2]
+    V2 = vx * vx + state[v + 1] * state[v + 1] + vz * vz
     a = abs(np.arctan2(vz, vx))
     a_lo = alpha_trust_rad
     if a <= a_lo:
@@ -48,80 +58,97 @@ def saturated(state) -> bool:
 
 
 @njit(cache=True)
-def accumulate_information(state, weight, dt) -> None:
+def accumulate_information(params, state, weight, dt, n) -> None:
     """``INFO_SUM += weight W^T W dt`` with the filtered regressor W: the un-forgotten information (identifiability).
 
     Upper triangle computed and mirrored (exactly symmetric); read after the run
     (:func:`vtoladapt.experiments.metrics.identifiability`), never decomposed in the loop.
     """
-    n = N_THETA
+    w = int(params[A_W])
+    s = int(params[A_INFO_SUM])
     c = weight * dt
     for i in range(n):
         for j in range(i, n):
             t = 0.0
             for r in range(3):
-                t += state[S_W_F + n * r + i] * state[S_W_F + n * r + j]
-            v = state[S_INFO_SUM + n * i + j] + c * t
-            state[S_INFO_SUM + n * i + j] = v
-            state[S_INFO_SUM + n * j + i] = v
+                t += state[w + n * r + i] * state[w + n * r + j]
+            v = state[s + n * i + j] + c * t
+            state[s + n * i + j] = v
+            state[s + n * j + i] = v
 
 
 @njit(cache=True)
-def add_information(state, g, weight, dt) -> None:
-    """``INFO_SUM += weight G dt`` for ``G = W^T W`` already formed at ``state[g:]`` (8 x 8, symmetric).
+def add_information(params, state, g, weight, dt, n) -> None:
+    """``INFO_SUM += weight G dt`` for ``G = W^T W`` already formed at ``state[g:]`` (n x n, symmetric).
 
     Bit for bit :func:`accumulate_information` (the same upper-triangle sums, mirrored): the
     composite step has just formed ``W^T W`` of this ``W`` in its scratch, so it is not formed twice.
     """
-    n = N_THETA
+    s = int(params[A_INFO_SUM])
     c = weight * dt
     for i in range(n):
         for j in range(i, n):
-            v = state[S_INFO_SUM + n * i + j] + c * state[g + n * i + j]
-            state[S_INFO_SUM + n * i + j] = v
-            state[S_INFO_SUM + n * j + i] = v
+            v = state[s + n * i + j] + c * state[g + n * i + j]
+            state[s + n * i + j] = v
+            state[s + n * j + i] = v
 
 
 @njit(cache=True, _nrt=False)
-def adaptive_estimate(mode, params, state, diag, s_active, s_work, may_adapt, Phi, R, v_tilde, dt, forget_a,
-                      forget_b, sigma, trace_max, w_track=1.0, w_pred=1.0, directional=False,
-                      gain_scale=1.0, toward_prior=1.0) -> tuple:
-    """Update theta-hat and P (eq:th_adapt, eq:P_adapt) if ``may_adapt``; write ``P_diag`` and ``projection_active_bounds``.
+def adaptive_estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max,
+                      w_track=1.0, w_pred=1.0, directional=False, gain_scale=1.0, toward_prior=1.0) -> tuple:
+    """Update theta-hat and P (eq:th_adapt, eq:P_adapt) if the tick allows; write ``P_diag`` and the
+    projection's active bounds (at ``diag[d_proj]``).
 
-    ``s_active``: the law's state slot holding the last projection's active set; ``s_work``: its
-    :data:`~vtoladapt.control.adaptation.WORK` block; ``w_track``, ``w_pred``, ``directional``,
-    ``gain_scale``, ``toward_prior``: see :func:`vtoladapt.control.adaptation.weighted_adaptation_step` (the
-    defaults are the paper's law). Returns ``(e, adapt_active, faults)``: the prediction error
-    before the update (m/s^2 body), whether theta-hat was updated, ``FAULT_*`` bits.
+    ``s_active``: the law's state slot holding the last projection's active set; ``w_track``,
+    ``w_pred``, ``directional``, ``gain_scale``, ``toward_prior``: see
+    :func:`vtoladapt.control.adaptation.weighted_adaptation_step` (the defaults are the paper's law).
+    Returns ``(adapt_active, faults)``: whether theta-hat was updated, ``FAULT_*`` bits. Compiled for the
+    paper's n with constant loop lengths too (:data:`vtoladapt.control.adaptation.SPECIALISED_N`).
     """
+    n = int(params[A_N])
+    if n == ad.SPECIALISED_N:
+        return _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max,
+                         w_track, w_pred, directional, gain_scale, toward_prior, ad.SPECIALISED_N)
+    return _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max,
+                     w_track, w_pred, directional, gain_scale, toward_prior, n)
+
+
+@njit(cache=True, inline="always")
+def _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max, w_track,
+              w_pred, directional, gain_scale, toward_prior, n) -> tuple:
+    """The body of :func:`adaptive_estimate` for ``n`` parameters (inlined, see there)."""
     faults = 0
     n_active = 0
-    p_diag = s_work + ad.WK_P_DIAG
+    p_diag = int(params[P_AD + ad.AT_P_DIAG])
+    may_adapt = tick[T_MAY_ADAPT] > 0.0
+    dt = tick[T_DT]
     if may_adapt:
-        n_active, active_set, e = ad.weighted_adaptation_step(
-            mode, state, S_ESTIMATE, s_work, params, P_PRIOR, Phi, R, v_tilde, dt, forget_a, forget_b, sigma,
-            trace_max, int(state[s_active]), w_track, w_pred, directional, gain_scale, toward_prior)
+        n_active, active_set = ad.adaptation_step_with_error(
+            mode, params, P_AD, state, params, state, int(params[A_PHI]), tick_R(tick), tick3(tick, T_V_TILDE),
+            dt, forget_a, forget_b, sigma, trace_max, int(state[s_active]), w_track, w_pred, directional, gain_scale,
+            tick3(tick, T_E), toward_prior)
         state[s_active] = active_set
         if mode == ad.ADAPT_COMPOSITE:
             # the composite step leaves W^T W of this tick's W in its scratch (the other modes overwrite
             # it or never form it)
-            add_information(state, s_work + ad.WK_WTW, w_pred, dt)
+            add_information(params, state, int(params[A_WK_WTW]), w_pred, dt, n)
         else:
-            accumulate_information(state, w_pred, dt)
+            accumulate_information(params, state, w_pred, dt, n)
         if n_active < 0:
             faults |= FAULT_ADAPTATION
     else:
-        e = prediction_error(state)
         if not (mode == ad.ADAPT_COMPOSITE
-                and ad.cholesky_lower(state, S_GAMMA, state, s_work + ad.WK_L, N_THETA)):
+                and linalg.cholesky_lower(state, int(params[A_GAMMA]), state, int(params[A_WK_L]), n)):
             if mode == ad.ADAPT_COMPOSITE:
                 faults |= FAULT_ADAPTATION
-            for i in range(N_THETA):
-                state[p_diag + i] = params[P_P0 + N_THETA * i + i]
+            p0 = int(params[A_P0])
+            for i in range(n):
+                state[p_diag + i] = params[p0 + n * i + i]
         else:
-            ad.inverse_factor(state, s_work + ad.WK_L, state, s_work + ad.WK_M)
-            ad.factor_diag(state, s_work + ad.WK_M, state, p_diag)
-    for i in range(N_THETA):
-        diag[DIAG_P_DIAG + i] = state[p_diag + i]
-    diag[DIAG_PROJ_ACTIVE] = n_active
-    return e, may_adapt, faults
+            linalg.inverse_factor(state, int(params[A_WK_L]), state, int(params[A_WK_M]), n)
+            linalg.factor_diag(state, int(params[A_WK_M]), state, p_diag, n)
+    d = int(params[A_D_P_DIAG])
+    for i in range(n):
+        diag[d + i] = state[p_diag + i]
+    diag[d_proj] = n_active
+    return may_adapt, faults

@@ -42,15 +42,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from ...config import Validated, setting
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
-from ..layouts import P_K_V, P_LAW, S_LAW, law_offsets
+from ..blocks import D_LAW, P_K_V, P_LAW, S_LAW, T_DT, T_NEW_DT, T_V_R_DOT, T_V_TILDE, law_offsets
 from ..tracking import force_command
-from . import LawContext, check_sigma_step
-from ._adaptive import adaptive_estimate, model_validity, saturated
+from . import LawContext, check_sigma_step, finish, law_update, tick3
+from ._adaptive import DIAG, adaptive_estimate, model_validity, saturated
 
 
 @dataclass(frozen=True)
@@ -96,12 +95,12 @@ PARAMS = BlockLayout("composite parameters", [
 STATE = BlockLayout("composite state", [
     Field("ACTIVE_SET", 1, "-", "bit mask of the bounds the last projection held"),
     Field("FORGET", 2, "-", "forgetting weights (a, b) for the current dt"),
-    Field("WORK", ad.WORK.size, "-", "the adaptation's scratch (no meaning between ticks)"),
 ])
 P_LAMBDA, P_SIGMA, P_TRACE_MAX, P_DIRECTIONAL, P_GATING, P_TOWARD_PRIOR, P_ALPHA_TRUST, P_ALPHA_STALL = law_offsets(
     PARAMS, P_LAW, "LAMBDA", "SIGMA", "TRACE_MAX", "DIRECTIONAL", "GATING", "TOWARD_PRIOR", "ALPHA_TRUST",
     "ALPHA_STALL")
-S_ACTIVE_SET, S_FORGET, S_WORK = law_offsets(STATE, S_LAW, "ACTIVE_SET", "FORGET", "WORK")
+S_ACTIVE_SET, S_FORGET = law_offsets(STATE, S_LAW, "ACTIVE_SET", "FORGET")
+(D_PROJ_ACTIVE,) = law_offsets(DIAG, D_LAW, "PROJ_ACTIVE")
 
 
 def fill_params(settings: CompositeSettings, ctx: LawContext) -> np.ndarray:
@@ -119,19 +118,19 @@ def init_state(params: np.ndarray, state: np.ndarray) -> None:
     """Nothing beyond the shared start (theta-hat = theta_init, P = P0): no bound held yet."""
 
 
-@njit(cache=True, _nrt=False)
-def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_tilde, a_d) -> tuple:
+@law_update
+def update(params, state, tick, diag):
     """Adapt theta-hat and P, then the force command (eq:f_ctrl); see the law interface."""
-    if new_dt:
-        state[S_FORGET], state[S_FORGET + 1] = ad.forgetting_weights(params[P_LAMBDA], dt)
+    if tick[T_NEW_DT] > 0.0:
+        state[S_FORGET], state[S_FORGET + 1] = ad.forgetting_weights(params[P_LAMBDA], tick[T_DT])
     w_pred = 1.0
     w_track = 1.0
     if params[P_GATING] > 0.0:
         w_pred = model_validity(params, state, params[P_ALPHA_TRUST], params[P_ALPHA_STALL])
         w_track = 0.0 if saturated(state) else w_pred
-    e, adapt_active, faults = adaptive_estimate(
-        ad.ADAPT_COMPOSITE, params, state, diag, S_ACTIVE_SET, S_WORK, may_adapt, Phi, R, v_tilde, dt,
-        state[S_FORGET], state[S_FORGET + 1], params[P_SIGMA], params[P_TRACE_MAX], w_track, w_pred,
-        params[P_DIRECTIONAL] > 0.0, 1.0, params[P_TOWARD_PRIOR])
+    adapt_active, faults = adaptive_estimate(
+        ad.ADAPT_COMPOSITE, params, state, tick, diag, S_ACTIVE_SET, D_PROJ_ACTIVE, state[S_FORGET],
+        state[S_FORGET + 1], params[P_SIGMA], params[P_TRACE_MAX], w_track, w_pred, params[P_DIRECTIONAL] > 0.0, 1.0,
+        params[P_TOWARD_PRIOR])
     K_v = (params[P_K_V], params[P_K_V + 1], params[P_K_V + 2])
-    return force_command(v_r_dot, v_tilde, K_v), e, adapt_active, faults
+    finish(tick, force_command(tick3(tick, T_V_R_DOT), tick3(tick, T_V_TILDE), K_v), adapt_active, faults)

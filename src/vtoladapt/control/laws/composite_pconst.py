@@ -10,15 +10,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from ...config import Validated, setting
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
-from ..layouts import P_K_V, P_LAW, S_LAW, law_offsets
+from ..blocks import D_LAW, P_K_V, P_LAW, S_LAW, T_DT, T_V_R_DOT, T_V_TILDE, law_offsets
 from ..tracking import force_command
-from . import LawContext, check_sigma_step
-from ._adaptive import adaptive_estimate
+from . import LawContext, check_sigma_step, finish, law_update, tick3
+from ._adaptive import DIAG, adaptive_estimate
 
 
 @dataclass(frozen=True)
@@ -42,10 +41,10 @@ PARAMS = BlockLayout("composite_pconst parameters", [
 ])
 STATE = BlockLayout("composite_pconst state", [
     Field("ACTIVE_SET", 1, "-", "bit mask of the bounds the last projection held"),
-    Field("WORK", ad.WORK.size, "-", "the adaptation's scratch (no meaning between ticks)"),
 ])
 (P_SIGMA,) = law_offsets(PARAMS, P_LAW, "SIGMA")
-S_ACTIVE_SET, S_WORK = law_offsets(STATE, S_LAW, "ACTIVE_SET", "WORK")
+(S_ACTIVE_SET,) = law_offsets(STATE, S_LAW, "ACTIVE_SET")
+(D_PROJ_ACTIVE,) = law_offsets(DIAG, D_LAW, "PROJ_ACTIVE")
 
 
 def fill_params(settings: CompositePConstSettings, ctx: LawContext) -> np.ndarray:
@@ -58,11 +57,11 @@ def init_state(params: np.ndarray, state: np.ndarray) -> None:
     """Nothing beyond the shared start (theta-hat = theta_init, P = P0)."""
 
 
-@njit(cache=True, _nrt=False)
-def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_tilde, a_d) -> tuple:
+@law_update
+def update(params, state, tick, diag):
     """Adapt theta-hat with P = P0, then the force command (eq:f_ctrl); see the law interface."""
-    e, adapt_active, faults = adaptive_estimate(
-        ad.ADAPT_PCONST, params, state, diag, S_ACTIVE_SET, S_WORK, may_adapt, Phi, R, v_tilde, dt,
-        1.0, dt, params[P_SIGMA], np.inf)
+    adapt_active, faults = adaptive_estimate(
+        ad.ADAPT_PCONST, params, state, tick, diag, S_ACTIVE_SET, D_PROJ_ACTIVE, 1.0, tick[T_DT], params[P_SIGMA],
+        np.inf)
     K_v = (params[P_K_V], params[P_K_V + 1], params[P_K_V + 2])
-    return force_command(v_r_dot, v_tilde, K_v), e, adapt_active, faults
+    finish(tick, force_command(tick3(tick, T_V_R_DOT), tick3(tick, T_V_TILDE), K_v), adapt_active, faults)

@@ -86,8 +86,8 @@ error in hover is 0.43 g); ``fault_fade_s = 1`` keeps the estimate through dropo
 ticks yet forgets it within seconds; ``reentry_blend_s = 0.1`` spreads the step of re-entry over
 the attitude loop's 0.2 s time constant instead of one tick.
 
-Diagnostics: ``integrator_*`` hold the increment actually applied (m/s^2 NED), the term that
-plays the integral's part in this law.
+Diagnostics: ``indi_increment_*`` hold the increment actually applied (m/s^2 NED), the term that
+plays the integral's part in this law (its ``DIAG``).
 """
 from __future__ import annotations
 
@@ -100,10 +100,9 @@ from ...config import ConfigError, Validated, setting
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
 from ...frames import rows_times
-from ..frontend import prediction_error
-from ..layouts import DIAG_INTEGRATOR, P_K_V, P_LAW, S_LAW, law_offsets
+from ..blocks import D_LAW, P_K_V, P_LAW, S_LAW, T_DT, T_E, T_MAY_ADAPT, T_NEW_DT, T_V_R_DOT, T_V_TILDE, law_offsets
 from ..tracking import force_command, limit_norm
-from . import LawContext
+from . import LawContext, finish, law_update, tick3, tick_R
 
 TIME_SCALE_SEPARATION = 3.0
 """``2 pi lowpass_cutoff_hz`` must be at least this multiple of the largest ``K_v``."""
@@ -143,9 +142,14 @@ STATE = BlockLayout("indi state", [
     Field("FADE", 1, "-", "decay factor of the held increment for the current dt"),
     Field("BLEND_STEP", 1, "-", "rise of the blend-in weight per tick for the current dt"),
 ])
+DIAG = BlockLayout("indi diagnostics", [
+    Field("INCREMENT", 3, "m/s^2", "the increment added to the nominal command, NED",
+          columns=("indi_increment_N_mps2", "indi_increment_E_mps2", "indi_increment_D_mps2")),
+])
 P_INC_LIMIT, P_FADE_S, P_BLEND_S = law_offsets(PARAMS, P_LAW, "INC_LIMIT", "FADE_S", "BLEND_S")
 S_INCREMENT, S_WEIGHT, S_FADE, S_BLEND_STEP = law_offsets(STATE, S_LAW, "INCREMENT", "WEIGHT", "FADE",
                                                           "BLEND_STEP")
+(D_INCREMENT,) = law_offsets(DIAG, D_LAW, "INCREMENT")
 
 
 def check_config(settings: IndiSettings, config, source: str) -> None:
@@ -172,7 +176,7 @@ def init_state(params: np.ndarray, state: np.ndarray) -> None:
     """No increment and weight 0: the first ticks fly the nominal command until the filters are valid."""
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def indi_increment(params, state, valid, R, e) -> tuple:
     """The increment (m/s^2 NED) of the module notes: blend toward ``R e`` if ``valid``, else hold and fade."""
     ok = valid and np.isfinite(e[0]) and np.isfinite(e[1]) and np.isfinite(e[2])
@@ -190,17 +194,17 @@ def indi_increment(params, state, valid, R, e) -> tuple:
     return (state[S_INCREMENT], state[S_INCREMENT + 1], state[S_INCREMENT + 2])
 
 
-@njit(cache=True)
-def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_tilde, a_d) -> tuple:
+@law_update
+def update(params, state, tick, diag):
     """The INDI force command ``f_r = f_0f + nu - a_f`` (module notes); theta-hat is not adapted."""
-    if new_dt:
+    if tick[T_NEW_DT] > 0.0:
+        dt = tick[T_DT]
         state[S_FADE] = np.exp(-dt / params[P_FADE_S])
         blend_s = params[P_BLEND_S]
         state[S_BLEND_STEP] = min(1.0, dt / blend_s) if blend_s > 0.0 else 1.0
-    e = prediction_error(state)
-    inc = indi_increment(params, state, may_adapt, R, e)
+    inc = indi_increment(params, state, tick[T_MAY_ADAPT] > 0.0, tick_R(tick), tick3(tick, T_E))
     K_v = (params[P_K_V], params[P_K_V + 1], params[P_K_V + 2])
-    nominal = force_command(v_r_dot, v_tilde, K_v)
+    nominal = force_command(tick3(tick, T_V_R_DOT), tick3(tick, T_V_TILDE), K_v)
     for i in range(3):
-        diag[DIAG_INTEGRATOR + i] = inc[i]
-    return (nominal[0] + inc[0], nominal[1] + inc[1], nominal[2] + inc[2]), e, False, 0
+        diag[D_INCREMENT + i] = inc[i]
+    finish(tick, (nominal[0] + inc[0], nominal[1] + inc[1], nominal[2] + inc[2]), False, 0)

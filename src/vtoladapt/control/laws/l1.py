@@ -31,7 +31,7 @@ every matrix below is a scalar times I), once per tick of ``T = dt``:
   (:func:`piecewise_constant_gains`), limited to ``|sigma-hat| <= accel_max_mps2``.
 * **Filter** ``sigma_lpf = C(s) sigma-hat``, ``C(s) = omega_c / (s + omega_c)``, exactly
   discretised (``c = 1 - e^{-omega_c T}``), limited to ``|sigma_lpf| <= adaptive_term_max_mps2``.
-* **Command** ``f_r = f_b - sigma_lpf``; ``-sigma_lpf`` is logged in ``integrator_*``.
+* **Command** ``f_r = f_b - sigma_lpf``; ``-sigma_lpf`` is logged in ``l1_adaptive_term_*`` (its ``DIAG``).
 
 ``f_applied`` is the force the aircraft is believed to produce, not the previous command: the
 model's specific force ``R Phi(v_i, u) theta-hat`` at the measured attitude and incident velocity
@@ -77,10 +77,10 @@ Start-up, dt changes, faults
 * The law uses no accelerometer and needs no probe (the fallback incident velocity only changes
   ``f_applied``, and ``sigma-hat`` absorbs its error), so it ignores ``may_adapt`` and never
   adapts theta-hat (``adapt_active`` is False). A velocity the front end holds because the
-  measurement was not plausible (``FAULT_VELOCITY`` in the front end's fault bits, which the
-  kernel leaves in ``diag``'s ``fault_flags`` for the law) freezes ``sigma-hat`` and bleeds it
-  (``fault_bleed_s``); the filter keeps running, and the next good sample re-seats the predictor
-  (one tick without an update), so that an outage is not read as one tick's acceleration.
+  measurement was not plausible (``FAULT_VELOCITY`` in the tick's ``FAULTS``, the front end's fault
+  bits) freezes ``sigma-hat`` and bleeds it (``fault_bleed_s``); the filter keeps running, and the
+  next good sample re-seats the predictor (one tick without an update), so that an outage is not
+  read as one tick's acceleration.
 * A velocity equal to the last tick's is not a fault: a sample-and-hold source (motion capture
   slower than the loop, a replayed log) repeats its samples. The predictor and the
   piecewise-constant law run on every tick against the held sample, so the estimate on a held
@@ -103,13 +103,12 @@ from ...frames import GRAVITY_MPS2
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
 from ...frames import rows_times
-from ..frontend import prediction_error
-from ..layouts import (
-    DIAG_FAULTS, DIAG_INTEGRATOR, FAULT_ADAPTATION, FAULT_VELOCITY, N_THETA, P_ACC_MAX, P_K_V, P_LAW, S_LAW,
-    S_THETA, law_offsets,
+from ..blocks import (
+    A_N, A_PHI, A_THETA, D_LAW, FAULT_ADAPTATION, FAULT_VELOCITY, P_ACC_MAX, P_K_V, P_LAW, S_LAW, T_DT, T_FAULTS,
+    T_NEW_DT, T_V_R_DOT, T_V_TILDE, T_V_W, law_offsets,
 )
 from ..tracking import force_command, limit_norm
-from . import LawContext
+from . import LawContext, finish, law_update, tick3, tick_R
 
 A_S_DT_MAX = 0.5
 """Largest ``a_s dt`` accepted: the estimate keeps ``e^{-a_s dt}`` (61 %) of a constant uncertainty."""
@@ -150,12 +149,23 @@ STATE = BlockLayout("l1 state", [
     Field("SIGMA_HAT", 3, "m/s^2", "piecewise-constant estimate sigma-hat, NED"),
     Field("SIGMA_LPF", 3, "m/s^2", "filtered adaptive term sigma_lpf, NED"),
     Field("RUNNING", 1, "-", "1 while the predictor runs; 0: the next fresh velocity seats it"),
-    Field("GAINS", 4, "-", "for the current dt: e^{-a_s dt}, Phi^-1 e^{-a_s dt} (1/s), filter gain, bleed"),
+    Field("GAINS", 4, "-", "for the current dt: the L1_GAINS layout"),
+])
+DIAG = BlockLayout("l1 diagnostics", [
+    Field("ADAPTIVE_TERM", 3, "m/s^2", "-sigma_lpf, the adaptive term added to the force command, NED",
+          columns=("l1_adaptive_term_N_mps2", "l1_adaptive_term_E_mps2", "l1_adaptive_term_D_mps2")),
 ])
 P_A_S, P_OMEGA_C, P_TERM_MAX, P_BLEED_S = law_offsets(PARAMS, P_LAW, "A_S", "OMEGA_C", "TERM_MAX", "BLEED_S")
 S_V_HAT, S_V_HOLD, S_F_PREV, S_SIGMA_HAT, S_SIGMA_LPF, S_RUNNING, S_GAINS_L1 = law_offsets(
     STATE, S_LAW, "V_HAT", "V_HOLD", "F_PREV", "SIGMA_HAT", "SIGMA_LPF", "RUNNING", "GAINS")
-G_DECAY, G_ADAPT, G_FILTER, G_BLEED = range(4)
+(D_ADAPTIVE_TERM,) = law_offsets(DIAG, D_LAW, "ADAPTIVE_TERM")
+L1_GAINS = BlockLayout("l1 gains for the current dt", [
+    Field("DECAY", 1, "-", "e^{-a_s dt}"),
+    Field("ADAPT", 1, "1/s", "Phi^-1 e^{-a_s dt}"),
+    Field("FILTER", 1, "-", "gain of C(s)"),
+    Field("BLEED", 1, "-", "decay of the frozen estimate"),
+])
+G_DECAY, G_ADAPT, G_FILTER, G_BLEED = L1_GAINS.offsets("DECAY", "ADAPT", "FILTER", "BLEED")
 
 
 def check_a_s_dt(settings: L1Settings, dt_s: float, source: str) -> None:
@@ -186,7 +196,7 @@ def init_state(params: np.ndarray, state: np.ndarray) -> None:
     """Nothing beyond zeros: the first tick seats the predictor at the measured velocity (RUNNING = 0)."""
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def piecewise_constant_gains(a_s, dt) -> tuple:
     """``(e^{-a_s T}, Phi(T))`` for ``A_s = -a_s I`` and ``T = dt``; ``Phi(T) = A_s^-1 (e^{A_s T} - I)``.
 
@@ -198,7 +208,7 @@ def piecewise_constant_gains(a_s, dt) -> tuple:
     return np.exp(x), -np.expm1(x) / a_s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def predictor_step(v_hat, v_hold, c, decay, phi) -> float:
     """One axis of the predictor over one interval, exactly: ``x' = -a_s (x - v) + c`` with ``v``, ``c`` constant.
 
@@ -208,7 +218,7 @@ def predictor_step(v_hat, v_hold, c, decay, phi) -> float:
     return v_hold + decay * (v_hat - v_hold) + phi * c
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def update_gains(params, state, dt) -> None:
     """Store the dt-dependent gains (``GAINS`` field) for a tick of ``dt``."""
     decay, phi = piecewise_constant_gains(params[P_A_S], dt)
@@ -218,21 +228,24 @@ def update_gains(params, state, dt) -> None:
     state[S_GAINS_L1 + G_BLEED] = np.exp(-dt / params[P_BLEED_S])
 
 
-@njit(cache=True)
-def model_force_W(state, Phi, R) -> tuple:
+@njit(cache=True, inline="always")
+def model_force_W(params, state, R) -> tuple:
     """``f_applied = R Phi theta-hat``: the model's specific force at this tick, m/s^2 NED (gravity excluded)."""
+    n = int(params[A_N])
+    th = int(params[A_THETA])
+    phi = int(params[A_PHI])
     f_B0 = 0.0
     f_B1 = 0.0
     f_B2 = 0.0
-    for k in range(N_THETA):
-        th = state[S_THETA + k]
-        f_B0 += Phi[0][k] * th
-        f_B1 += Phi[1][k] * th
-        f_B2 += Phi[2][k] * th
+    for k in range(n):
+        t = state[th + k]
+        f_B0 += state[phi + k] * t
+        f_B1 += state[phi + n + k] * t
+        f_B2 += state[phi + 2 * n + k] * t
     return rows_times(R, (f_B0, f_B1, f_B2))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def l1_estimate(params, state, v_W, f_now, held) -> int:
     """Predictor, piecewise-constant adaptation and filter for one tick (module notes); returns ``FAULT_*`` bits.
 
@@ -286,20 +299,19 @@ def l1_estimate(params, state, v_W, f_now, held) -> int:
     return faults
 
 
-@njit(cache=True)
-def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_tilde, a_d) -> tuple:
+@law_update
+def update(params, state, tick, diag):
     """The baseline force command (eq:f_ctrl) minus the filtered L1 estimate; see the law interface.
 
-    theta-hat is never adapted; ``may_adapt`` is not used (module notes). The prediction error
-    returned is that of the constant theta-hat, like the PID's.
+    theta-hat is never adapted; ``MAY_ADAPT`` is not used (module notes).
     """
-    if new_dt:
-        update_gains(params, state, dt)
-    held = (int(diag[DIAG_FAULTS]) & FAULT_VELOCITY) != 0
-    faults = l1_estimate(params, state, v_W, model_force_W(state, Phi, R), held)
+    if tick[T_NEW_DT] > 0.0:
+        update_gains(params, state, tick[T_DT])
+    held = (int(tick[T_FAULTS]) & FAULT_VELOCITY) != 0
+    faults = l1_estimate(params, state, tick3(tick, T_V_W), model_force_W(params, state, tick_R(tick)), held)
     K_v = (params[P_K_V], params[P_K_V + 1], params[P_K_V + 2])
-    f_b = force_command(v_r_dot, v_tilde, K_v)
+    f_b = force_command(tick3(tick, T_V_R_DOT), tick3(tick, T_V_TILDE), K_v)
     s = (state[S_SIGMA_LPF], state[S_SIGMA_LPF + 1], state[S_SIGMA_LPF + 2])
     for i in range(3):
-        diag[DIAG_INTEGRATOR + i] = -s[i]
-    return (f_b[0] - s[0], f_b[1] - s[1], f_b[2] - s[2]), prediction_error(state), False, faults
+        diag[D_ADAPTIVE_TERM + i] = -s[i]
+    finish(tick, (f_b[0] - s[0], f_b[1] - s[1], f_b[2] - s[2]), False, faults)

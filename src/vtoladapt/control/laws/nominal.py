@@ -10,14 +10,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from ...config import Validated
 from ...layout import BlockLayout
-from ..frontend import prediction_error
-from ..layouts import N_THETA, P_K_V, P_THETA0, S_THETA
+from ..blocks import A_N, A_THETA, A_THETA0, P_K_V, T_V_R_DOT, T_V_TILDE
 from ..tracking import force_command
-from . import LawContext
+from . import LawContext, finish, law_update, tick3
 
 
 @dataclass(frozen=True)
@@ -33,6 +31,7 @@ TUNABLE = ()
 
 PARAMS = BlockLayout("nominal parameters", [])
 STATE = BlockLayout("nominal state", [])
+DIAG = BlockLayout("nominal diagnostics", [])
 
 
 def fill_params(settings: NominalSettings, ctx: LawContext) -> np.ndarray:
@@ -42,11 +41,12 @@ def fill_params(settings: NominalSettings, ctx: LawContext) -> np.ndarray:
 
 def init_state(params: np.ndarray, state: np.ndarray) -> None:
     """theta-hat = theta_0."""
-    state[S_THETA:S_THETA + N_THETA] = params[P_THETA0:P_THETA0 + N_THETA]
+    n, th, th0 = int(params[A_N]), int(params[A_THETA]), int(params[A_THETA0])
+    state[th:th + n] = params[th0:th0 + n]
 
 
-@njit(cache=True)
-def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_tilde, a_d) -> tuple:
+@law_update
+def update(params, state, tick, diag):
     """eq:f_ctrl with the constant theta-hat; see the law interface."""
     K_v = (params[P_K_V], params[P_K_V + 1], params[P_K_V + 2])
-    return force_command(v_r_dot, v_tilde, K_v), prediction_error(state), False, 0
+    finish(tick, force_command(tick3(tick, T_V_R_DOT), tick3(tick, T_V_TILDE), K_v), False, 0)

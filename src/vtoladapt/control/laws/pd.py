@@ -1,6 +1,6 @@
 """The PID without its integral (the paper's controller V).
 
-Exactly :mod:`.pid` with the integral left out: the same parameter and state blocks, with the
+Exactly :mod:`.pid` with the integral left out: the same parameter, state and diagnostics blocks, with the
 integral gain fixed at 0 (a PD has none to set) and the integrator never moving. Its
 ``feedforward`` setting is the PID's (``"v_r_dot"`` by default, the fair comparison; see
 :mod:`.pid`): with ``K_D = 0`` and ``"v_r_dot"`` the PD is exactly ``nominal``.
@@ -10,11 +10,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from ...config import Validated, setting
-from . import LawContext
-from .pid import FEEDFORWARD_CHOICES, FEEDFORWARD_DOC, PARAMS, STATE, feedforward_flag, pid_update
+from . import LawContext, law_update
+from .pid import DIAG, FEEDFORWARD_CHOICES, FEEDFORWARD_DOC, PARAMS, STATE, feedforward_flag, pid_update
 
 
 @dataclass(frozen=True)
@@ -44,9 +43,7 @@ def init_state(params: np.ndarray, state: np.ndarray) -> None:
     """Derivative filter empty (the shared start holds theta-hat = theta_init)."""
 
 
-@njit(cache=True)
-def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_tilde, a_d) -> tuple:
+@law_update
+def update(params, state, tick, diag):
     """The PD force command (:mod:`.pid` without the integral). See the law interface."""
-    return pid_update(params, state, diag, False, dt, new_dt, v_W, v_r_dot, v_tilde, a_d)
-
-
+    pid_update(params, state, tick, diag, False)

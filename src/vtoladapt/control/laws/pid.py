@@ -48,9 +48,9 @@ from ...config import Validated, setting
 from ...frames import GRAVITY_MPS2
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
-from ..frontend import prediction_error
-from ..layouts import DIAG_INTEGRATOR, P_K_V, P_LAW, S_LAW, S_RES_PREV_W, S_SAT_PREV, S_V_PREV, law_offsets
-from . import LawContext
+from ..blocks import (D_LAW, P_K_V, P_LAW, S_LAW, S_RES_PREV_W, S_SAT_PREV, S_V_PREV, T_A_D, T_DT, T_NEW_DT,
+                      T_V_R_DOT, T_V_TILDE, T_V_W, law_offsets)
+from . import LawContext, finish, law_update, tick3
 
 
 FEEDFORWARD_CHOICES = ("v_r_dot", "a_d")
@@ -96,10 +96,15 @@ STATE = BlockLayout("pid state", [
     Field("VDOT_INIT", 1, "-", "1 once the derivative filter has a sample"),
     Field("DERIV_GAIN", 1, "-", "gain of the derivative low-pass for the current dt"),
 ])
+DIAG = BlockLayout("pid diagnostics", [
+    Field("INTEGRATOR", 3, "m/s^2", "the integral term, NED (0 for the PD)",
+          columns=("integrator_N_mps2", "integrator_E_mps2", "integrator_D_mps2")),
+])
 P_K_I, P_K_D, P_INT_LIMIT, P_DERIV_HZ, P_FF_V_R_DOT = law_offsets(PARAMS, P_LAW, "K_I", "K_D", "INT_LIMIT",
                                                                  "DERIV_HZ", "FF_V_R_DOT")
 S_INT, S_VDOT_F, S_VDOT_INIT, S_DERIV_GAIN = law_offsets(STATE, S_LAW, "INTEGRATOR", "VDOT_F", "VDOT_INIT",
                                                          "DERIV_GAIN")
+(D_INTEGRATOR,) = law_offsets(DIAG, D_LAW, "INTEGRATOR")
 
 
 def fill_params(settings: PIDSettings, ctx: LawContext) -> np.ndarray:
@@ -118,7 +123,7 @@ def init_state(params: np.ndarray, state: np.ndarray) -> None:
     """Integral and derivative filter empty (the shared start holds theta-hat = theta_init)."""
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def pid_force(params, state, integrate, v_W, v_tilde, ff, dt) -> tuple:
     """The force command ``f_r`` of the module notes, m/s^2 NED, with feed-forward ``ff`` (m/s^2 NED);
     the integral moves only if ``integrate``."""
@@ -141,22 +146,23 @@ def pid_force(params, state, integrate, v_W, v_tilde, ff, dt) -> tuple:
             - GRAVITY_MPS2)
 
 
-@njit(cache=True)
-def pid_update(params, state, diag, integrate, dt, new_dt, v_W, v_r_dot, v_tilde, a_d) -> tuple:
-    """The PID's (``integrate``) or PD's tick: force, integral diagnostics, prediction error of theta_0."""
-    if new_dt:
+@njit(cache=True, inline="always")
+def pid_update(params, state, tick, diag, integrate) -> None:
+    """The PID's (``integrate``) or PD's tick: the force command into the tick, the integral's diagnostics."""
+    dt = tick[T_DT]
+    if tick[T_NEW_DT] > 0.0:
         state[S_DERIV_GAIN] = ad.lowpass_gain(params[P_DERIV_HZ], dt)
     if params[P_FF_V_R_DOT] != 0.0:
-        ff = (v_r_dot[0], v_r_dot[1], v_r_dot[2])
+        ff = tick3(tick, T_V_R_DOT)
     else:
-        ff = (a_d[0], a_d[1], a_d[2])
-    f_r = pid_force(params, state, integrate, v_W, v_tilde, ff, dt)
+        ff = tick3(tick, T_A_D)
+    f_r = pid_force(params, state, integrate, tick3(tick, T_V_W), tick3(tick, T_V_TILDE), ff, dt)
     for i in range(3):
-        diag[DIAG_INTEGRATOR + i] = state[S_INT + i]
-    return f_r, prediction_error(state), False, 0
+        diag[D_INTEGRATOR + i] = state[S_INT + i]
+    finish(tick, f_r, False, 0)
 
 
-@njit(cache=True)
-def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_tilde, a_d) -> tuple:
+@law_update
+def update(params, state, tick, diag):
     """The PID force command (module notes); theta-hat is not adapted. See the law interface."""
-    return pid_update(params, state, diag, True, dt, new_dt, v_W, v_r_dot, v_tilde, a_d)
+    pid_update(params, state, tick, diag, True)

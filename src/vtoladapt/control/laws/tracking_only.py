@@ -40,10 +40,10 @@ from numba import njit
 from ...config import Validated, setting
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
-from ..layouts import N_THETA, P_K_V, P_LAW, P_P0, S_LAW, law_offsets
+from ..blocks import A_N, A_P0, A_PHI, D_LAW, P_K_V, P_LAW, S_LAW, T_DT, T_V_R_DOT, T_V_TILDE, law_offsets
 from ..tracking import force_command
-from . import LawContext, check_sigma_step
-from ._adaptive import adaptive_estimate
+from . import LawContext, check_sigma_step, finish, law_update, tick3
+from ._adaptive import DIAG, adaptive_estimate
 
 
 @dataclass(frozen=True)
@@ -73,10 +73,10 @@ PARAMS = BlockLayout("tracking_only parameters", [
 ])
 STATE = BlockLayout("tracking_only state", [
     Field("ACTIVE_SET", 1, "-", "bit mask of the bounds the last projection held"),
-    Field("WORK", ad.WORK.size, "-", "the adaptation's scratch (no meaning between ticks)"),
 ])
 P_SIGMA, P_K_I_MAX = law_offsets(PARAMS, P_LAW, "SIGMA", "K_I_MAX")
-S_ACTIVE_SET, S_WORK = law_offsets(STATE, S_LAW, "ACTIVE_SET", "WORK")
+(S_ACTIVE_SET,) = law_offsets(STATE, S_LAW, "ACTIVE_SET")
+(D_PROJ_ACTIVE,) = law_offsets(DIAG, D_LAW, "PROJ_ACTIVE")
 
 
 def integral_gain_limit(settings: TrackingOnlySettings, K_v, vehicle) -> float:
@@ -99,27 +99,40 @@ def init_state(params: np.ndarray, state: np.ndarray) -> None:
 
 
 @njit(cache=True, _nrt=False)
-def gain_scale(params, Phi) -> float:
-    """The Routh rule's ``k = min(1, k_I_max / trace(Phi P0 Phi^T))`` (see the module notes)."""
+def gain_scale(params, state) -> float:
+    """The Routh rule's ``k = min(1, k_I_max / trace(Phi P0 Phi^T))`` (see the module notes), with this tick's
+    unfiltered regressor ``Phi``."""
     k_I_max = params[P_K_I_MAX]
     if not np.isfinite(k_I_max):
         return 1.0
-    n = N_THETA
+    n = int(params[A_N])
+    if n == ad.SPECIALISED_N:
+        t = _trace_phi_p0_phi(params, state, ad.SPECIALISED_N)
+    else:
+        t = _trace_phi_p0_phi(params, state, n)
+    return 1.0 if t <= k_I_max else k_I_max / t
+
+
+@njit(cache=True, inline="always")
+def _trace_phi_p0_phi(params, state, n) -> float:
+    """``trace(Phi P0 Phi^T)`` for n parameters (inlined: the paper's n gives loops of constant length)."""
+    p0 = int(params[A_P0])
+    phi = int(params[A_PHI])
     t = 0.0
     for r in range(3):
         for i in range(n):
             s = 0.0
             for j in range(n):
-                s += params[P_P0 + n * i + j] * Phi[r][j]
-            t += Phi[r][i] * s
-    return 1.0 if t <= k_I_max else k_I_max / t
+                s += params[p0 + n * i + j] * state[phi + n * r + j]
+            t += state[phi + n * r + i] * s
+    return t
 
 
-@njit(cache=True, _nrt=False)
-def update(params, state, diag, dt, new_dt, may_adapt, Phi, R, v_W, v_r_dot, v_tilde, a_d) -> tuple:
+@law_update
+def update(params, state, tick, diag):
     """Adapt theta-hat on the tracking error, then the force command (eq:f_ctrl); see the law interface."""
-    e, adapt_active, faults = adaptive_estimate(
-        ad.ADAPT_TRACKING, params, state, diag, S_ACTIVE_SET, S_WORK, may_adapt, Phi, R, v_tilde, dt,
-        1.0, dt, params[P_SIGMA], np.inf, 1.0, 1.0, False, gain_scale(params, Phi))
+    adapt_active, faults = adaptive_estimate(
+        ad.ADAPT_TRACKING, params, state, tick, diag, S_ACTIVE_SET, D_PROJ_ACTIVE, 1.0, tick[T_DT], params[P_SIGMA],
+        np.inf, 1.0, 1.0, False, gain_scale(params, state))
     K_v = (params[P_K_V], params[P_K_V + 1], params[P_K_V + 2])
-    return force_command(v_r_dot, v_tilde, K_v), e, adapt_active, faults
+    finish(tick, force_command(tick3(tick, T_V_R_DOT), tick3(tick, T_V_TILDE), K_v), adapt_active, faults)

@@ -1,9 +1,12 @@
 """Controller settings: the frozen, validated ``[controller]`` table of a scenario and its law tables.
 
-``[controller]`` holds the controller's ``kind`` (an id of :mod:`.registry`) and the gains every
-law shares; each law's own gains are in its table ``[controller.<id>]`` (the law module's
-``Settings``, e.g. ``[controller.pid] K_I``, ``[controller.composite] forgetting_lambda``): one
-field of :class:`ControllerConfig` per registered law, generated from the registry. A law gain
+``[controller]`` holds the controller's ``kind`` (an id of :mod:`.registry`), its force-model
+``basis`` (an id of :mod:`vtoladapt.bases`; default the vehicle's) and the gains every law shares;
+each law's own gains are in its table ``[controller.<id>]`` (the law module's ``Settings``, e.g.
+``[controller.pid] K_I``, ``[controller.composite] forgetting_lambda``), read as
+``config.<id>`` (``config.pid.K_I``) and given as ``ControllerConfig(pid=PIDSettings(...))``. The
+law ids are looked up in the registry when a table is read or an attribute asked for, so a law
+registered after import has its table like the package's own. A law gain
 written in ``[controller]`` itself (where it was before the laws had their own tables) is refused
 with a message naming the table it moved to; nothing is silently dropped or zeroed. Every gain
 carries its unit (see :func:`vtoladapt.config.describe`). Defaults and why
@@ -63,11 +66,9 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any, Mapping, Optional
 
+from ..bases import basis_ids
 from ..config import ConfigError, Validated, build, check_flag, read_toml, setting
-from .registry import CONTROLLER_IDS, CONTROLLERS, ControllerInfo, controller_info
-
-CONTROLLER_KINDS = CONTROLLER_IDS
-"""The registered controllers' ids (:data:`.registry.CONTROLLER_IDS`)."""
+from .registry import CONTROLLERS, ControllerInfo, controller_ids, controller_info
 
 
 TUNABLE = (("K_v[0:2]", 0.5, 8.0, True), ("K_v[2]", 1.0, 20.0, True),
@@ -85,20 +86,29 @@ LOOP_RATE_MAX_HZ = 10000.0
 """Fastest controller rate (a scenario's ``dt_control_s`` >= 1e-4 s)."""
 
 
-@dataclass(frozen=True)
-class SharedControllerConfig(Validated):
-    """The ``[controller]`` table's own keys: the controller's kind and the gains every law shares.
+@dataclass(frozen=True, init=False)
+class ControllerConfig(Validated):
+    """Gains and settings of one controller: the scenario's ``[controller]`` table.
+
+    Its keys are the fields below; each registered law's own settings are its table
+    ``[controller.<id>]``, read as the attribute ``<id>`` (that law's ``Settings``; its defaults
+    where the table is absent) and given as the keyword ``<id>=`` (``ControllerConfig(kind="pid",
+    pid=PIDSettings(K_I=...))``, ``dataclasses.replace(config, pid=...)``). Only the law named by
+    ``kind`` flies; the others' tables are kept so that a comparison can switch ``kind``. The law
+    tables are stored in :attr:`laws` (those that differ from their defaults, by id).
 
     All 3-vectors are diagonals of the paper's gain matrices, in NED (``K_v``, ``Lambda_p``) or
-    body FRD (``Lambda_q``, ``K_omega``) axes. :class:`ControllerConfig` adds one field per law.
-    Built in Python it is validated as a file's table is (:class:`vtoladapt.config.Validated`).
+    body FRD (``Lambda_q``, ``K_omega``) axes. Built in Python it is validated as a file's table
+    is (:class:`vtoladapt.config.Validated`).
     """
 
     config_section = "controller"
 
-    kind: str = setting("-", "which controller, an id of vtoladapt.control.registry: "
-                        + "; ".join(f"'{c.id}': {c.description}" for c in CONTROLLERS.values()),
-                        default="composite", choices=CONTROLLER_IDS)
+    kind: str = setting("-", "which controller: an id of vtoladapt.control.registry (`vtoladapt controllers` "
+                        "lists them with what each law is)", default="composite", choices=controller_ids)
+    basis: Optional[str] = setting("-", "the force-model basis theta-hat adapts: an id of vtoladapt.bases "
+                                   "(`vtoladapt bases` lists them); default: the vehicle file's `basis`",
+                                   default=None, choices=basis_ids)
     K_v: tuple[float, ...] = setting("1/s", "velocity-error gain K_v (eq:f_ctrl); the PID's velocity "
                                      "P gain", default=(1.8, 1.8, 4.0), gt=0.0, length=3)
     Lambda_p: tuple[float, ...] = setting("1/s", "position-error gain Lambda_p (eq:wr); the PID's "
@@ -210,6 +220,51 @@ class SharedControllerConfig(Validated):
         "gusts of +-3 deg alpha swing the wing's lift by ~2.3 m/s^2 there; at most 8 (0.8 g): near g the wing "
         "is asked for no lift or a downward one (alpha_d negative) and measured, 10 lost the aircraft",
         default=5.0, ge=0.0, le=8.0)
+    laws: Any = setting("-", "the law tables [controller.<id>] that differ from their defaults: ((id, settings), "
+                        "...) sorted by id (read them as config.<id>)", default=())
+
+    def __init__(self, **values) -> None:
+        names = {f.name for f in dataclasses.fields(self)}
+        tables = dict(values.pop("laws", ()) or ())
+        for key in [k for k in values if k not in names]:
+            if key not in CONTROLLERS:
+                raise TypeError(f"ControllerConfig: unexpected keyword {key!r}: neither a [controller] key nor a "
+                                f"registered law ({', '.join(controller_ids())})")
+            tables[key] = values.pop(key)
+        for f in dataclasses.fields(self):
+            object.__setattr__(self, f.name, values[f.name] if f.name in values else f.default)
+        object.__setattr__(self, "laws", _law_tables(tables))
+        self.__post_init__()
+
+    def __getattr__(self, name: str):
+        # reached only for names that are not fields: a law's table, looked up in the registry now
+        if name.startswith("_") or name not in CONTROLLERS:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        for key, settings in self.__dict__.get("laws", ()):
+            if key == name:
+                return settings
+        return _law_settings_class(name)()
+
+    @classmethod
+    def sub_tables(cls) -> dict[str, type]:
+        """The ``[controller.<id>]`` tables a file may hold, each the law's ``Settings`` class, for the
+        laws registered now (what documentation that walks the settings lists under ``controller``)."""
+        return {law_id: _law_settings_class(law_id) for law_id in controller_ids()}
+
+    @classmethod
+    def component_tables(cls, data: Mapping[str, Any], *, source: str, section: str) -> tuple[dict, dict]:
+        """The ``[controller.<id>]`` sub-tables of a registered law, built as that law's ``Settings``
+        (:func:`vtoladapt.config.build`); the rest of the table is returned for the shared keys."""
+        data = dict(data)
+        if "laws" in data:
+            raise ConfigError(f"{source}: [{section}] laws = {data['laws']!r:.40}: unknown key; a law's settings are "
+                              "its own table [controller.<id>]")
+        fields = {f.name for f in dataclasses.fields(cls)} - {"laws"}
+        extras = {}
+        for key in [k for k in data if k not in fields and isinstance(k, str) and k in CONTROLLERS]:
+            prefix = f"{section}.{key}" if section else key
+            extras[key] = build(_law_settings_class(key), data.pop(key), source=source, section=prefix)
+        return data, extras
 
     def _check(self, source: str) -> None:
         wv = self.weathervane_airspeed_mps
@@ -228,8 +283,12 @@ class SharedControllerConfig(Validated):
         if amax is not None and self.alpha_min_deg is not None and not self.alpha_min_deg < amax:
             raise ConfigError(f"{source}: [controller] alpha_min_deg = {self.alpha_min_deg}: must be "
                               f"below alpha_max_deg = {amax}")
-        if hasattr(self, self.kind):  # ControllerConfig (the shared table alone has no law tables)
-            self.check_law(self.kind, source)
+        for key, settings in self.laws:
+            cls = _law_settings_class(key)
+            if not isinstance(settings, cls):
+                raise ConfigError(f"{source}: [controller.{key}] = {settings!r:.60}: must be a {cls.__name__} "
+                                  f"(the {key} law's Settings)")
+        self.check_law(self.kind, source)
 
     def check_law(self, kind: str, source: str) -> None:
         """The rules law ``kind``'s settings must meet together with the shared ones (its module's
@@ -247,11 +306,6 @@ class SharedControllerConfig(Validated):
         return 1.0 / self.loop_rate_hz
 
     @property
-    def kind_id(self) -> int:
-        """The kind as the number the compiled step dispatches on (index in :data:`CONTROLLER_KINDS`)."""
-        return CONTROLLER_KINDS.index(self.kind)
-
-    @property
     def info(self) -> ControllerInfo:
         """The registry entry of :attr:`kind`."""
         return controller_info(self.kind)
@@ -262,8 +316,8 @@ class SharedControllerConfig(Validated):
         return getattr(self, self.kind)
 
     def to_kernel(self, vehicle, theta_0=None, P0_diag=None, theta_lower=None, theta_upper=None):
-        """Kernel parameter array for this configuration (see :func:`.kernel.controller_params`)."""
-        from .kernel import controller_params
+        """Kernel parameter array for this configuration (see :func:`.step.controller_params`)."""
+        from .step import controller_params
 
         return controller_params(self, vehicle, theta_0=theta_0, P0_diag=P0_diag,
                                  theta_lower=theta_lower, theta_upper=theta_upper)
@@ -278,27 +332,28 @@ class SharedControllerConfig(Validated):
         return "moved to the law's own table: " + ", ".join(tables)
 
 
-def _make_controller_config() -> type:
-    """:class:`SharedControllerConfig` plus one field per registered law, ``<id>: <law>.Settings``."""
-    shared = {f.name for f in dataclasses.fields(SharedControllerConfig)}
-    fields = []
-    for c in CONTROLLERS.values():
-        if c.id in shared:
-            raise TypeError(f"controller id {c.id!r} clashes with a [controller] key")
-        # the table the law's settings are in a file, for the messages of a Validated Settings made by hand
-        c.settings.config_section = f"controller.{c.id}"
-        fields.append((c.id, c.settings, setting("-", f"settings of the {c.id} law ([controller.{c.id}], "
-                                                 f"{c.law.__name__}.Settings)", default=c.settings())))
-    cls = dataclasses.make_dataclass("ControllerConfig", fields, bases=(SharedControllerConfig,), frozen=True)
-    cls.__module__ = __name__
-    cls.__doc__ = ("Gains and settings of one controller: the scenario's ``[controller]`` table (the keys of "
-                   ":class:`SharedControllerConfig`) and one ``[controller.<id>]`` table per registered law "
-                   "(field ``<id>``, that law's ``Settings``). Only the law named by ``kind`` flies; the "
-                   "others' tables are kept so that a comparison can switch ``kind``.")
+def _law_settings_class(law_id: str) -> type:
+    """Law ``law_id``'s ``Settings`` (its ``[controller.<id>]`` table, named so in its messages)."""
+    if law_id in {f.name for f in dataclasses.fields(ControllerConfig)}:
+        raise TypeError(f"controller id {law_id!r} clashes with a [controller] key")
+    cls = controller_info(law_id).settings
+    # the table the law's settings are in a file, for the messages of a Validated Settings made by hand
+    cls.config_section = f"controller.{law_id}"
     return cls
 
 
-ControllerConfig = _make_controller_config()
+def _law_tables(tables: Mapping[str, Any]) -> tuple:
+    """``((id, settings), ...)`` sorted by id, leaving out settings equal to their law's defaults (so two
+    configurations that fly the same gains are equal)."""
+    out = []
+    for key, settings in sorted(tables.items()):
+        if key not in CONTROLLERS:
+            raise TypeError(f"ControllerConfig: law table {key!r}: not a registered law ({', '.join(controller_ids())})")
+        cls = _law_settings_class(key)
+        if isinstance(settings, cls) and settings == cls():
+            continue
+        out.append((key, settings))
+    return tuple(out)
 
 
 def controller_config_from_mapping(data: Mapping[str, Any], source: str = "<controller>") -> ControllerConfig:
@@ -348,8 +403,8 @@ def load_controller_config(path) -> ControllerConfig:
     return config
 
 
-__all__ = ["CONTROLLER_KINDS", "LOOP_RATE_MAX_HZ", "LOOP_RATE_MIN_HZ", "LOOP_RATE_RTOL", "SCENARIO_DT_DEFAULT_S",
+__all__ = ["LOOP_RATE_MAX_HZ", "LOOP_RATE_MIN_HZ", "LOOP_RATE_RTOL", "SCENARIO_DT_DEFAULT_S",
            "SCENARIO_DT_RANGE_S", "TUNABLE",
-           "ControllerConfig", "check_rate_matches_dt", "rate_from_dt", "SharedControllerConfig",
+           "ControllerConfig", "check_rate_matches_dt", "rate_from_dt",
            "controller_config_from_mapping",
            "load_controller_config"]

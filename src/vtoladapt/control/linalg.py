@@ -1,0 +1,138 @@
+"""Small dense linear algebra for the adaptation: ``n x n`` matrices in flat storage, no allocation.
+
+Every kernel takes a flat array and an offset for each matrix (``A[a:a + n * n]``, row-major), so
+the adaptation's matrices live inside the controller's state and scratch arrays
+(:mod:`vtoladapt.control.adaptation`). The kernels the adaptation step calls are inlined into it
+(``inline="always"``): the step is compiled for the paper's n as a constant
+(:data:`vtoladapt.control.adaptation.SPECIALISED_N`), and only inlined code sees that constant and
+runs loops of constant length (twice as fast at n = 8 as loops of run-time length).
+
+The kernels never divide by zero (Cholesky pivots are > 0 once checked), so they use NumPy's error
+model: a division cannot raise, which leaves them no exception path and lets Numba drop their
+reference counting (otherwise kept on every call).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, error_model="numpy")
+def cholesky_lower(A, a, L, l, n) -> bool:
+    """Cholesky factor (lower) of the SPD ``n x n`` matrix at ``A[a:]`` into ``L[l:]``; False if not PD."""
+    A = A[a:a + n * n]
+    L = L[l:l + n * n]
+    for j in range(n):
+        s = A[n * j + j]
+        for k in range(j):
+            s -= L[n * j + k] * L[n * j + k]
+        if not s > 0.0:
+            return False
+        d = np.sqrt(s)
+        L[n * j + j] = d
+        r = 1.0 / d
+        for i in range(j + 1, n):
+            t = A[n * i + j]
+            for k in range(j):
+                t -= L[n * i + k] * L[n * j + k]
+            L[n * i + j] = t * r
+        for i in range(j):
+            L[n * i + j] = 0.0
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def cholesky_solve(L, l, n, b, o) -> None:
+    """Solve ``L L^T x = b`` in place (``b[o:o+n]`` becomes x) given the Cholesky factor at ``L[l:]``."""
+    L = L[l:l + n * n]
+    b = b[o:o + n]
+    for i in range(n):
+        t = b[i]
+        for k in range(i):
+            t -= L[n * i + k] * b[k]
+        b[i] = t / L[n * i + i]
+    for i in range(n - 1, -1, -1):
+        t = b[i]
+        for k in range(i + 1, n):
+            t -= L[n * k + i] * b[k]
+        b[i] = t / L[n * i + i]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def inverse_factor(L, l, M, m, n) -> None:
+    """``M = L^-1`` (lower triangular) for a Cholesky factor ``L`` of ``A``, so ``A^-1 = M^T M``.
+
+    ``n x n``, ``L`` at ``L[l:]`` (from :func:`cholesky_lower`), ``M`` into ``M[m:]``.
+    """
+    L = L[l:l + n * n]
+    M = M[m:m + n * n]
+    for i in range(n):
+        M[n * i + i] = 1.0 / L[n * i + i]
+    for j in range(n):
+        for i in range(j + 1, n):
+            t = 0.0
+            for k in range(j, i):
+                t -= L[n * i + k] * M[n * k + j]
+            M[n * i + j] = t * M[n * i + i]
+        for i in range(j):
+            M[n * i + j] = 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def gram_of_factor(M, m, out, o, n) -> None:
+    """``out = M^T M`` for lower-triangular ``M`` (exactly symmetric, PD if ``M`` is invertible), ``n x n``."""
+    M = M[m:m + n * n]
+    out = out[o:o + n * n]
+    for i in range(n):
+        for j in range(i, n):
+            t = 0.0
+            for k in range(j, n):
+                t += M[n * k + i] * M[n * k + j]
+            out[n * i + j] = t
+            out[n * j + i] = t
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def factor_diag(M, m, out, o, n) -> None:
+    """``diag(M^T M)`` for lower-triangular ``M`` (the diagonal of ``A^-1``) into ``out[o:o+n]``."""
+    M = M[m:m + n * n]
+    out = out[o:o + n]
+    for i in range(n):
+        t = 0.0
+        for k in range(i, n):
+            t += M[n * k + i] * M[n * k + i]
+        out[i] = t
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def factor_apply(M, m, x, o, n) -> None:
+    """``x <- M^T (M x)`` in place (``x[o:o+n]``) for lower-triangular ``M``: ``A^-1 x``."""
+    M = M[m:m + n * n]
+    x = x[o:o + n]
+    # y = M x from the last row up (row i reads x_0..x_i, which are not overwritten yet)
+    for i in range(n - 1, -1, -1):
+        t = 0.0
+        for k in range(i + 1):
+            t += M[n * i + k] * x[k]
+        x[i] = t
+    # M^T y from the first row down (row i reads y_i..y_n-1)
+    for i in range(n):
+        t = 0.0
+        for k in range(i, n):
+            t += M[n * k + i] * x[k]
+        x[i] = t
+
+
+@njit(cache=True, error_model="numpy")
+def spd_inverse(A, a, Ainv, ai, work, w, n) -> bool:
+    """Inverse of SPD ``A`` via Cholesky, ``A^-1 = L^-T L^-1``: symmetric and PD by construction.
+
+    ``n x n`` matrices at ``A[a:]`` and into ``Ainv[ai:]``; ``work[w:]`` holds two of them
+    (overwritten). Returns False (``Ainv`` untouched) if ``A`` is not PD.
+    """
+    L = w + n * n
+    if not cholesky_lower(A, a, work, L, n):
+        return False
+    inverse_factor(work, L, work, w, n)
+    gram_of_factor(work, w, Ainv, ai, n)
+    return True
