@@ -239,3 +239,15 @@ def test_in_the_closed_loop_the_surfaces_fly_at_speed_and_stay_neutral_when_off(
         return np.hypot(-(T * xy[:, 1]).sum(1), (T * xy[:, 0]).sum(1)).mean()
 
     assert rotor_roll_pitch(on) < 0.8 * rotor_roll_pitch(off)  # measured 0.33 against 0.45 N m (0.72)
+
+
+def test_the_readme_airframe_example_runs_as_written():
+    """README "The airframe": its first python block is run as written (its assert included); the second
+    registers a module of the user's and says it is not run."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    section = text.split("## The airframe: control surfaces, the allocator, the truth drawn\n", 1)[1].split("\n## ", 1)[0]
+    blocks = [b.split("```", 1)[0] for b in section.split("```python\n")[1:]]
+    assert len(blocks) == 2 and "my_package" in blocks[1] and "not run here" in section
+    exec(compile(blocks[0], "README.md (The airframe)", "exec"), {})
