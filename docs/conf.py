@@ -209,16 +209,20 @@ FIGURE_EXAMPLES = ("first_flight", "scenario_variant", "own_law", "fit_tunnel_da
 
 
 def _run_examples(app) -> None:
-    """Run the examples the tutorials take figures from, each once per version of its script (a stamp
-    holds the script's SHA-256): the figures are the examples' output, never pasted."""
+    """Run the examples the tutorials take figures from, each once per version of its script and of the
+    package (a stamp holds the SHA-256 of both): the figures are the examples' output, never pasted."""
     import hashlib
     import subprocess
 
+    package = hashlib.sha256()
+    for path in sorted((ROOT / "src" / "vtoladapt").rglob("*")):
+        if path.suffix in (".py", ".toml", ".json") and "__pycache__" not in path.parts:
+            package.update(path.relative_to(ROOT).as_posix().encode() + path.read_bytes())
     for name in FIGURE_EXAMPLES:
         script = ROOT / "examples" / f"{name}.py"
         out = DOCS / "_generated" / "examples" / name
         stamp = out / ".stamp"
-        digest = hashlib.sha256(script.read_bytes()).hexdigest()
+        digest = hashlib.sha256(script.read_bytes() + package.digest()).hexdigest()
         if stamp.exists() and stamp.read_text() == digest:
             continue
         env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT / "src"))

@@ -1,6 +1,6 @@
 """A force-model basis from a module outside the package (``tests/example_basis.py``), registered by a call.
 
-README "Adding a force-model basis" is this recipe: the paper's eight columns and a side force
+The how-to "Adding a force-model basis" (docs/howto/adding-a-basis.md) is this recipe: the paper's eight columns and a side force
 ``f_y = (rho S / 2m) V^2 beta C_Y`` (nine parameters), registered after import and then named by a
 vehicle file or a scenario's ``[controller] basis``. Checked against independent references:
 
