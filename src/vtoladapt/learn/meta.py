@@ -112,29 +112,32 @@ class Objective:
         self.a0 = np.concatenate([prior_mean, np.zeros(h)])
         s = np.concatenate([prior_std, np.full(h, settings.net_weight_std)])
         self.d = (settings.sigma_y / s) ** 2
-        # the physics block's normal equations do not change: once
-        self.AtA = [np.einsum("nrk,nrl->kl", A, A) for A in self.A]
-        self.Aty = [np.einsum("nrk,nr->k", A, y) for A, y in zip(self.A, self.y)]
+        # flat (3 N, m) and (3 N,) views for BLAS; the physics block's normal equations do not change: once
+        self.A = [np.ascontiguousarray(A.reshape(3 * A.shape[0], A.shape[2])) for A in self.A]
+        self.y = [np.ascontiguousarray(y.reshape(-1)) for y in self.y]
+        self.AtA = [A.T @ A for A in self.A]
+        self.Aty = [A.T @ y for A, y in zip(self.A, self.y)]
 
     def solve_task(self, t: int, N: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """Ridge weights, residual (n, 3) and loss of task ``t`` with network outputs ``N`` (n, 3, h)."""
         A, y, m = self.A[t], self.y[t], self.m
-        k = m + N.shape[2]
+        h = N.shape[2]
+        Nf = N.reshape(-1, h)
+        k = m + h
         G = np.empty((k, k))
         b = np.empty(k)
         G[:m, :m] = self.AtA[t]
-        G[:m, m:] = np.einsum("nrk,nrl->kl", A, N)
+        G[:m, m:] = A.T @ Nf
         G[m:, :m] = G[:m, m:].T
-        G[m:, m:] = np.einsum("nrk,nrl->kl", N, N)
+        G[m:, m:] = Nf.T @ Nf
         b[:m] = self.Aty[t]
-        b[m:] = np.einsum("nrk,nr->k", N, y)
+        b[m:] = Nf.T @ y
         G[np.diag_indices(k)] += self.d
         b += self.d * self.a0
         a = np.linalg.solve(G, b)
-        r = y - np.einsum("nrk,k->nr", A, a[:m]) - np.einsum("nrk,k->nr", N, a[m:])
-        scale = 1.0 / (3 * len(y))
-        loss = scale * (np.sum(r * r) + np.sum(self.d * (a - self.a0) ** 2))
-        return a, r, loss
+        r = y - A @ a[:m] - Nf @ a[m:]
+        loss = (r @ r + np.sum(self.d * (a - self.a0) ** 2)) / len(y)
+        return a, r.reshape(-1, 3), loss
 
     def __call__(self, w: np.ndarray, like: dict) -> tuple[float, np.ndarray]:
         arrays = unflatten(w, like)
@@ -169,8 +172,8 @@ class Objective:
         for t in range(len(self.A)):
             G = self.AtA[t] + np.diag(self.d[:m])
             a = np.linalg.solve(G, self.Aty[t] + self.d[:m] * self.a0[:m])
-            r = self.y[t] - np.einsum("nrk,k->nr", self.A[t], a)
-            total += (np.sum(r * r) + np.sum(self.d[:m] * (a - self.a0[:m]) ** 2)) / (3 * len(self.y[t]))
+            r = self.y[t] - self.A[t] @ a
+            total += (r @ r + np.sum(self.d[:m] * (a - self.a0[:m]) ** 2)) / len(self.y[t])
         return total / len(self.A)
 
 

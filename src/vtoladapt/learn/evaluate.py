@@ -1,0 +1,250 @@
+"""The envelope campaign per force-model basis, the held-out rows and the constant-weights ceiling.
+
+    python -m vtoladapt.learn.evaluate --runs 40 --out out/basis_eval
+
+flies the envelope campaign's draws (``scenarios/envelope.toml``, its own seed 1111: disjoint from the
+training draws' seed 2222 of the shipped learned bases) once per basis (``paper``, ``extended``,
+``learned``: every controller of the file, each adapting that basis), and the learned basis once more
+with each airframe flying the *other* family's network (held-out airframe: trained on caltech_vtol
+only, flown on px4_standard_vtol, and the reverse). Each goes to ``<out>/<row>/`` as a campaign
+does (``campaign.parquet``, ``summary.json``). ``<out>/comparison.json`` and ``comparison.md`` hold the
+table: per basis, the fraction of draws where each target holds with its 95 % Wilson interval,
+per airspeed bin, on the conditions held out of training (the fan schedule and bearing sector the
+shipped bases never saw), and the constant-weights ceiling.
+
+**The ceiling** (:func:`ceiling_fit`): for each draw, the best *constant* weights of a basis for the
+whole run, by least squares on the aircraft's true specific force with the true incident flow,
+the throttles the rotors actually had (the lift collective as the RMS of the four rotors: the
+same total thrust) and the true attitude and rates, judged by the same target (p95 < 0.05 g in
+every true-airspeed bin, after the first 2 s). It is what any estimator of that basis could do at
+best, with no sensor and no adaptation lag; the log it is fitted on is the composite law's with
+the paper's basis (the same flight for every basis).
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import dataclasses
+import json
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from ..frames import GRAVITY_MPS2
+from ..sim.run_metrics import AIRSPEED_BINS_MPS, PRED_ERR_SKIP_S, airspeed_bin_labels
+from ..stats import fraction_holding
+
+CAMPAIGN = Path(__file__).resolve().parents[3] / "scenarios" / "envelope.toml"
+BASES = ("paper", "extended", "learned")
+HELD_OUT = {"fan_schedule": "ramp_100", "fan bearing": "[225,315) deg"}
+"""Conditions the shipped learned bases never saw in training (``learn-basis --hold-out-schedule ramp_100
+--hold-out-bearing 225:315``); the group labels are the campaign's."""
+FAMILIES = ("caltech_vtol", "px4_standard_vtol")
+
+
+def cross_vehicle_files(folder: Path) -> dict[str, str]:
+    """Vehicle files that fly the other family's shipped network (held-out airframe)."""
+    from ..bases.learned import TRAINED_DIR
+    from ..vehicle import VEHICLE_DIR
+
+    folder.mkdir(parents=True, exist_ok=True)
+    out = {}
+    for name, other in zip(FAMILIES, reversed(FAMILIES)):
+        text = (VEHICLE_DIR / f"{name}.toml").read_text()
+        path = folder / f"{name}_with_{other}_net.toml"
+        path.write_text(text + f'\n[basis_settings.learned]\nfile = "{TRAINED_DIR / (other + ".npz")}"\n'
+                               "allow_other_vehicle = true\n")
+        out[name] = str(path)
+    return out
+
+
+def specs_for(specs, basis: str, vehicle_files: dict | None = None, controllers=None) -> list:
+    """The campaign's runs with ``[controller] basis`` set (and the vehicles swapped for ``vehicle_files``)."""
+    out = []
+    for s in specs:
+        if controllers and s.controller not in controllers:
+            continue
+        m = copy.deepcopy(s.mapping)
+        m["controller"] = {**m.get("controller", {}), "basis": basis}
+        if vehicle_files:
+            m["vehicle"] = vehicle_files.get(m["vehicle"], m["vehicle"])
+        out.append(dataclasses.replace(s, mapping=m))
+    return out
+
+
+def true_inputs(result, vehicle) -> tuple[np.ndarray, np.ndarray]:
+    """Basis input rows from the log's *true* state (flow, rotor throttles, attitude, rates) and the true force."""
+    from ..bases import input_rows
+
+    v_i = result.columns_like(("v_i_x_mps", "v_i_y_mps", "v_i_z_mps"))
+    lift = result.columns_like(tuple(f"motor{i}_frac" for i in range(1, 5)))
+    u_z = np.sqrt(np.mean(lift * lift, axis=1))
+    x = input_rows(v_i, result["pusher_frac"], u_z, vehicle.model_kernel,
+                   q_WB=result.columns_like(("q_w", "q_x", "q_y", "q_z")),
+                   omega_B=result.columns_like(("omega_x_radps", "omega_y_radps", "omega_z_radps")),
+                   v_W=result.columns_like(("v_N_mps", "v_E_mps", "v_D_mps")))
+    return x, result.columns_like(("f_B_x_mps2", "f_B_y_mps2", "f_B_z_mps2"))
+
+
+def ceiling_fit(result, vehicle, spec) -> dict:
+    """The constant-weights ceiling of ``spec`` on one log: p95 error (g) per airspeed bin and whether all pass."""
+    from ..bases import evaluate
+
+    x, f = true_inputs(result, vehicle)
+    t = result.time_s
+    late = (t >= t[0] + PRED_ERR_SKIP_S) & np.all(np.isfinite(x), axis=1) & np.all(np.isfinite(f), axis=1)
+    Phi = evaluate(spec, x[late])
+    A = Phi.reshape(-1, spec.n)
+    y = f[late].reshape(-1)
+    theta, *_ = np.linalg.lstsq(A, y, rcond=None)
+    e = np.linalg.norm((y - A @ theta).reshape(-1, 3), axis=1) / GRAVITY_MPS2
+    airspeed = result["airspeed_mps"][late]
+    bins = {}
+    for i, lab in enumerate(airspeed_bin_labels()):
+        sel = (airspeed >= AIRSPEED_BINS_MPS[i]) & (airspeed < AIRSPEED_BINS_MPS[i + 1])
+        bins[lab] = float(np.percentile(e[sel], 95)) if sel.any() else None
+    ok = all(v < 0.05 for v in bins.values() if v is not None)
+    return {"p95_g": bins, "pass": ok}
+
+
+def run_ceilings(specs, bases_specs: dict, workers: int = 2) -> list[dict]:
+    """Fly each draw once (composite, paper basis) and fit every basis's constant weights to it."""
+    from ..sim.driver import simulate
+    from ..sim.scenario import scenario_from_mapping
+
+    draws = [s for s in specs if s.controller == "composite"]
+
+    def one(s):
+        m = copy.deepcopy(s.mapping)
+        m["controller"] = {**m.get("controller", {}), "kind": "composite", "basis": "paper"}
+        sc = scenario_from_mapping(m, s.source, source_path=s.source)
+        res = simulate(sc)
+        veh = sc.load_vehicle()
+        row = {"run": s.index, **{f"group.{k}": v for k, v in s.groups.items()}}
+        for name, by_vehicle in bases_specs.items():
+            row[name] = ceiling_fit(res, veh, by_vehicle[veh.name])
+        return row
+
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        return sorted(pool.map(one, draws), key=lambda r: r["run"])
+
+
+def _frac(outcomes) -> dict:
+    f = fraction_holding(outcomes)
+    return {"fraction": f.fraction, "ci95": list(f.ci95), "successes": f.successes, "n": f.n}
+
+
+def compare(out: Path, rows: dict[str, Path], ceilings: list[dict]) -> dict:
+    """comparison.json and comparison.md from each row's summary.json and the ceilings."""
+    table: dict = {"rows": {}, "ceiling": {}, "held_out": HELD_OUT}
+    for name, folder in rows.items():
+        s = json.loads((folder / "summary.json").read_text())
+        entry = {"targets": {k: s["targets"][k] for k in ("pred_err_every_bin", "beats_pid_pd", "finite_logs",
+                                                          "alpha_protect_brief")},
+                 "by_airspeed": {b: v["pred_err_every_bin"] for b, v in s["by_airspeed"].items()},
+                 "groups": {f"{g}: {lab}": {k: v[k] for k in ("pred_err_every_bin", "beats_pid_pd")}
+                            for g, labs in s["groups"].items() for lab, v in labs.items()},
+                 "controllers": {c: {k: v.get(k) for k in ("beats_pid_pd",)} for c, v in s["controllers"].items()},
+                 "campaign": s["campaign"]}
+        table["rows"][name] = entry
+    for basis in (ceilings[0].keys() - {"run"} if ceilings else ()):
+        if basis.startswith("group."):
+            continue
+        table["ceiling"][basis] = {"all": _frac(r[basis]["pass"] for r in ceilings)}
+        for g in sorted({k for r in ceilings for k in r if k.startswith("group.")}):
+            for lab in sorted({r[g] for r in ceilings}):
+                table["ceiling"][basis][f"{g[6:]}: {lab}"] = _frac(r[basis]["pass"] for r in ceilings if r[g] == lab)
+    (out / "comparison.json").write_text(json.dumps(table, indent=1))
+    (out / "comparison.md").write_text(markdown(table))
+    return table
+
+
+def _cell(d: dict | None) -> str:
+    if not d or not d.get("n"):
+        return "–"
+    lo, hi = d["ci95"]
+    return f"{d['fraction']:.2f} ({d['successes']}/{d['n']}) [{lo:.2f}, {hi:.2f}]"
+
+
+def markdown(table: dict) -> str:
+    """The comparison as Markdown tables (README "Force-model bases compared")."""
+    rows = table["rows"]
+    names = list(rows)
+    any_row = rows[names[0]]
+    c = any_row["campaign"]
+    lines = [f"Envelope campaign draws: {c.get('runs', '?')} (seed {c.get('seed', '?')}), every controller "
+             "adapting the basis of the column; fraction of draws where the target holds (successes/judged) "
+             "[95 % Wilson interval].", "",
+             "| target | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+    for key, label in (("pred_err_every_bin", "composite p95 prediction error < 0.05 g in every airspeed bin"),
+                       ("beats_pid_pd", "every adaptive law beats PID and PD (RMS ‖ṽ‖)"),
+                       ("finite_logs", "every log finite"),
+                       ("alpha_protect_brief", "composite: α past the protected angle only briefly")):
+        lines.append(f"| {label} | " + " | ".join(_cell(rows[n]["targets"][key]) for n in names) + " |")
+    for b in any_row["by_airspeed"]:
+        lines.append(f"| p95 < 0.05 g in bin {b} m/s | " + " | ".join(_cell(rows[n]["by_airspeed"].get(b))
+                                                                    for n in names) + " |")
+    for g in any_row["groups"]:
+        held = any(g.endswith(f": {v}") and g.startswith(k) for k, v in table["held_out"].items())
+        tag = " (held out of training)" if held else ""
+        lines.append(f"| p95 every bin, {g}{tag} | " + " | ".join(
+            _cell(rows[n]["groups"].get(g, {}).get("pred_err_every_bin")) for n in names) + " |")
+    if table["ceiling"]:
+        bases = list(table["ceiling"])
+        lines += ["", "Constant-weights ceiling (least squares on the true specific force with the true flow, "
+                      "throttles, attitude and rates; the same target):", "",
+                  "| draws | " + " | ".join(bases) + " |", "|---|" + "---|" * len(bases)]
+        for key in table["ceiling"][bases[0]]:
+            lines.append(f"| {key} | " + " | ".join(_cell(table["ceiling"][b].get(key)) for b in bases) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    from ..bases import describe_basis
+    from ..campaign.runner import plan_campaign_file, run_campaign
+    from ..vehicle import load_vehicle
+
+    p = argparse.ArgumentParser(prog="python -m vtoladapt.learn.evaluate", description=__doc__.split("\n\n")[0])
+    p.add_argument("--campaign", type=Path, default=CAMPAIGN)
+    p.add_argument("--runs", type=int, default=40)
+    p.add_argument("--seed", type=int, default=None, help="default: the campaign file's (1111)")
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--bases", default=",".join(BASES))
+    p.add_argument("--no-cross", action="store_true", help="skip the held-out-airframe row")
+    p.add_argument("--no-ceiling", action="store_true")
+    p.add_argument("--controllers", default="", help="comma-separated subset (default: the file's)")
+    p.add_argument("--workers", type=int, default=2)
+    args = p.parse_args(argv)
+    cf, specs = plan_campaign_file(args.campaign, runs=args.runs, seed=args.seed)
+    controllers = [c for c in args.controllers.split(",") if c] or None
+    args.out.mkdir(parents=True, exist_ok=True)
+    info = {"file": str(args.campaign), "runs": args.runs, "seed": args.seed or cf.config.seed,
+            "sampling": cf.config.sampling, "duration_s": 40.0}
+    rows: dict[str, Path] = {}
+    plan = [(b, b, None) for b in args.bases.split(",")]
+    if not args.no_cross and "learned" in args.bases.split(","):
+        plan.append(("learned (other airframe's network)", "learned", cross_vehicle_files(args.out / "vehicles")))
+    for name, basis, vfiles in plan:
+        folder = args.out / name.split(" ")[0] if vfiles is None else args.out / "learned_cross"
+        t0 = time.perf_counter()
+        run_campaign(specs_for(specs, basis, vfiles, controllers), folder, scheduler="none", n_workers=args.workers,
+                     show_progress=False, campaign=dict(info, basis=basis, cross=vfiles is not None))
+        print(f"{name}: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
+        rows[name] = folder
+    ceilings = []
+    if not args.no_ceiling:
+        t0 = time.perf_counter()
+        by = {b: {v: describe_basis(load_vehicle(v), b) for v in FAMILIES} for b in args.bases.split(",")}
+        ceilings = run_ceilings(specs, by, args.workers)
+        (args.out / "ceilings.json").write_text(json.dumps(ceilings, indent=1))
+        print(f"ceilings: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
+    table = compare(args.out, rows, ceilings)
+    print(markdown(table))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
