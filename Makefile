@@ -27,8 +27,8 @@ test-slow: $(STAMP)
 reproduce: $(STAMP)
 	$(VENV)/bin/vtoladapt reproduce --out $(OUT)
 
-# Re-tune every law's declared gains on the paper's comparison (one budget for every law; about 10 min
-# on 2 idle cores). make reproduce reads the shipped results in scenarios/tuned/ and does not re-tune.
+# Re-tune every law on the paper's comparison: the shared loop gains and its own, one budget for every law
+# (23 min on 2 cores shared with other jobs). make reproduce reads the shipped results in scenarios/tuned/ and does not re-tune.
 tune: $(STAMP)
 	$(VENV)/bin/vtoladapt tune scenarios/paper_comparison.toml --controller all --out scenarios/tuned --force
 

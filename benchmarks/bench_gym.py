@@ -123,7 +123,7 @@ def _vector_rows() -> list[tuple[str, float, str]]:
 
 def _split_rows() -> list[tuple[str, float, str]]:
     from vtoladapt.gym import HoldVectorEnv
-    from vtoladapt.gym.kernel import OP_STEP
+    from vtoladapt.gym.batch_kernel import OP_STEP
 
     num_envs, steps = 256, 100
     actions = np.random.default_rng(1).uniform(-0.1, 0.1, (steps, num_envs, 5)).astype(np.float32)

@@ -110,11 +110,12 @@ def _part_rows() -> list[tuple[str, float, str]]:
 
     from vtoladapt import layout
     from vtoladapt.control.step import controller_functions, controller_step, diagnostics_size
+    from vtoladapt.parts import draw
+    from vtoladapt.sensors import sensors_at
+    from vtoladapt.sim.driver import prepare
     from vtoladapt.sim.plant import RK4_WORK_SIZE, plant_advance, plant_first_stage
     from vtoladapt.sim.scenario import scenario_from_mapping
-    from vtoladapt.sensors import sensors_step
-    from vtoladapt.sim.driver import prepare
-    from vtoladapt.wind import wind_step
+    from vtoladapt.wind import wind_at
 
     run = prepare(scenario_from_mapping(SCENARIO, "bench_sim"))
 
@@ -132,15 +133,19 @@ def _part_rows() -> list[tuple[str, float, str]]:
         for _ in range(n):
             controller_step(fns, p, s, meas, ref, 0.004, cmd, diag)
 
-    @njit
-    def sens(p, s, x, f, vi, rng, meas, n):
+    # without reference counting, as the tick that calls them (the slices the inlined part calls take
+    # would otherwise cost an atomic increment and decrement each)
+    @njit(_nrt=False)
+    def sens(table, p, s, draws, x, truth, rng, meas, n):
         for k in range(n):
-            sensors_step(p, s, k * 0.004, 0.004, x, f, vi, rng, meas)
+            draw(rng, table, draws)
+            sensors_at(table, p, s, k * 0.004, 0.004, x, truth, draws, meas)
 
-    @njit
-    def wind(p, s, pos, rng, out, n):
+    @njit(_nrt=False)
+    def wind(table, p, s, draws, pos, rng, out, n):
         for k in range(n):
-            wind_step(p, s, k * 0.004, 0.004, pos, rng, out)
+            draw(rng, table, draws)
+            wind_at(table, p, s, k * 0.004, 0.004, pos, draws, out)
 
     x = run.x0.copy()
     motors = np.array([0.58, 0.58, 0.58, 0.58, 0.2])
@@ -153,7 +158,10 @@ def _part_rows() -> list[tuple[str, float, str]]:
     rng = np.random.default_rng(0)
     cmd = np.zeros(layout.CMD_SIZE)
     diag = np.zeros(diagnostics_size(run.controller_params))
-    out = np.zeros(3)
+    out = np.zeros(layout.WIND_SIZE)
+    truth = layout.TRUTH.pack(F_B=[0.0, 0.0, -9.8], V_I_B=[9.0, 0.0, 0.5])
+    sensor_table, sp, _, sd = run.sensors()
+    wind_table, wp, _, wd = run.wind()
 
     def per_call(fn, *args, n=5000):
         fn(*args, 10)
@@ -169,10 +177,10 @@ def _part_rows() -> list[tuple[str, float, str]]:
         ("controller_step (composite, compiled)", per_call(ctrl, controller_functions(run.controller_params),
                                                            run.controller_params, run.controller_state,
                                                            meas, run.reference_table[0], cmd, diag), "us/tick"),
-        ("sensors_step (all on, pressure probe)", per_call(sens, run.sensor_params, run.sensor_state, x,
-                                                          np.array([0.0, 0.0, -9.8]), np.array([9.0, 0.0, 0.5]),
-                                                          rng, meas), "us/tick"),
-        ("wind_step (fan + Dryden)", per_call(wind, run.wind_params, run.wind_state, x[:3], rng, out), "us/tick"),
+        ("sensors: four channels (all on, pressure probe), draws included",
+         per_call(sens, sensor_table, sp, run.sensor_state, sd, x, truth, rng, meas), "us/tick"),
+        ("wind: four parts (fan + Dryden), draws included",
+         per_call(wind, wind_table, wp, run.wind_state, wd, x[:3], rng, out), "us/tick"),
     ]
 
 

@@ -1,9 +1,11 @@
 """Per-call cost of the wind and sensor kernels inside compiled loops.
 
-``run()`` returns ``(name, value, unit)`` rows: the median over repeats of the time per call of
-``wind_step`` (fan schedule with spin-up lag, a gust and Dryden turbulence on) and of
-``sensors_step`` (every sensor on, differentiated mocap velocity, probe dropout), each called in
-an ``njit`` loop with a moving truth (so nothing is hoisted). Timed with the process's CPU clock,
+``run()`` returns ``(name, value, unit)`` rows: the median over repeats of the time per tick of
+the wind (the four package parts through their table, :func:`vtoladapt.wind.wind_at`: fan schedule
+with spin-up lag, a gust and Dryden turbulence on) and of the sensors (the four channels through
+theirs, :func:`vtoladapt.sensors.sensors_at`: every sensor on, differentiated mocap velocity, probe
+dropout), their draws included (:func:`vtoladapt.parts.draw`), each called in an ``njit`` loop with
+a moving truth (so nothing is hoisted). Timed with the process's CPU clock,
 so other jobs sharing the machine do not inflate the figures. A few seconds, plus Numba
 compilation on a cold cache.
 """
@@ -15,37 +17,37 @@ import numpy as np
 from numba import njit
 
 from vtoladapt import layout
-from vtoladapt.sensors import (MocapConfig, ProbeConfig, SensorsConfig, sensors_initial_state,
-                               sensors_step)
-from vtoladapt.wind import WindConfig, comparison_schedule, wind_initial_state, wind_step
+from vtoladapt.parts import draw
+from vtoladapt.sensors import MocapConfig, ProbeConfig, SensorsConfig, sensors_at
+from vtoladapt.wind import WindConfig, comparison_schedule, wind_at
 
 DT = 0.004
 
 
-# not cached: Numba's cache does not see edits to the kernels it calls in other files
-@njit(cache=False)
-def _loop_wind(params, state, rng, n_calls):
-    out = np.empty(3)
-    p_W = np.zeros(3)
+# not cached: Numba's cache does not see edits to the kernels it calls in other files; without reference
+# counting, as the tick that calls the parts (their inlined slices would otherwise count references)
+@njit(cache=False, _nrt=False)
+def _loop_wind(table, params, state, draws, out, p_W, rng, n_calls):
     acc = 0.0
     for k in range(n_calls):
         t = (k % 12500) * 0.004
-        wind_step(params, state, t, 0.004, p_W, rng, out)
+        draw(rng, table, draws)
+        wind_at(table, params, state, t, 0.004, p_W, draws, out)
         acc += out[0] + out[1] + out[2]
     return acc
 
 
-@njit(cache=False)
-def _loop_sensors(params, state, x, f_B, v_i, rng, n_calls):
-    meas = np.empty(20)
+@njit(cache=False, _nrt=False)
+def _loop_sensors(table, params, state, draws, x, truth, meas, rng, n_calls):
     acc = 0.0
     for k in range(n_calls):
         s = 1e-4 * (k % 1000)
         x[0] = s
         x[4] = s
-        f_B[0] = s
-        v_i[0] = 5.0 + s
-        sensors_step(params, state, k * 0.004, 0.004, x, f_B, v_i, rng, meas)
+        truth[layout.TRUTH_F_B] = s
+        truth[layout.TRUTH_V_I_B] = 5.0 + s
+        draw(rng, table, draws)
+        sensors_at(table, params, state, k * 0.004, 0.004, x, truth, draws, meas)
         acc += meas[0] + meas[13] + meas[19]
     return acc
 
@@ -61,29 +63,31 @@ def _median_us_per_call(fn, args, n_calls: int, repeats: int) -> float:
 
 
 def run() -> list[tuple[str, float, str]]:
-    """Time ``wind_step`` and ``sensors_step``; return ``(name, us per call, "us/call")`` rows."""
+    """Time the wind and the sensors of a tick; return ``(name, us per call, "us/call")`` rows."""
     wind = WindConfig.from_mapping({
         "fan_array": {"schedule": comparison_schedule(), "spin_up_time_constant_s": 0.5},
         "turbulence": {"enabled": True, "w20_mps": 7.7, "altitude_m": 2.0},
         "gusts": [{"shape": "one_minus_cosine", "start_s": 12.0, "duration_s": 2.0,
                    "amplitude_mps": [0.0, 1.0, 0.0]}]})
-    wp = wind.to_kernel()
+    wp = wind.assemble()
     rng = np.random.default_rng(0)
-    wind_us = _median_us_per_call(_loop_wind, (wp, wind_initial_state(wp), rng), 200_000, 15)
+    wind_us = _median_us_per_call(_loop_wind, (wp.table, wp.params, wp.initial_state(rng), np.zeros(wp.draws_size),
+                                               np.zeros(layout.WIND_SIZE), np.zeros(3), rng), 200_000, 15)
 
     sens = SensorsConfig(mocap=MocapConfig(velocity_from="differentiate"),
                          probe=ProbeConfig(dropout_probability=0.01))
-    sp = sens.to_kernel()
+    sp = sens.assemble()
     x = layout.pack_state([0.0, 0.0, -1.5], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0],
                           [0.0, 0.0, 0.0], [0.5] * 5)
-    f_B = np.array([0.0, 0.0, -9.80665])
-    v_i = np.array([5.0, 0.0, 0.3])
+    truth = layout.TRUTH.pack(F_B=[0.0, 0.0, -9.80665], V_I_B=[5.0, 0.0, 0.3])
     sensors_us = _median_us_per_call(
-        _loop_sensors, (sp, sensors_initial_state(sp, rng), x, f_B, v_i, rng), 200_000, 15)
-    return [("wind_step (fan + lag + gust + Dryden)", wind_us, "us/call"),
-            ("sensors_step (all sensors on)", sensors_us, "us/call")]
+        _loop_sensors, (sp.table, sp.params, sp.initial_state(rng), np.zeros(sp.draws_size), x, truth,
+                        np.zeros(layout.MEAS_SIZE), rng),
+        200_000, 15)
+    return [("wind: four parts (fan + lag + gust + Dryden), draws included", wind_us, "us/call"),
+            ("sensors: four channels (all on), draws included", sensors_us, "us/call")]
 
 
 if __name__ == "__main__":
     for name, value, unit in run():
-        print(f"{name:45s} {value:8.3f} {unit}")
+        print(f"{name:60s} {value:8.3f} {unit}")

@@ -10,7 +10,7 @@ import numpy as np
 
 from vtoladapt.control.blocks import P_BASIS_KEY, P_LAW_KEY
 from vtoladapt.control.step import (controller_functions, controller_step_at, diagnostics_columns, diagnostics_size,
-                                    function_addresses)
+                                    function_table)
 
 _BOUND: dict = {}
 
@@ -20,7 +20,7 @@ def addresses(params: np.ndarray) -> np.ndarray:
     key = (float(params[P_LAW_KEY]), float(params[P_BASIS_KEY]))
     if key not in _BOUND:
         fns = controller_functions(params)
-        _BOUND[key] = (fns, function_addresses(fns))
+        _BOUND[key] = (fns, function_table(fns))
     return _BOUND[key][1]
 
 

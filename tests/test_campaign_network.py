@@ -24,7 +24,7 @@ def test_local_cluster_listens_on_loopback_only():
     """
     from dask.distributed import Client
 
-    from vtoladapt.campaign.runner import local_cluster
+    from vtoladapt.campaign.cluster import local_cluster
 
     with local_cluster(n_workers=2) as cluster, Client(cluster):
         me = psutil.Process()

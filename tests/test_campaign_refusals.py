@@ -10,9 +10,10 @@ from pathlib import Path
 import pytest
 
 from conftest import SHORT_FAN_SCENARIO
+import vtoladapt.campaign.cluster as campaign_cluster
 import vtoladapt.campaign.runner as campaign
-from vtoladapt.campaign.runner import MAX_CAMPAIGN_RUNS, Variation, plan_campaign, plan_campaign_file
 from vtoladapt.campaign.cluster import check_listen
+from vtoladapt.campaign.runner import MAX_CAMPAIGN_RUNS, Variation, plan_campaign, plan_campaign_file
 from vtoladapt.cli import main
 from vtoladapt.config import ConfigError
 from vtoladapt.errors import ExitCode
@@ -161,7 +162,7 @@ def test_runs_beyond_the_ceiling_is_refused_up_front_for_a_scenario_and_a_campai
     ("bad_host", "not an IP address or host name"),
 ])
 def test_a_listen_host_that_this_machine_cannot_listen_on_is_refused(tmp_path, capsys, monkeypatch, host, needle):
-    monkeypatch.setattr(campaign, "local_cluster", _must_not_plan)
+    monkeypatch.setattr(campaign_cluster, "local_cluster", _must_not_plan)
     path = _campaign(tmp_path, "")
     rc = main(["campaign", str(path), "--listen", host, "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err.strip()

@@ -340,3 +340,28 @@ def test_composite_adapts_toward_the_plant(vehicle):
     e = r.columns_like(("pred_err_x_mps2", "pred_err_y_mps2", "pred_err_z_mps2"))[t >= 20.0]
     rms_g = float(np.sqrt(np.mean(np.sum(e ** 2, axis=1)))) / GRAVITY_MPS2
     assert rms_g < 0.05, f"prediction error RMS {rms_g:.3g} g over the last 5 s"
+
+
+def test_paper_forgetting_winds_up_in_still_air_and_the_shipped_law_does_not(vehicle):
+    """Covariance wind-up (README "Deviations from the paper"), against its analytic rate.
+
+    Hover in still air with perfect sensors: the aircraft holds still, so the true incident velocity
+    and with it the regressor's aerodynamic columns (C_D0's is ``V^2``) are zero. There the paper's
+    ``Gamma' = W^T W - lambda Gamma`` is ``Gamma' = -lambda Gamma``: the information decays as
+    ``e^{-lambda t}`` and P's diagonal grows as ``P0 e^{lambda t}`` (e^10 = 22 026 after 20 s at
+    lambda = 0.5 /s). The shipped ``Gamma' = W^T W - lambda (Gamma - Gamma_0)`` keeps
+    ``Gamma >= Gamma_0``, i.e. ``P <= P0``, and leaves an unexcited direction at P0.
+    """
+    duration_s, lam = 20.0, 0.5
+    P = {}
+    for mode in ("paper", "prior"):
+        r = _run(f"windup_{mode}", duration_s, [[0.0, 0.0], [duration_s, 0.0]], sensors=IDEAL_SENSORS,
+                 controller={"kind": "composite", "composite": {"forgetting": mode, "forgetting_lambda": lam}})
+        P[mode] = {n: r[f"P_diag_{n}"] for n in ("CTz", "CD0")}
+        t = r.time_s
+    P0_CD0 = P["prior"]["CD0"][0]
+    growth = P["paper"]["CD0"] / P0_CD0
+    np.testing.assert_allclose(growth, np.exp(lam * t), rtol=1e-6)   # at every logged tick
+    assert P["paper"]["CD0"][-1] > 2e4 * P0_CD0
+    np.testing.assert_allclose(P["prior"]["CD0"], P0_CD0, rtol=1e-9)     # unexcited: held at P0
+    assert np.all(P["prior"]["CTz"] <= P["prior"]["CTz"][0] * (1 + 1e-12))  # excited: below P0

@@ -10,6 +10,7 @@ import pytest
 
 from vtoladapt.campaign.runner import RunSpec, run_campaign
 from vtoladapt.config import ConfigError
+from vtoladapt.layout import STATE_COLUMNS
 from vtoladapt.sim.monitor import DivergenceError
 from vtoladapt.sim.monitor import EnvelopeConfig as EnvelopeDefault
 from vtoladapt.sim.results import SimulationResult
@@ -65,7 +66,7 @@ def test_absurd_thrust_coefficient_stops_at_the_first_ticks():
     assert len(res) == round(res.diverged_at_s / DT)
     assert res.divergence_reason.startswith(("non-finite state", "speed", "body rate"))
     assert "\n" not in res.divergence_reason
-    state = res.data[:, 1:1 + 18]
+    state = res.columns_like(STATE_COLUMNS)
     assert np.isfinite(state).all()
     with pytest.raises(DivergenceError, match="run diverged: "):
         res.raise_if_diverged()
@@ -197,3 +198,41 @@ def test_a_start_far_from_the_reference_stops_before_the_first_tick():
     assert res.diverged and res.diverged_at_s == 0.0 and len(res) == 0
     assert res.divergence_reason == ("position 5 m from the reference, above envelope.max_position_error_m = 2, "
                                      "at t = 0.000 s")
+
+
+# --- issue #27, item 7: a non-finite state stops the run with the envelope off too --------------------
+
+def _nan_without_envelope():
+    """A plant of 1e-300 kg (refused by the ranges, forced past them) with [envelope] enabled = false:
+    before the fix NaN from the first tick, every metric null, exit 0."""
+    s = scenario_from_mapping(_mapping(duration_s=1.0, envelope={"enabled": False}), "nan.toml")
+    return _forced(s, plant=_forced(s.plant, mass_kg=1e-300))
+
+
+def test_a_non_finite_state_stops_the_run_with_the_envelope_off():
+    res = simulate(_nan_without_envelope())
+    assert res.diverged and res.divergence_reason.startswith("non-finite state")
+    assert np.isfinite(res.columns_like(STATE_COLUMNS)).all()
+    with pytest.raises(DivergenceError):
+        res.raise_if_diverged()
+
+
+def test_cli_run_with_a_non_finite_state_exits_1_with_the_envelope_off(tmp_path, monkeypatch, capsys):
+    import vtoladapt.cli as cli
+
+    monkeypatch.setattr(cli, "load_run_scenario", lambda *a, **k: _nan_without_envelope())
+    assert cli.main(["run", "nan.toml", "--out", str(tmp_path / "o"), "--quiet"]) == 1
+    assert "run diverged: non-finite state" in capsys.readouterr().err
+
+
+def test_campaign_counts_a_non_finite_run_as_diverged_with_the_envelope_off(tmp_path, monkeypatch):
+    import vtoladapt.sim.scenario as scenario_module
+
+    real = scenario_module.scenario_from_mapping
+    monkeypatch.setattr(scenario_module, "scenario_from_mapping",
+                        lambda m, source, **k: _nan_without_envelope() if source == "nan.toml" else real(m, source, **k))
+    specs = [RunSpec(0, _mapping(duration_s=0.5), "a.toml", {"seed": 1}),
+             RunSpec(1, _mapping(duration_s=0.5), "nan.toml", {"seed": 2})]
+    rows = run_campaign(specs, tmp_path, scheduler="none", n_workers=1, show_progress=False)
+    assert [r["diverged"] for r in rows] == [0.0, 1.0]
+    assert json.loads((tmp_path / "summary.json").read_text())["diverged_runs"] == 1

@@ -84,7 +84,7 @@ BAD_CASES = [
     (HEADER + ",wing_on", [GOOD_ROWS[0] + ",2"], ["line 2", "column 'wing_on'", "0 or 1"]),
     (HEADER + ",mass_kg", [GOOD_ROWS[0] + ",1.7", GOOD_ROWS[1] + ",1.8"],
      ["line 3", "column 'mass_kg'", "same in every row"]),
-    (HEADER + ",air_density_kgpm3", [GOOD_ROWS[0] + ",0"], ["column 'air_density_kgpm3'", "> 0"]),
+    (HEADER + ",air_density_kgpm3", [GOOD_ROWS[0] + ",0"], ["column 'air_density_kgpm3'", ">= 0.3"]),
     (HEADER + ",force_x_N", [GOOD_ROWS[0] + ",1"], ["'force_x_N' appears twice"]),
     (HEADER, [], ["no data rows"]),
 ]

@@ -16,7 +16,7 @@ import vtoladapt.gym as vgym
 from conftest import examples
 from vtoladapt.config import ConfigError
 from vtoladapt.gym import HoldEnv, HoldVectorEnv
-from vtoladapt.gym.config import RANDOMIZED_COEFFICIENTS, episode_scenario, make_config
+from vtoladapt.gym.settings import RANDOMIZED_COEFFICIENTS, episode_scenario, make_config
 from vtoladapt.gym.spaces import (ACTION_FIELDS, OBS_CMD, OBS_P_ERR, OBS_Q, OBS_SIZE, OBS_V,
                                   OBS_V_I, OBS_V_I_VALID, OBSERVATION_FIELDS, markdown_table)
 from vtoladapt.sim.scenario import load_scenario

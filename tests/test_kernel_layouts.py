@@ -19,11 +19,16 @@ from vtoladapt.wind import WindConfig, dryden, fan_array, gusts
 
 
 def _all_layouts():
+    from vtoladapt import parts
+    from vtoladapt.gym import batch_kernel, spaces
+    from vtoladapt.sensors import airflow_probe, attitude, imu, mocap
+    from vtoladapt.sim import faults, loop, monitor
+    from vtoladapt.wind import composer, constant
+
     found = []
-    for module in (layout, plant, sensors, mixer, fan_array, gusts, dryden, tip, sensor, estimation):
+    for module in (layout, plant, mixer, fan_array, gusts, dryden, constant, composer, tip, sensor, estimation, imu,
+                   mocap, attitude, airflow_probe, parts, faults, loop, monitor, batch_kernel, spaces):
         found += [(f"{module.__name__}.{n}", v) for n, v in vars(module).items() if isinstance(v, BlockLayout)]
-    from vtoladapt.wind import composer
-    found += [(f"vtoladapt.wind.composer.{n}", v) for n, v in vars(composer).items() if isinstance(v, BlockLayout)]
     return found
 
 
@@ -71,7 +76,9 @@ def test_wind_parameters_land_in_the_parts_blocks():
     from vtoladapt.wind import composer
 
     p = cfg.to_kernel()
-    fan = composer.WIND_PARAMS.view(p, "FAN")
+    assert cfg.assemble().ids == ("fan_array", "constant", "gusts", "turbulence")
+    np.testing.assert_array_equal(composer.WIND_PARAMS.view(p, "CONSTANT"), [1.0, 2.0, 3.0])
+    fan = composer.WIND_PARAMS.view(p, "FAN_ARRAY")
     np.testing.assert_array_equal(fan_array.FAN_PARAMS.view(fan, "T")[:2], [0.0, 2.0])
     np.testing.assert_array_equal(fan_array.FAN_PARAMS.view(fan, "U")[:2], [10.0, 40.0])
     np.testing.assert_allclose(fan_array.FAN_PARAMS.view(fan, "DIR"), [0.0, -1.0], atol=1e-15)
@@ -89,20 +96,22 @@ def test_sensor_parameters_land_in_their_blocks():
     cfg = sensors.SensorsConfig.from_mapping({"imu": {"gyro_range_dps": 1000.0}, "mocap": {"latency_s": 0.02},
                                               "attitude": {"noise_std_deg": 0.5},
                                               "probe": {"model": "pressure", "calibration": "single_k"}})
-    p = cfg.to_kernel(1.1, 1.2)
-    imu = sensors.SENSOR_PARAMS.view(p[:sensors.SENSORS_KERNEL_SIZE], "IMU")
-    assert sensors.IMU_PARAMS.view(imu, "GYRO_RANGE")[0] == pytest.approx(math.radians(1000.0))
-    mocap = sensors.SENSOR_PARAMS.view(p[:sensors.SENSORS_KERNEL_SIZE], "MOCAP")
-    assert sensors.MOCAP_PARAMS.view(mocap, "LATENCY")[0] == 0.02
-    att = sensors.SENSOR_PARAMS.view(p[:sensors.SENSORS_KERNEL_SIZE], "ATTITUDE")
-    assert sensors.ATTITUDE_PARAMS.view(att, "STD")[0] == pytest.approx(math.radians(0.5))
-    tail = p[sensors.SENSORS_KERNEL_SIZE:]
-    pp = sensors.PRESSURE_PROBE_PARAMS
-    assert pp.view(tail, "RHO_TRUE")[0] == 1.1 and pp.view(tail, "RHO_ASSUMED")[0] == 1.2
-    np.testing.assert_array_equal(pp.view(tail, "TIP"), ProbeTip().to_kernel())
-    np.testing.assert_array_equal(pp.view(tail, "SDP"), SDP33Sensor().to_kernel())
-    cal = tail[pp.offset("CAL"):]
+    suite = cfg.assemble(sensors.SensorContext(1.1, 1.2))
+    p = suite.params
+    imu = suite.block(p, "imu")
+    assert sensors.imu.PARAMS.view(imu, "GYRO_RANGE")[0] == pytest.approx(math.radians(1000.0))
+    mocap = suite.block(p, "mocap")
+    assert sensors.mocap.PARAMS.view(mocap, "LATENCY")[0] == 0.02
+    att = suite.block(p, "attitude")
+    assert sensors.attitude.PARAMS.view(att, "STD")[0] == pytest.approx(math.radians(0.5))
+    probe = suite.block(p, "probe")
+    pp = sensors.airflow_probe.PARAMS
+    assert pp.view(probe, "RHO_TRUE")[0] == 1.1 and pp.view(probe, "RHO_ASSUMED")[0] == 1.2
+    np.testing.assert_array_equal(pp.view(probe, "TIP"), ProbeTip().to_kernel())
+    np.testing.assert_array_equal(pp.view(probe, "SDP"), SDP33Sensor().to_kernel())
+    cal = probe[pp.offset("CAL"):]
     assert cal[estimation.CAL_KIND] == estimation.KIND_SINGLE_K and cal.size == estimation.SK_SIZE
+    assert suite.params_layout.fields[-1].size == pp.size + estimation.SK_SIZE  # the calibration ends the block
 
 
 def test_probe_and_mixer_arrays_follow_their_declarations(caltech):
@@ -133,13 +142,11 @@ def test_bound_offsets_are_their_fields():
     pairs.update(_prefix(layout, layout.MEASUREMENT, "MEAS_"))
     pairs.update(_prefix(layout, layout.REFERENCE, "REF_"))
     pairs.update(_prefix(layout, layout.COMMAND, "CMD_"))
-    pairs.update(_prefix(sensors, sensors.SENSOR_STATE, "_ST_"))
-    P = sensors.SENSOR_PARAMS
-    pairs.update(_prefix(sensors, sensors.IMU_PARAMS, "_", {"IDEAL": "_IMU_IDEAL"}, P.offset("IMU")))
-    pairs.update(_prefix(sensors, sensors.MOCAP_PARAMS, "_MOCAP_", base=P.offset("MOCAP")))
-    pairs.update(_prefix(sensors, sensors.ATTITUDE_PARAMS, "_ATT_", base=P.offset("ATTITUDE")))
-    pairs.update(_prefix(sensors, sensors.PROBE_PARAMS, "_PROBE_", base=P.offset("PROBE")))
-    pairs.update(_prefix(sensors, sensors.PRESSURE_PROBE_PARAMS, "_PP_", base=sensors.SENSORS_KERNEL_SIZE))
+    for channel in (sensors.imu, sensors.mocap, sensors.attitude, sensors.airflow_probe):
+        pairs.update(_prefix(channel, channel.PARAMS, "_"))
+        pairs.update(_prefix(channel, channel.STATE, "_S_"))
+        pairs.update(_prefix(channel, channel.DRAWS, "_D_"))
+    pairs.update({f"{k} (wind)": v for k, v in _prefix(dryden, dryden.TURBULENCE_STATE, "_S_").items()})
     pairs.update(_prefix(mixer, mixer.MIXER_PARAMS, "MX_"))
     wrong = {name: v for name, v in pairs.items() if v[0] != v[1]}
     assert wrong == {}

@@ -32,18 +32,22 @@ def test_readme_lists_every_range_as_the_code_checks_it():
 
 
 def test_readme_log_size_row_counts_the_logs_columns_and_their_ceilings():
-    """The size-ceiling row is written by hand: it must follow the log's width and the budget."""
-    from vtoladapt.sim.limits import log_columns, max_duration_s
-    from vtoladapt.sim.scenario import scenario_from_mapping
+    """The size-ceiling row is written by hand: it must follow the log's width, the budget's model
+    (vtoladapt.sim.limits.run_memory) and the ceilings it gives the shipped experiments."""
+    from dataclasses import replace
+
+    from vtoladapt.sim.limits import ANALYSIS_COLUMNS_PER_RUN, ANALYSIS_TRANSIENT_COLUMNS, log_columns, max_duration_s
+    from vtoladapt.sim.scenario import load_scenario
 
     row = next(ln for ln in README.read_text(encoding="utf-8").splitlines()
                if ln.startswith("| simulation logs"))
-    assert f"x up to {log_columns()} columns" in row
-    # every registered law compared at 250 Hz: the log as wide as the widest law's (its diagnostics)
-    at_250_hz = scenario_from_mapping({"name": "x", "vehicle": "caltech_vtol", "dt_control_s": 0.004, "duration_s": 1.0,
-                                       "experiment": {"kind": "comparison"}}, "x")
-    assert log_columns(at_250_hz) == log_columns()
-    for n_runs, label in ((1, "one run at 250 Hz: "), (8, "comparison: "), (7, "study: ")):
-        shown = float(row.split(label)[1].split(" s")[0].replace(" ", ""))
-        exact = max_duration_s(at_250_hz, n_runs)
+    assert f"the {log_columns()} columns" in row and f"({ANALYSIS_COLUMNS_PER_RUN} values per tick" in row
+    assert f"{ANALYSIS_TRANSIENT_COLUMNS} transient values per tick" in row
+    conv = load_scenario("paper_convergence")
+    for scenario, label in ((load_scenario("gym_hold"), "one run at 250 Hz: "),
+                            (load_scenario("paper_comparison"), "comparison: "),
+                            (conv, "variants: "),
+                            (replace(conv, experiment=replace(conv.experiment, variants=1)), "(")):
+        shown = float(row.split(label)[1 if label != "(" else -1].split(" s")[0].replace(" ", ""))
+        exact = max_duration_s(scenario)
         assert shown <= exact and shown > 0.99 * exact, (label, shown, exact)

@@ -103,7 +103,7 @@ def test_a_mocap_latency_beyond_its_ring_is_refused_at_load_naming_the_file(tmp_
 def _settings_objects():
     """One instance of every settings class reachable from the shipped configurations."""
     from vtoladapt.campaign.runner import load_campaign_file
-    from vtoladapt.gym.config import HoldEnvConfig
+    from vtoladapt.gym.settings import HoldEnvConfig
     from vtoladapt.sim.scenario import SCENARIO_DIR
 
     sc = scenario_from_mapping({
@@ -186,3 +186,11 @@ def test_a_value_outside_a_fields_declared_range_is_refused_when_built_in_python
     with pytest.raises(ConfigError) as info:
         dataclasses.replace(obj, **{name: bad})
     assert f"{name}" in str(info.value) and str(info.value).startswith(type(obj).__name__), str(info.value)
+
+
+def test_simulate_refuses_a_run_of_no_tick():
+    """Found by the hostile pass: duration_s below one dt_control_s raised UnboundLocalError."""
+    from vtoladapt.sim.driver import simulate
+
+    with pytest.raises(ConfigError, match="is 0 control ticks; a run needs at least 1"):
+        simulate(load_scenario("gym_hold").replace(duration_s=0.001))

@@ -90,9 +90,14 @@ def test_reproduce_ranks_the_laws_and_pairs_every_two(reproduced):
             assert len(d["per_variant"][cid][metric]) == n
     t = m["tuned"]
     assert set(t["settings"]) == set(CONTROLLERS) and t["variants"] == n and t["seeds"] == d["seeds"]
-    assert "nominal" not in t["flown"]                     # nothing to tune: not flown again
+    # a law is flown again exactly when its tuned settings differ from its defaults
+    assert set(t["flown"]) == {c for c in CONTROLLERS if t["settings"][c]["tuned"] != t["settings"][c]["default"]}
     for cid in CONTROLLERS:
         assert t["vs_default"][cid]["vel_err_rms_mps"]["n"] == n
         assert t["tuning"][cid]["evaluations"] >= 1
+    from vtoladapt.experiments.tuning import TRACKING_CLAIMS
+
+    assert set(t["claims"]) == set(TRACKING_CLAIMS) and all(c["n"] == n for c in t["claims"].values())
     md = (reproduced / "report.md").read_text()
     assert "## Ranking and paired differences" in md and "C. Adapt − PID" in md and "Default against tuned" in md
+    assert "The gains each law flies" in md and "tracking claims with every law's tuned settings" in md

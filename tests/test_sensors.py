@@ -11,7 +11,6 @@ import math
 import numpy as np
 import pytest
 from hypothesis import given, strategies as st
-from numba import njit
 from scipy.spatial.transform import Rotation
 
 from vtoladapt import layout, sensors
@@ -23,19 +22,27 @@ from vtoladapt.sensors import (
     MocapConfig,
     ProbeConfig,
     SensorsConfig,
-    sensors_initial_state,
-    sensors_step,
+    run_sensor_model,
     specific_force_B,
 )
+from vtoladapt.sensors import imu
 
 DT = 0.004
 
 
-# not cached: Numba's cache does not see edits to the kernels it calls in other files
-@njit(cache=False)
-def _run(params, state, dt, X, F, VI, rng, out):
-    for k in range(X.shape[0]):
-        sensors_step(params, state, k * dt, dt, X[k], F[k], VI[k], rng, out[k])
+class _Suite:
+    """A configuration's channels and a run's state of them (what a simulation holds)."""
+
+    def __init__(self, cfg: SensorsConfig, rng):
+        self.parts = cfg.assemble()
+        self.params = self.parts.params
+        self.state = self.parts.initial_state(rng)
+
+    def run(self, dt, X, F, VI, rng):
+        return run_sensor_model(self.parts, self.state, dt, X, F, VI, rng)
+
+    def imu_biases(self):
+        return imu.biases(self.parts.block(self.state, "imu", of="state"))
 
 
 def _truth(n: int, seed: int = 0):
@@ -60,13 +67,9 @@ def _truth(n: int, seed: int = 0):
 
 
 def _simulate(cfg: SensorsConfig, X, F, VI, seed: int = 1, dt: float = DT):
-    params = cfg.to_kernel()
     rng = np.random.default_rng(seed)
-    state = sensors_initial_state(params, rng)
-    out = np.empty((X.shape[0], layout.MEAS_SIZE))
-    _run(params, state, dt, np.ascontiguousarray(X), np.ascontiguousarray(F),
-         np.ascontiguousarray(VI), rng, out)
-    return out, state
+    suite = _Suite(cfg, rng)
+    return suite.run(dt, np.ascontiguousarray(X), np.ascontiguousarray(F), np.ascontiguousarray(VI), rng), suite
 
 
 def _quiet(**overrides) -> SensorsConfig:
@@ -125,7 +128,7 @@ def test_accelerometer_at_rest_level_reads_minus_g_plus_its_bias():
     F = np.tile(specific_force_B(np.zeros(3), np.eye(3)), (n, 1))
     meas, state = _simulate(SensorsConfig(), X, F, np.zeros((n, 3)))
     acc = meas[:, layout.MEAS_ACCEL_B:layout.MEAS_ACCEL_B + 3]
-    bias = sensors.imu_biases(state)[1]
+    bias = state.imu_biases()[1]
     sigma = 175e-6 * GRAVITY_MPS2 / math.sqrt(DT)
     # mean within 5 standard errors of -g + bias
     np.testing.assert_allclose(acc.mean(axis=0), np.array([0.0, 0.0, -GRAVITY_MPS2]) + bias,
@@ -171,21 +174,18 @@ def test_biases_are_constant_over_a_run_and_drawn_with_the_configured_std():
     n = 5000
     _, X, F, VI = _truth(n)
     cfg = SensorsConfig(imu=ImuConfig(gyro_bias_std_dps=0.3, accel_bias_std_mps2=0.08))
-    params = cfg.to_kernel()
     rng = np.random.default_rng(4)
-    state = sensors_initial_state(params, rng)
-    b0 = np.concatenate(sensors.imu_biases(state))
-    out = np.empty((n, layout.MEAS_SIZE))
-    _run(params, state, DT, X, F, VI, rng, out)
+    suite = _Suite(cfg, rng)
+    b0 = np.concatenate(suite.imu_biases())
+    out = suite.run(DT, X, F, VI, rng)
     # no random walk configured: the biases do not change
-    assert np.array_equal(np.concatenate(sensors.imu_biases(state)), b0)
+    assert np.array_equal(np.concatenate(suite.imu_biases()), b0)
     gyro_err = (out[:, layout.MEAS_OMEGA_B:layout.MEAS_OMEGA_B + 3]
                 - X[:, layout.X_OMEGA_B:layout.X_OMEGA_B + 3])
     sg = math.radians(0.007) * math.sqrt(250.0)
     np.testing.assert_allclose(gyro_err.mean(axis=0), b0[:3], atol=5 * sg / math.sqrt(n))
     # the biases across many runs have the configured spread (3000 draws: 1.3 % s.e.; allow 7 %)
-    draws = np.array([np.concatenate(sensors.imu_biases(
-        sensors_initial_state(params, np.random.default_rng(s)))) for s in range(3000)])
+    draws = np.array([np.concatenate(_Suite(cfg, np.random.default_rng(s)).imu_biases()) for s in range(3000)])
     np.testing.assert_allclose(draws[:, :3].std(axis=0), math.radians(0.3), rtol=0.07)
     np.testing.assert_allclose(draws[:, 3:].std(axis=0), 0.08, rtol=0.07)
 
@@ -196,8 +196,7 @@ def test_bias_random_walk_grows_with_the_square_root_of_time():
                                gyro_bias_std_dps=0.0, accel_bias_std_mps2=0.0,
                                accel_bias_random_walk_mps2_rts=q))
     _, X, F, VI = _truth(n)
-    finals = np.array([sensors.imu_biases(_simulate(cfg, X, F, VI, seed=s)[1])[1]
-                       for s in range(runs)])
+    finals = np.array([_simulate(cfg, X, F, VI, seed=s)[1].imu_biases()[1] for s in range(runs)])
     # std after 1 s is q; s.e. of a std from 1200 values is ~2 %; allow 10 %
     assert finals.std() == pytest.approx(q * math.sqrt(n * DT), rel=0.10)
 
@@ -345,16 +344,15 @@ def test_making_one_sensor_ideal_leaves_the_others_noise_unchanged(imu, mocap, a
 def test_fixed_number_of_draws_per_step():
     _, X, F, VI = _truth(20)
     for cfg in (SensorsConfig(), SensorsConfig.all_ideal()):
-        params = cfg.to_kernel()
         rng = np.random.default_rng(2)
-        state = sensors_initial_state(params, rng)
-        out = np.empty((20, layout.MEAS_SIZE))
-        _run(params, state, DT, X, F, VI, rng, out)
+        _Suite(cfg, rng).run(DT, X, F, VI, rng)
         ref = np.random.default_rng(2)
         ref.standard_normal(sensors.SENSOR_DRAWS_INITIAL)
         for _ in range(20):
-            ref.standard_normal(sensors.SENSOR_NORMALS_PER_STEP)
-            ref.random()
+            for channel in (sensors.imu, sensors.mocap, sensors.attitude, sensors.airflow_probe):
+                ref.standard_normal(channel.NORMALS_PER_STEP)
+                for _ in range(channel.UNIFORMS_PER_STEP):
+                    ref.random()
         assert rng.random() == ref.random()
 
 
@@ -382,7 +380,13 @@ dropout_probability = 0.01
     assert cfg.mocap.velocity_from == "differentiate" and cfg.probe.dropout_probability == 0.01
     assert cfg.imu.gyro_bias_std_dps == 0.1   # defaults fill the rest
     assert "ideal_noise" in cfg.probe.describe()
-    assert cfg.to_kernel().shape == (sensors.SENSORS_KERNEL_SIZE,)
+    parts = cfg.assemble()
+    assert parts.ids == ("imu", "mocap", "attitude", "probe")
+    # the suite's parameters are its channels' blocks, nothing else (the ideal_noise probe has no calibration)
+    assert [f.size for f in parts.params_layout.fields] == [
+        sensors.imu.PARAMS.size, sensors.mocap.PARAMS.size, sensors.attitude.PARAMS.size,
+        sensors.airflow_probe.PARAMS.size]
+    assert cfg.to_kernel().size == parts.params_layout.size
 
 
 @pytest.mark.parametrize("data, fragment", [

@@ -3,18 +3,23 @@ import numpy as np
 import pytest
 
 from vtoladapt import layout
-from vtoladapt.sensors import ProbeConfig, SensorsConfig, draw_probe_offsets, sensors_initial_state, sensors_step
+from vtoladapt.sensors import ProbeConfig, SensorsConfig, airflow_probe, run_sensor_model
 
 
-def _step(params, v_i_B, rng, n=200, state=None):
-    """Run the sensors n ticks at a constant true incident velocity; return the last measurement."""
+def _run(cfg: SensorsConfig, v_i_B, rng, n=200, f=(0.0, 0.0, -9.80665)):
+    """Run the sensors n ticks at a constant true incident velocity; every measurement and the suite."""
+    parts = cfg.assemble()
+    state = parts.initial_state(rng)
     x = layout.pack_state([0, 0, -1], [0, 0, 0], [1, 0, 0, 0], [0, 0, 0], np.zeros(5))
-    state = sensors_initial_state(params, rng) if state is None else state
-    meas = np.empty(layout.MEAS_SIZE)
-    f = np.array([0.0, 0.0, -9.80665])
-    for k in range(n):
-        sensors_step(params, state, k * 0.004, 0.004, x, f, np.asarray(v_i_B, float), rng, meas)
-    return meas, state
+    meas = run_sensor_model(parts, state, 0.004, np.tile(x, (n, 1)), np.tile(np.asarray(f, float), (n, 1)),
+                            np.tile(np.asarray(v_i_B, float), (n, 1)), rng)
+    return meas, (parts, state)
+
+
+def _step(cfg: SensorsConfig, v_i_B, rng, n=200):
+    """The last measurement of :func:`_run`."""
+    meas, suite = _run(cfg, v_i_B, rng, n)
+    return meas[-1], suite
 
 
 def quiet(calibration):
@@ -29,7 +34,7 @@ def test_noise_free_pressure_probe_recovers_the_incident_velocity(alpha_deg, bet
     """Calibrated (spline) inversion of the simulated tip: within 0.05 deg and 0.2 % at 9 m/s."""
     a, b = np.radians(alpha_deg), np.radians(beta_deg)
     v = 9.0 * np.array([np.cos(a) * np.cos(b), np.sin(b), np.sin(a) * np.cos(b)])
-    meas, _ = _step(quiet("calibrated").to_kernel(), v, np.random.default_rng(0))
+    meas, _ = _step(quiet("calibrated"), v, np.random.default_rng(0))
     est = meas[layout.MEAS_V_I_B:layout.MEAS_V_I_B + 3]
     assert meas[layout.MEAS_V_I_VALID] == 1.0
     angle = np.degrees(np.arccos(np.clip(est @ v / (np.linalg.norm(est) * 9.0), -1, 1)))
@@ -39,7 +44,7 @@ def test_noise_free_pressure_probe_recovers_the_incident_velocity(alpha_deg, bet
 
 def test_single_k_is_the_papers_eq_aoa_with_the_tips_own_k():
     """Single-k inversion: exact at zero angles, a few percent off at 12 deg (the paper's model error)."""
-    params = quiet("single_k").to_kernel()
+    params = quiet("single_k")
     meas, _ = _step(params, [9.0, 0.0, 0.0], np.random.default_rng(0))
     np.testing.assert_allclose(meas[layout.MEAS_V_I_B:layout.MEAS_V_I_B + 3], [9.0, 0, 0], atol=1e-3)
     a = np.radians(12)
@@ -54,7 +59,7 @@ def test_single_k_is_the_papers_eq_aoa_with_the_tips_own_k():
 def test_invalid_flow_is_flagged_and_never_nan(v):
     """Hover, low speed, NaN truth, reversed flow: flagged invalid, or finite; never NaN when valid."""
     cfg = SensorsConfig(probe=ProbeConfig(model="pressure"))
-    meas, _ = _step(cfg.to_kernel(), v, np.random.default_rng(1), n=20)
+    meas, _ = _step(cfg, v, np.random.default_rng(1), n=20)
     if np.all(np.isfinite(v)) and np.linalg.norm(v) < 1.0:
         assert meas[layout.MEAS_V_I_VALID] == 0.0
     if meas[layout.MEAS_V_I_VALID] == 1.0:
@@ -66,16 +71,8 @@ def test_invalid_flow_is_flagged_and_never_nan(v):
 def test_noise_matches_propagated_sdp33_noise():
     """Speed noise at 9 m/s ~ sigma_q / (rho V) on the q_inf channel (dq = rho V dV)."""
     cfg = SensorsConfig(probe=ProbeConfig(model="pressure", sdp33_offset_std_Pa=0.0))
-    params = cfg.to_kernel()
-    rng = np.random.default_rng(3)
-    state = sensors_initial_state(params, rng)
-    x = layout.pack_state([0, 0, -1], [0, 0, 0], [1, 0, 0, 0], [0, 0, 0], np.zeros(5))
-    meas = np.empty(layout.MEAS_SIZE)
-    v = np.array([9.0, 0.0, 0.0])
-    speeds = []
-    for k in range(4000):
-        sensors_step(params, state, k * 0.004, 0.004, x, np.zeros(3), v, rng, meas)
-        speeds.append(np.linalg.norm(meas[layout.MEAS_V_I_B:layout.MEAS_V_I_B + 3]))
+    meas, _ = _run(cfg, [9.0, 0.0, 0.0], np.random.default_rng(3), n=4000, f=(0.0, 0.0, 0.0))
+    speeds = np.linalg.norm(meas[:, layout.MEAS_V_I_B:layout.MEAS_V_I_B + 3], axis=1)
     # the SDP33 lag (1 ms) at 4 ms ticks leaves the white noise essentially unfiltered
     rho, sigma_q = 1.225, 0.2
     expected = sigma_q / (rho * 9.0)
@@ -85,19 +82,26 @@ def test_noise_matches_propagated_sdp33_noise():
 
 
 def test_offsets_come_from_the_scenario_generator_and_shift_only_the_probe():
-    base = SensorsConfig(probe=ProbeConfig(model="pressure", sdp33_offset_std_Pa=0.2)).to_kernel()
-    a, b = base.copy(), base.copy()
-    draw_probe_offsets(a, 0.2, np.random.default_rng(5))
-    draw_probe_offsets(b, 0.2, np.random.default_rng(5))
+    parts = SensorsConfig(probe=ProbeConfig(model="pressure", sdp33_offset_std_Pa=0.2)).assemble()
+    a = parts.initial_state(np.random.default_rng(5))
+    b = parts.initial_state(np.random.default_rng(5))
     np.testing.assert_array_equal(a, b)
-    changed = np.nonzero(a != base)[0]
-    assert changed.size == 3  # the three SDP33 offsets, nothing else
+    probe = parts.block(parts.params, "probe"), parts.block(a, "probe", of="state")
+    offsets = airflow_probe.drawn_offsets_Pa(*probe)
+    # three draws of N(0, 0.2^2) Pa from the generator, after the IMU's six biases
+    ref = np.random.default_rng(5)
+    ref.standard_normal(6)
+    np.testing.assert_array_equal(offsets, 0.2 * ref.standard_normal(3))
+    # the same generator with zero offsets: the state differs in the three offsets and nowhere else
+    fresh = SensorsConfig(probe=ProbeConfig(model="pressure", sdp33_offset_std_Pa=0.0)).assemble()
+    changed = np.nonzero(a != fresh.initial_state(np.random.default_rng(5)))[0]
+    probe_slice = parts.state_layout.slice("PROBE")
+    assert changed.size == 3 and np.all((probe_slice.start <= changed) & (changed < probe_slice.stop))
 
 
 def test_switching_probe_model_leaves_other_sensors_bit_identical():
     """Both probe models draw the same count per tick, so the IMU and mocap noise do not move."""
     v = np.array([9.0, 0.0, 0.5])
-    m1, _ = _step(SensorsConfig().to_kernel(), v, np.random.default_rng(11), n=50)
-    m2, _ = _step(SensorsConfig(probe=ProbeConfig(model="pressure")).to_kernel(), v,
-                  np.random.default_rng(11), n=50)
+    m1, _ = _step(SensorsConfig(), v, np.random.default_rng(11), n=50)
+    m2, _ = _step(SensorsConfig(probe=ProbeConfig(model="pressure")), v, np.random.default_rng(11), n=50)
     np.testing.assert_array_equal(m1[:layout.MEAS_V_I_B], m2[:layout.MEAS_V_I_B])

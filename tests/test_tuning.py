@@ -36,19 +36,26 @@ schedule = [[0, 40], [1, 40]]
 """
 
 
-def test_every_law_declares_settings_of_its_own_inside_their_ranges():
+SHARED = ["controller.K_v[0:2]", "controller.K_v[2]", "controller.Lambda_p[0:2]", "controller.Lambda_p[2]",
+          "controller.Lambda_q[0:2]"]
+
+
+def test_every_law_searches_the_shared_gains_and_its_own_inside_their_ranges():
     for cid in controller_ids():
         specs = tuning.tunables(cid)
+        assert [t.name for t in specs[:len(SHARED)]] == SHARED          # the same shared space for every law
         config = ControllerConfig(kind=cid)
-        # the box's corners and centre are configurations the law accepts
+        # the defaults are what the first evaluation flies: setting them changes nothing
+        assert tuning.with_gains(config, cid, tuning.settings_of(config, cid)) == config
+        # the box's corners and centre are settings each gain accepts (a combination a law's own rule
+        # refuses, e.g. INDI's filter against the largest K_v, is refused as a whole: not flown)
         for u in (0.0, 0.5, 1.0):
-            tuned = tuning.with_gains(config, cid, {t.name: t.value(u) for t in specs})
-            got = tuning.settings_of(tuned, cid)
             for t in specs:
-                assert got[t.name] == pytest.approx(t.value(u), rel=1e-12)
-    assert tuning.tunables("nominal") == ()
-    assert [t.name for t in tuning.tunables("l1")] == ["cutoff_radps", "predictor_pole_radps"]
-    indi = tuning.tunables("indi")[0]
+                tuned = tuning.with_gains(replace(config, K_v=(0.5, 0.5, 1.0)), cid, {t.name: t.value(u)})
+                assert tuning.settings_of(tuned, cid)[t.name] == pytest.approx(t.value(u), rel=1e-12)
+    assert [t.name for t in tuning.tunables("nominal")] == SHARED
+    assert [t.name for t in tuning.tunables("l1")] == SHARED + ["cutoff_radps", "predictor_pole_radps"]
+    indi = tuning.tunables("indi")[len(SHARED)]
     assert indi.shared and indi.key == "lowpass_cutoff_hz"
 
 
@@ -67,6 +74,8 @@ def test_components_of_a_tuple_gain_are_set_together():
     (("K_D[0]", 0.0, 1.0, True), "above 0"),
     (("K_D[0]", -1.0, 1.0, False), "allowed range"),
     (("controller.no_such", 1.0, 2.0, True), "has no key"),
+    (("controller.K_v[0:2]", 1.0, 2.0, True), "already searched"),     # a shared gain declared again
+    (("controller.Lambda_q[1]", 1.0, 2.0, True), "already searched"),   # ... or a component of one
 ])
 def test_bad_declarations_are_refused(monkeypatch, entry, match):
     monkeypatch.setattr(CONTROLLERS["pid"].law, "TUNABLE", (entry,))
@@ -81,30 +90,68 @@ def test_tuning_draws_are_disjoint_from_the_evaluation_variants():
 
 
 def test_the_search_spends_its_budget_and_finds_an_analytic_minimum(monkeypatch):
-    """The objective replaced by a bowl in log(cutoff), log(pole) with its minimum inside the box:
+    """The objective replaced by a bowl in log(K_v north/east), log(cutoff), log(pole) with its
+    minimum inside the box (the shared gains cut to K_v's horizontal pair, so three dimensions):
     exactly ``evaluations`` evaluations, the first the defaults, the best near the minimum."""
-    target = {"cutoff_radps": 6.0, "predictor_pole_radps": 30.0}
+    from vtoladapt.control import settings as shared_config
+
+    monkeypatch.setattr(shared_config, "TUNABLE", (("K_v[0:2]", 0.5, 8.0, True),))
+    target = {"controller.K_v[0:2]": 3.0, "cutoff_radps": 6.0, "predictor_pole_radps": 30.0}
     calls = []
 
     def bowl(scenario, config, seeds, progress=None):
         calls.append(config)
         x = math.log(config.l1.cutoff_radps / target["cutoff_radps"])
         y = math.log(config.l1.predictor_pole_radps / target["predictor_pole_radps"])
-        return 0.04 + x * x + 0.5 * y * y, [0.0] * len(seeds)
+        z = math.log(config.K_v[0] / target["controller.K_v[0:2]"])
+        return 0.04 + x * x + 0.5 * y * y + z * z, [0.0] * len(seeds)
 
     monkeypatch.setattr(tuning, "objective", bowl)
     scenario = scenario_from_mapping(tomllib.loads(SHORT), "short.toml")
-    rec = tuning.tune(scenario, "l1", evaluations=40, draws=3)
-    assert len(calls) == 40 == rec["budget"]["evaluations"]
-    assert calls[0].l1 == ControllerConfig().l1                     # the defaults first
-    assert rec["default"]["settings"] == {"cutoff_radps": 2.5, "predictor_pole_radps": 10.0}
+    rec = tuning.tune(scenario, "l1", evaluations=80, draws=3)
+    assert len(calls) == 80 == rec["budget"]["evaluations"]
+    assert calls[0] == replace(scenario.controller, kind="l1")      # the defaults first
+    assert rec["default"]["settings"] == {"controller.K_v[0:2]": 1.8, "cutoff_radps": 2.5,
+                                          "predictor_pole_radps": 10.0}
     assert rec["tuned"]["objective"] <= rec["default"]["objective"]
     for k, v in target.items():
         assert abs(math.log(rec["tuned"]["settings"][k] / v)) < 0.15, (k, rec["tuned"]["settings"])
+    assert all(c.K_v[2] == scenario.controller.K_v[2] for c in calls)   # the vertical gain is not searched here
     assert rec["tuning_seeds"] == tuning.tuning_seeds(5, 3)
-    # a law with nothing to tune: one evaluation, its defaults
+    # a law with nothing to tune (no shared gains declared, none of its own): one evaluation, its defaults
+    monkeypatch.setattr(shared_config, "TUNABLE", ())
     rec = tuning.tune(scenario, "nominal", evaluations=40, draws=3)
     assert rec["budget"]["evaluations"] == 1 and rec["tuned"]["settings"] == {}
+
+
+def test_every_run_is_measured_with_the_scenarios_position_gain():
+    """A law flying a tuned Lambda_p is scored with the scenario's: the objective equals the RMS of
+    ``v - (v_d - Lambda_p,scenario (p - p_d))`` computed here from the log (no limit reached)."""
+    from vtoladapt.sim.driver import simulate
+
+    scenario = scenario_from_mapping(tomllib.loads(SHORT), "short.toml")
+    config = replace(scenario.controller, kind="nominal", Lambda_p=(3.0, 3.0, 2.5))
+    mean, per_draw = tuning.objective(scenario, config, [7])
+    res = simulate(replace(scenario, seed=7, controller=config))
+    p_err = res.position_W - res.columns_like(("ref_p_N_m", "ref_p_E_m", "ref_p_D_m"))
+    v_d = res.columns_like(("ref_v_N_mps", "ref_v_E_mps", "ref_v_D_mps"))
+    lam = np.asarray(scenario.controller.Lambda_p)
+    expected = float(np.sqrt(np.mean(np.sum((res.velocity_W - v_d + lam * p_err) ** 2, axis=1))))
+    assert mean == per_draw[0] == pytest.approx(expected, rel=1e-12)
+    own = float(np.sqrt(np.mean(np.sum(res.velocity_error_W ** 2, axis=1))))   # with the gain it flew
+    assert abs(own - expected) > 1e-6 * expected
+    measured = res.measured_with(scenario.controller.Lambda_p)
+    assert measured.data is res.data and res.metadata["Lambda_p"] == [3.0, 3.0, 2.5]    # shared, untouched
+    with pytest.raises(ValueError, match="three finite values"):
+        res.measured_with((1.0, float("nan"), 1.0))
+
+
+def test_box_edges():
+    assert tuning.box_edge(0.5, 0.5, 100.0, True) == "bottom"
+    assert tuning.box_edge(100.0 * 0.8, 0.5, 100.0, True) == "top"           # log: 0.8 x the top is 4 % below it
+    assert tuning.box_edge(1.0, 0.0, 2.0, False) is None
+    assert tuning.box_edge(1.85, 0.0, 2.0, False) == "top" and tuning.box_edge(1.75, 0.0, 2.0, False) is None
+    assert tuning.box_edge(0.5 * 1.5, 0.5, 100.0, True) == "bottom"    # log: 1.5 x the bottom is 7.7 % above it
 
 
 def test_tuned_file_round_trips_and_keeps_the_scenarios_other_settings(tmp_path):
@@ -112,18 +159,25 @@ def test_tuned_file_round_trips_and_keeps_the_scenarios_other_settings(tmp_path)
     record = {"scenario": "short", "controller": "pid", "objective": "vel_err_rms_mps",
               "objective_description": "d", "optimiser": tuning.OPTIMISER,
               "budget": {"evaluations": 3, "draws": 2}, "tuning_seeds": [1, 2],
+              "tunables": [{"name": t.name, "low": t.low, "high": t.high, "log_scale": t.log_scale}
+                           for t in tuning.tunables("pid")],
               "default": {"settings": {"K_I[0:2]": 0.4}, "objective": 0.1},
-              "tuned": {"settings": {"K_I[0:2]": 1.25, "K_I[2]": 3.5, "K_D[0:2]": 0.3,
+              "tuned": {"settings": {"controller.K_v[0:2]": 3.0, "K_I[0:2]": 1.25, "K_I[2]": 3.5, "K_D[0:2]": 0.3,
                                      "derivative_cutoff_hz": 2.0}, "objective": 0.05, "evaluation": 2}}
     path = tmp_path / "short_pid.toml"
     path.write_text(tuning.tuned_file_text(record, scenario))
     config = load_controller_config(path)
     assert config.kind == "pid" and config.pid.K_I == (1.25, 1.25, 3.5) and config.pid.derivative_cutoff_hz == 2.0
     kind, shared, law, rec = tuning.read_tuned_file(path)
-    assert kind == "pid" and shared == {} and rec["tuned_objective_mps"] == 0.05
-    flown = tuning.tuned_controller(scenario.controller, path)
+    assert kind == "pid" and shared["K_v"] == [3.0, 3.0, 4.5] and rec["tuned_objective_mps"] == 0.05
+    assert rec["box"]["K_I[0:2]"] == [0.05, 20.0, "log"] and rec["box"]["K_D[0:2]"] == [0.0, 2.0, "linear"]
+    assert rec["box"]["controller.K_v[0:2]"] == [0.5, 8.0, "log"]
+    flown = tuning.tuned_controller(replace(scenario.controller, Lambda_q=(12.0, 12.0, 5.0)), path)
     assert flown.kind == "pid" and flown.pid.K_I == (1.25, 1.25, 3.5)
-    assert flown.K_v == (2.0, 2.0, 4.5)                              # the scenario's own shared gains stay
+    assert flown.K_v == (3.0, 3.0, 4.5)                              # tuned north/east, the scenario's down
+    # every searched shared gain comes from the file: one the search left is the tuning scenario's
+    assert flown.Lambda_p == scenario.controller.Lambda_p
+    assert flown.Lambda_q == (10.0, 10.0, 6.0)
     bad = tmp_path / "bad.toml"
     bad.write_text('[controller]\nkind = "pid"\n[controller.pid]\nK_I = [1.0, -1.0, 1.0]\n')
     with pytest.raises(ValueError, match="bad.toml"):
@@ -147,6 +201,9 @@ def test_shipped_tuned_files_cover_every_law_with_one_budget():
         for t in specs:
             v = tuning.settings_of(config, cid)[t.name]
             assert t.low <= v <= t.high, (cid, t.name, v)
+            # the file was searched in the box declared today
+            assert rec["box"][t.name] == [t.low, t.high, "log" if t.log_scale else "linear"], (cid, t.name)
+        assert set(rec["box"]) == {t.name for t in specs}
     assert budgets == {(tuning.EVALUATIONS, tuning.DRAWS)}
     assert load_scenario(SCENARIO_DIR / "paper_comparison.toml").seed == 2020
 
@@ -203,7 +260,8 @@ def test_tuned_comparison_pairs_tuned_with_default(monkeypatch, tmp_path):
 
 
 def test_readme_lists_every_declared_gain_with_its_box():
-    """README "Tuning a law's gains": one row per law naming each declared gain and its box."""
+    """README "Tuning a law's gains": a row for the shared gains and one per law naming each of its
+    own gains, each with its box."""
     from pathlib import Path
 
     text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
@@ -211,12 +269,14 @@ def test_readme_lists_every_declared_gain_with_its_box():
     section = text[start:text.index("\n## ", start + 1)]
     rows = {line.strip().split("|")[1].strip().strip("`"): line for line in section.splitlines()
             if line.strip().startswith("| `")}
+    rows["every law"] = next(line for line in section.splitlines() if line.startswith("  | every law"))
     for cid in controller_ids():
-        row = rows[cid]
         for t in tuning.tunables(cid):
+            row = rows["every law" if t.name in SHARED else cid]
+            name = t.name.removeprefix("controller.") if t.name in SHARED else t.name
             low, high = (f"{x:g}".replace("e-0", "e-") for x in (t.low, t.high))
-            assert f"`{t.name}` {low}-{high}" in row, (cid, t.name)
-            assert ("(linear)" in row.split(f"`{t.name}`")[1].split(",")[0]) != t.log_scale, (cid, t.name)
+            assert f"`{name}` {low}-{high}" in row, (cid, t.name)
+            assert ("(linear)" in row.split(f"`{name}`")[1].split(",")[0]) != t.log_scale, (cid, t.name)
 
 
 def test_a_tuned_file_is_not_a_scenario():

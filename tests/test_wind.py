@@ -23,9 +23,9 @@ from vtoladapt.wind import (
     WindConfig,
     fan_mean_wind_speed,
     fan_throttle_pct,
-    wind_initial_state,
+    run_wind_model,
+    wind_at,
     wind_series,
-    wind_step,
 )
 
 DT = 0.004
@@ -192,9 +192,9 @@ def test_gust_shapes_and_constant_wind():
     np.testing.assert_allclose(at(4.0), [-2.0, 0.0, 1.0], atol=0)
     np.testing.assert_allclose(at(4.999), [-2.0, 0.0, 1.0], atol=0)
     np.testing.assert_allclose(at(5.0), 0.0, atol=0)
-    state = wind_initial_state(p)
-    wind_step(p, state, 2.0, DT, np.zeros(3), np.random.default_rng(0), out)
-    np.testing.assert_allclose(out, [1.0, 5.0, 0.5], atol=1e-12)             # parts add up
+    parts = cfg.assemble()
+    v = run_wind_model(parts, parts.initial_state(np.random.default_rng(0)), 1, DT, np.random.default_rng(0), t0_s=2.0)
+    np.testing.assert_allclose(v[0], [1.0, 5.0, 0.5], atol=1e-12)             # parts add up
 
 
 # --------------------------------------------------------------------------------------------------
@@ -349,23 +349,27 @@ def test_fixed_number_of_draws_whether_turbulence_is_on_or_off():
         rng = np.random.default_rng(5)
         wind_series(cfg, 100, DT, rng)
         ref = np.random.default_rng(5)
-        ref.standard_normal(wind.WIND_DRAWS_FIRST_STEP + 99 * wind.WIND_DRAWS_PER_STEP)
+        ref.standard_normal(wind.WIND_DRAWS_INITIAL + 100 * wind.WIND_DRAWS_PER_STEP)
         assert rng.random() == ref.random()
 
 
 @njit
-def _called_from_compiled_code(params, state, rng, n):
-    out = np.empty(3)
+def _called_from_compiled_code(table, params, state, rng, n):
+    draws = np.zeros(wind.WIND_DRAWS_PER_STEP)
+    out = np.zeros(6)
     acc = 0.0
     for k in range(n):
-        wind_step(params, state, k * 0.004, 0.004, np.zeros(3), rng, out)
+        for i in range(draws.shape[0]):
+            draws[i] = rng.standard_normal()
+        wind_at(table, params, state, k * 0.004, 0.004, np.zeros(3), draws, out)
         acc += out[0]
     return acc + fan_mean_wind_speed(params, 1.0) + fan_throttle_pct(params, 1.0)
 
 
 def test_kernels_run_inside_compiled_code():
-    p = _turbulence_config().to_kernel()
-    a = _called_from_compiled_code(p, wind_initial_state(p), np.random.default_rng(1), 50)
+    parts = _turbulence_config().assemble()
+    a = _called_from_compiled_code(parts.table, parts.params, parts.initial_state(np.random.default_rng(1)),
+                                   np.random.default_rng(1), 50)
     assert np.isfinite(a)
 
 

@@ -7,16 +7,25 @@ from ._kernel_cache import ensure_fresh_kernel_cache
 
 ensure_fresh_kernel_cache()
 
-from .config import ConfigError  # noqa: E402
-from .vehicle import PARAMETER_NAMES, Vehicle, available_vehicles, load_vehicle  # noqa: E402
+from ._version import __version__  # noqa: E402
 
-__version__ = "0.1.0"
+_VEHICLE_EXPORTS = ("PARAMETER_NAMES", "Vehicle", "available_vehicles", "load_vehicle")
 _SIM_EXPORTS = ("Scenario", "SimulationResult", "load_scenario", "simulate", "simulate_many")
-__all__ = ["ConfigError", "PARAMETER_NAMES", "Vehicle", "available_vehicles", "load_vehicle", *_SIM_EXPORTS]
+__all__ = ["ConfigError", *_VEHICLE_EXPORTS, *_SIM_EXPORTS]
 
 
 def __getattr__(name: str):
-    # the simulator's entry points, imported on first use (they pull in Numba)
+    # everything is imported on first use: the vehicle and the simulator pull in Numba (0.3 s), and
+    # the command line (vtoladapt.cli) takes over Ctrl-C before that, so one during start-up is
+    # one line too, never a traceback from the middle of an import
+    if name == "ConfigError":
+        from .config import ConfigError
+
+        return ConfigError
+    if name in _VEHICLE_EXPORTS:
+        from . import vehicle
+
+        return getattr(vehicle, name)
     if name in _SIM_EXPORTS:
         from . import sim
 

@@ -13,7 +13,7 @@
 Every command validates its input before writing anything. Exit status (one convention for all,
 :class:`vtoladapt.errors.ExitCode`): 0 done, 1 the run failed, 2 bad input (a one-line message
 naming the file, key and value), 3 fit not converged (``--require-converged``), 130
-interrupted. ``--debug`` (anywhere on the line) adds the traceback. Outputs follow
+interrupted, 143 terminated (SIGTERM). ``--debug`` (anywhere on the line) adds the traceback. Outputs follow
 :mod:`vtoladapt.outputs`: no foreign file is overwritten, no file is left truncated.
 
 A sub-command registers itself with a function ``register(subparsers)`` in
@@ -22,16 +22,33 @@ for errors (``ConfigError`` for bad input), which :func:`main` reports.
 """
 from __future__ import annotations
 
-import argparse
-import atexit
-import json
 import os
+import signal
 import sys
-import traceback
 
-from .config import check_value
-from .errors import ExitCode, exit_code_for, interrupt_requested, one_line, sigint_handling
-from .outputs import OutputDir, add_force_argument, output_path
+
+def _interrupted_while_starting(signum, frame) -> None:
+    """Ctrl-C or SIGTERM before :func:`main` takes them over (the imports take up to a second on a busy
+    machine; Python's own handler raised KeyboardInterrupt from the middle of an import, a traceback
+    and status -2): one line and the command's status. Nothing was written yet."""
+    term = signum == signal.SIGTERM
+    os.write(2, f"vtoladapt: {'terminated (SIGTERM)' if term else 'interrupted'} while starting; nothing "
+                "was written\n".encode())
+    os._exit(143 if term else 130)
+
+
+if __name__ == "__main__" or os.path.basename(sys.argv[0]) == "vtoladapt":  # the command, not an import
+    signal.signal(signal.SIGINT, _interrupted_while_starting)
+    signal.signal(signal.SIGTERM, _interrupted_while_starting)
+
+import argparse  # noqa: E402
+import atexit  # noqa: E402
+import json  # noqa: E402
+import traceback  # noqa: E402
+
+from .config import check_value  # noqa: E402
+from .errors import ExitCode, Terminated, exit_code_for, interrupt_requested, one_line, sigint_handling  # noqa: E402
+from .outputs import OutputDir, add_force_argument, output_path  # noqa: E402
 
 
 def _add_run(sub) -> None:
@@ -148,12 +165,17 @@ def load_run_scenario(path, duration_s=None, seed=None, controller=None, tuned=N
 
 def _cmd_run(args) -> int:
     from .experiments import run_experiment
+    from .experiments.running import planned_outputs
 
     from .config import ConfigError
     from .outputs import OutputError
+    from .preflight import check_experiment
 
     scenario = load_run_scenario(args.scenario, args.duration, args.seed, args.controller, args.tuned)
-    target = OutputDir(args.out, "run", force=args.force)
+    target = OutputDir(args.out, "run", force=args.force, planned=planned_outputs(scenario))
+    # what needs the built vehicle and plant (hover, the law's prior, the envelope at the start),
+    # for every run the experiment flies: all before the folder is claimed
+    check_experiment(scenario, scenario.source_path or scenario.name)
     with target:
         try:
             run_experiment(scenario, target.path, show_progress=not args.quiet)
@@ -291,7 +313,7 @@ def _command_name(args: argparse.Namespace) -> str:
 
 
 _LABELS = {ExitCode.BAD_INPUT: "error", ExitCode.RUN_FAILED: "run failed",
-           ExitCode.INTERRUPTED: "interrupted"}
+           ExitCode.INTERRUPTED: "interrupted", ExitCode.TERMINATED: "terminated"}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -318,9 +340,13 @@ def _main(argv: list[str] | None, ignore_sigint_after: bool) -> int:
                 print(f"{name}: {interrupted} (the interrupt came after the last output)", file=sys.stderr)
                 return ExitCode.INTERRUPTED
             return code
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         if debug:
             traceback.print_exc()
+        if isinstance(exc, Terminated):
+            print(f"{name}: terminated (SIGTERM); outputs completed so far are kept, none is truncated",
+                  file=sys.stderr)
+            return ExitCode.TERMINATED
         print(f"{name}: {interrupted}", file=sys.stderr)
         return ExitCode.INTERRUPTED
     except Exception as exc:  # every error becomes one line and an exit code

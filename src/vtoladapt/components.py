@@ -65,9 +65,9 @@ class Registry(Mapping):
         The package's own members. Their modules are imported on first use, not here (importing a
         kind must stay cheap).
     package : str
-        Where the package's own members' ``module`` names without a dot are looked up, e.g.
-        ``"vtoladapt.control.laws"``; a member registered by a call or an entry point names its
-        module absolutely (``"my_laws"``, ``"my_package.my_law"``).
+        Where a relative ``module`` name (no dot) of one of the package's own members is looked up,
+        e.g. ``"vtoladapt.control.laws"``. A member added by a call or an entry point names its module
+        in full (a top-level module of the user's, ``"my_wind"``, has no dot and is not in the package).
     """
 
     def __init__(self, kind: str, check: Callable[[ModuleType], None], builtins, package: str = ""):
@@ -78,11 +78,11 @@ class Registry(Mapping):
         self.package = package
         self._members: dict[str, Any] = {}
         self._checked: set[str] = set()
-        self._builtin: set[str] = set()
         self._entry_points_read = False
+        self._own: set[str] = set()
         for info in builtins:
             self._add(info, replace=False, check_now=False)
-            self._builtin.add(info.id)
+            self._own.add(info.id)
         with _LOCK:
             _KINDS[kind] = self
 
@@ -135,8 +135,8 @@ class Registry(Mapping):
     def module_name(self, info) -> str:
         """The absolute dotted name of a member's module (a package member's may be relative to ``package``)."""
         name = info.module
-        relative = "." not in name and self.package and self._members.get(info.id) is info and info.id in self._builtin
-        return f"{self.package}.{name}" if relative else name
+        own = info.id in self._own and self._members.get(info.id) is info
+        return f"{self.package}.{name}" if own and self.package and "." not in name else name
 
     # --- registration ----------------------------------------------------------------------------
     def _add(self, info, *, replace: bool, check_now: bool) -> None:
@@ -150,7 +150,7 @@ class Registry(Mapping):
                 raise ValueError(f"{self.kind} {member_id!r} is registered already (from "
                                  f"{self.module_name(self._members[member_id])}); pass replace=True to replace it")
             if check_now:
-                self._builtin.discard(member_id)   # a member added now names its module absolutely
+                self._own.discard(member_id)   # a member added now names its module absolutely
                 self.check(_import_module(info.module))
                 self._checked.add(member_id)
             else:
@@ -174,6 +174,8 @@ class Registry(Mapping):
 KIND_HOMES: dict[str, str] = {
     "law": "vtoladapt.control.registry",
     "basis": "vtoladapt.bases",
+    "wind": "vtoladapt.wind.registry",
+    "sensor": "vtoladapt.sensors.registry",
 }
 """The module that declares each kind (imported by :func:`registry` on first use of the kind)."""
 

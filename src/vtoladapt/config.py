@@ -47,7 +47,17 @@ computing metrics and figures); set ``VTOLADAPT_MEMORY_BUDGET_GB`` to change it.
 (``--duration`` x rate, ``--runs``, ``--repeats``, ``--walkers``) follow from it."""
 
 MAX_INPUT_FILE_BYTES = 256 * 2**20
-"""Configuration and data files larger than this are refused before they are read."""
+"""Data files (force-balance and probe CSVs, flight logs) larger than this are refused before they are read."""
+
+TOML_BYTES_HELD_PER_BYTE = 40
+"""Memory a configuration file takes per byte of TOML once parsed and validated, measured: a scenario of
+waypoint rows held 1.7 GB for 50 MB (Python lists and floats, then the validated tuples)."""
+
+MAX_TOML_FILE_BYTES = min(16 * 2**20, MEMORY_BUDGET_BYTES // TOML_BYTES_HELD_PER_BYTE)
+"""Configuration files (scenarios, vehicles, campaign files) larger than this are refused before they
+are read: 16 MiB (about 0.6 GiB once parsed, some ten seconds of parsing; the shipped files are a few
+kB, and the longest table a scenario takes, 100 000 waypoint rows, is 4 MiB), less if the memory
+budget is below 16 MiB x 40."""
 
 
 def check_memory(what: str, n_bytes: float, where: str, hint: str = "") -> None:
@@ -99,18 +109,21 @@ def setting(
     lt: float | None = None,
     le: float | None = None,
     length: int | None = None,
+    max_items: int | None = None,
     choices: tuple | None = None,
     pattern: str | None = None,
 ) -> Any:
     """Declare a configuration field with its unit, meaning and allowed values.
 
-    Bounds apply to a scalar, or to every element of a tuple (and of nested tuples). ``pattern``
-    is a regular expression a text value must match in full (e.g. names used in file names).
+    Bounds apply to a scalar, or to every element of a tuple (and of nested tuples). ``max_items``
+    caps a list's length (rows of a table), checked before any element is: a list's memory grows
+    with its length, so it answers to the memory budget before it is read. ``pattern`` is a
+    regular expression a text value must match in full (e.g. names used in file names).
     ``choices`` is a tuple, or a function returning one when a value is checked (the ids of a
     component registry, which may gain members after import: :mod:`vtoladapt.components`).
     """
     meta = {"unit": unit, "doc": doc, "gt": gt, "ge": ge, "lt": lt, "le": le,
-            "length": length, "choices": choices, "pattern": pattern}
+            "length": length, "max_items": max_items, "choices": choices, "pattern": pattern}
     if default is _MISSING:
         return dataclasses.field(metadata=meta)
     if isinstance(default, (list, dict, set)):
@@ -209,8 +222,9 @@ def _convert(value: Any, tp: Any, meta: Mapping[str, Any], where: str, source: s
         if meta.get("length") is not None and len(value) != meta["length"]:
             raise ConfigError(
                 f"{where} = {_shown(value)}: must have exactly {meta['length']} elements, has {len(value)}")
+        _check_items(value, meta, where)
         inner = args[0] if args else Any
-        inner_meta = dict(meta, length=None)
+        inner_meta = dict(meta, length=None, max_items=None)
         return tuple(_convert(v, inner, inner_meta, f"{where}[{i}]", source)
                      for i, v in enumerate(value))
     if tp is float:
@@ -249,15 +263,22 @@ def _convert(value: Any, tp: Any, meta: Mapping[str, Any], where: str, source: s
     raise TypeError(f"unsupported configuration field type {tp!r} at {where}")
 
 
+def _check_items(value, meta: Mapping[str, Any], where: str) -> None:
+    if meta.get("max_items") is not None and len(value) > meta["max_items"]:
+        raise ConfigError(f"{where}: {len(value)} entries; allowed: at most {meta['max_items']}")
+
+
 def _is_table_list(tp: Any) -> bool:
     """``tuple[SomeDataclass, ...]``: a TOML array of tables (``[[section.key]]``)."""
     args = typing.get_args(tp)
     return typing.get_origin(tp) is tuple and bool(args) and dataclasses.is_dataclass(args[0])
 
 
-def _build_table_list(tp: Any, value: Any, where: str, source: str, section: str) -> tuple:
+def _build_table_list(tp: Any, value: Any, where: str, source: str, section: str,
+                      meta: Mapping[str, Any]) -> tuple:
     if not isinstance(value, (list, tuple)):
         raise ConfigError(f"{where} = {_shown(value)}: must be a list of tables ([[{section}]])")
+    _check_items(value, meta, where)
     cls = typing.get_args(tp)[0]
     return tuple(build(cls, item, source=source, section=f"{section}[{i}]")
                  for i, item in enumerate(value))
@@ -272,9 +293,9 @@ def _type_hints(cls: type) -> dict[str, Any]:
 def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", section: str = "") -> Any:
     """Build and validate dataclass ``cls`` from a mapping (e.g. a parsed TOML table).
 
-    A class may define ``table_extras(data, source, section) -> (data, kwargs)``: it builds the
-    sub-tables it owns (keys that are not fields) and returns the rest of the table and the keyword
-    arguments they make.
+    A class may define ``component_tables(data, *, source, section) -> (data, kwargs)``: it builds the
+    sub-tables of registered components it owns (a user's wind part's ``[wind.<id>]``, a law's
+    ``[controller.<id>]``) and returns the rest of the table and the keyword arguments they make.
 
     Raises
     ------
@@ -287,12 +308,12 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
         raise ConfigError(f"{source}: [{section}] must be a table, got {data!r}")
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
     hints = _type_hints(cls)
-    # a class whose table holds sub-tables of its own kind (the controller's law tables, whose ids come
-    # from a registry) builds them itself and hands back the keys that remain
-    extras = {}
-    table_extras = getattr(cls, "table_extras", None)
-    if table_extras is not None:
-        data, extras = table_extras(data, source, section)
+    # a class that holds components registered from outside (a user's wind part in [wind.<id>], a law's
+    # [controller.<id>]) takes their tables out first and builds them itself: they join what is built below
+    components: Mapping[str, Any] = {}
+    take = getattr(cls, "component_tables", None)
+    if take is not None:
+        data, components = take(data, source=source, section=section)
     # a class whose keys depend on the table (a fault's on its kind) says which apply to this one
     keys_for = getattr(cls, "keys_for", None)
     applicable = keys_for(data) if keys_for is not None else None
@@ -322,6 +343,9 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
     kwargs = {}
     for name, f in fields.items():
         where = _where(source, section, name)
+        if name in components:
+            kwargs[name] = components[name]
+            continue
         if name not in data:
             if f.default is _MISSING and f.default_factory is _MISSING:  # type: ignore[misc]
                 unit = f.metadata.get("unit", "")
@@ -332,12 +356,12 @@ def build(cls: type, data: Mapping[str, Any], *, source: str = "<config>", secti
         if dataclasses.is_dataclass(hints[name]):
             kwargs[name] = build(hints[name], data[name], source=source, section=sub_section)
         elif _is_table_list(hints[name]):
-            kwargs[name] = _build_table_list(hints[name], data[name], where, source, sub_section)
+            kwargs[name] = _build_table_list(hints[name], data[name], where, source, sub_section, f.metadata)
         else:
             kwargs[name] = _convert(data[name], hints[name], f.metadata, where, source)
     # the values are converted and checked above: a Validated class's own check would repeat it
     # and, worse, name the class instead of the file
-    kwargs.update(extras)
+    kwargs.update({name: value for name, value in components.items() if name not in fields})
     token = _BUILDING.set(True)
     try:
         obj = cls(**kwargs)
@@ -380,6 +404,7 @@ def validate(obj: Any, source: str, section: str = "") -> None:
             item_cls = typing.get_args(tp)[0]
             if not isinstance(value, (list, tuple)) or not all(isinstance(v, item_cls) for v in value):
                 raise ConfigError(f"{where} = {_shown(value)}: must be a tuple of {item_cls.__name__}")
+            _check_items(value, f.metadata, where)
             converted = tuple(value)
         else:
             converted = _convert(value, tp, f.metadata, where, source)
@@ -406,9 +431,9 @@ class Validated:
             validate(self, type(self).__name__, self.config_section)
 
 
-def check_input_file(path: str | Path, what: str = "file") -> Path:
-    """``path`` if it is a readable regular file within :data:`MAX_INPUT_FILE_BYTES`, else a
-    :class:`ConfigError` naming it (missing, a folder, a device or pipe, unreadable, too large,
+def check_input_file(path: str | Path, what: str = "file", max_bytes: int = MAX_INPUT_FILE_BYTES) -> Path:
+    """``path`` if it is a readable regular file within ``max_bytes`` (:data:`MAX_INPUT_FILE_BYTES`),
+    else a :class:`ConfigError` naming it (missing, a folder, a device or pipe, unreadable, too large,
     name too long)."""
     path = Path(path)
     shown = str(path) if len(str(path)) <= 120 else str(path)[:60] + "..." + str(path)[-40:]
@@ -425,9 +450,9 @@ def check_input_file(path: str | Path, what: str = "file") -> Path:
         raise ConfigError(f"{shown}: is not a regular file (a device, pipe or socket); expected a {what}")
     if not os.access(path, os.R_OK):
         raise ConfigError(f"{shown}: no permission to read the {what}")
-    if st.st_size > MAX_INPUT_FILE_BYTES:
-        raise ConfigError(f"{shown}: {st.st_size / 2**20:.0f} MiB; a {what} may have at most "
-                          f"{MAX_INPUT_FILE_BYTES / 2**20:.0f} MiB")
+    if st.st_size > max_bytes:
+        raise ConfigError(f"{shown}: {st.st_size / 2**20:.3g} MiB; a {what} may have at most "
+                          f"{max_bytes / 2**20:.3g} MiB")
     return path
 
 
@@ -443,7 +468,7 @@ def refuse_internal_keys(data: Mapping[str, Any], source: str) -> None:
 def read_toml(path: str | Path) -> dict[str, Any]:
     """Parse a TOML file; a missing, unreadable, binary or invalid file is a :class:`ConfigError`
     naming it."""
-    path = check_input_file(path, "TOML file")
+    path = check_input_file(path, "TOML file", MAX_TOML_FILE_BYTES)
     try:
         text = path.read_bytes().decode("utf-8")
     except UnicodeDecodeError as exc:

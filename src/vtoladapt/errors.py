@@ -13,6 +13,7 @@ code  meaning
       was run and nothing was written
 3     ``fit --require-converged``: the fit finished but its convergence criteria were not met
 130   interrupted (Ctrl-C); outputs completed before the interrupt are kept, no file is truncated
+143   terminated (SIGTERM, e.g. a batch system's time limit): as 130, and the manifest says so
 ====  ==========================================================================================
 
 Every error is reported as one line on stderr naming the file, the field and the value (see
@@ -30,8 +31,8 @@ from typing import Iterator
 
 from .config import ConfigError
 
-__all__ = ["ConfigError", "ExitCode", "RunFailed", "check_interrupt", "exit_code_for", "interrupt_requested",
-           "one_line", "sigint_handling"]
+__all__ = ["ConfigError", "ExitCode", "RunFailed", "Terminated", "check_interrupt", "exit_code_for",
+           "interrupt_requested", "one_line", "sigint_handling"]
 
 
 class ExitCode(IntEnum):
@@ -42,6 +43,12 @@ class ExitCode(IntEnum):
     BAD_INPUT = 2
     NOT_CONVERGED = 3
     INTERRUPTED = 130
+    TERMINATED = 143
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM arrived (a batch system's time limit, ``kill``): handled as Ctrl-C is -- the run stops at
+    its next chunk, completed outputs are kept and the manifest records it -- with exit code 143."""
 
 
 class RunFailed(RuntimeError):
@@ -61,6 +68,8 @@ MAX_MESSAGE_CHARS = 600
 
 def exit_code_for(exc: BaseException) -> ExitCode:
     """The exit code an exception maps to under the convention above."""
+    if isinstance(exc, Terminated):
+        return ExitCode.TERMINATED
     if isinstance(exc, KeyboardInterrupt):
         return ExitCode.INTERRUPTED
     if isinstance(exc, ConfigError):
@@ -120,6 +129,11 @@ def _on_sigint(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
+def _on_sigterm(signum, frame) -> None:
+    _INTERRUPT.set()
+    raise Terminated
+
+
 @contextmanager
 def sigint_handling(ignore_after: bool = False) -> Iterator[None]:
     """Within the block, Ctrl-C raises KeyboardInterrupt *and* is remembered (:func:`check_interrupt`).
@@ -129,11 +143,15 @@ def sigint_handling(ignore_after: bool = False) -> Iterator[None]:
     interpreter's teardown (seconds of freeing compiled kernels) runs with SIGINT's default
     action restored, and a Ctrl-C then would kill the process by the signal (status -2 in place
     of the command's own); an ignored signal stays ignored through the teardown.
+    SIGTERM is handled the same way (raising :class:`Terminated`), so a terminated command ends as an
+    interrupted one does instead of leaving its manifest at "running"; after the block it is back
+    to what it was (ignored too with ``ignore_after``).
     Only the main thread can own a signal handler; elsewhere the block changes nothing.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    previous_term = signal.signal(signal.SIGTERM, _on_sigterm)
     previous = signal.signal(signal.SIGINT, _on_sigint)
     previous_hook = sys.unraisablehook
 
@@ -148,5 +166,6 @@ def sigint_handling(ignore_after: bool = False) -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGINT, signal.SIG_IGN if ignore_after else previous)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN if ignore_after else previous_term)
         sys.unraisablehook = previous_hook
         _INTERRUPT.clear()

@@ -84,11 +84,34 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-N_THETA = 8
-I_CTX, I_CTZ, I_CS, I_CD0, I_CD1, I_CD2, I_CL0, I_CL1 = range(8)
-N_MODEL = 7
-"""Length of the ``model`` constants array (see the kernel conventions)."""
-M_AERO_SCALE, M_K1, M_K2, M_ALPHA_LO, M_ALPHA_HI, M_INV_BLEND, M_INV_COS2_SIDESLIP = range(N_MODEL)
+from .layout import BlockLayout, Field
+
+THETA = BlockLayout("the paper's force-model parameters theta (Table I, adaptation scaling)", [
+    Field("CTX", 1, "-", "pusher thrust coefficient"),
+    Field("CTZ", 1, "-", "lift-rotor thrust coefficient"),
+    Field("CS", 1, "-", "lift-rotor side-force coefficient"),
+    Field("CD0", 1, "-", "drag at zero angle of attack"),
+    Field("CD1", 1, "-", "drag, linear in alpha"),
+    Field("CD2", 1, "-", "drag, quadratic in alpha"),
+    Field("CL0", 1, "-", "lift at zero angle of attack"),
+    Field("CL1", 1, "-", "lift slope"),
+])
+"""theta of the paper's eight-term model; the order of :func:`regressor`'s columns."""
+N_THETA = THETA.size
+I_CTX, I_CTZ, I_CS, I_CD0, I_CD1, I_CD2, I_CL0, I_CL1 = THETA.offsets(*(f.name for f in THETA.fields))
+MODEL = BlockLayout("force-model constants (Vehicle.model_kernel)", [
+    Field("AERO_SCALE", 1, "1/m", "rho S / (2 m): the wing's dynamic pressure per unit mass and V^2"),
+    Field("K1", 1, "-", "rotor side-force constant k1"),
+    Field("K2", 1, "-", "rotor side-force constant k2"),
+    Field("ALPHA_LO", 1, "rad", "minus the stall angle: below it the wing blends to the flat plate"),
+    Field("ALPHA_HI", 1, "rad", "the stall angle: above it likewise"),
+    Field("INV_BLEND", 1, "1/rad", "1 / the blend's width (STALL_BLEND_WIDTH_DEG)"),
+    Field("INV_COS2_SIDESLIP", 1, "-", "1 / cos^2 of the sideslip up to which the pressure is the paper's"),
+])
+"""The ``model`` constants array (see the kernel conventions)."""
+N_MODEL = MODEL.size
+(M_AERO_SCALE, M_K1, M_K2, M_ALPHA_LO, M_ALPHA_HI, M_INV_BLEND,
+ M_INV_COS2_SIDESLIP) = MODEL.offsets(*(f.name for f in MODEL.fields))
 HALF_PI_SQ = (0.5 * np.pi) ** 2
 INV_PI = 1.0 / np.pi
 STALL_BLEND_WIDTH_DEG = 8.0
@@ -253,9 +276,21 @@ def thruster_force(v_i_B, u_x, u_z, theta, model, out=None) -> tuple:
     return f
 
 
-FLOW_SIZE = 9
-"""Length of the :func:`incident_flow` tuple."""
-F_V, F_ALPHA, F_SIN_ALPHA, F_COS_ALPHA, F_Q, F_SIGMA, F_ALPHA_DISK, F_COS_BETA_BAR, F_SIN_BETA_BAR = range(FLOW_SIZE)
+FLOW = BlockLayout("the incident_flow tuple", [
+    Field("V", 1, "m/s", "airspeed"),
+    Field("ALPHA", 1, "rad", "angle of attack"),
+    Field("SIN_ALPHA", 1, "-", "its sine"),
+    Field("COS_ALPHA", 1, "-", "its cosine"),
+    Field("Q", 1, "m/s^2", "the wing's dynamic pressure per unit mass (wing_pressure)"),
+    Field("SIGMA", 1, "-", "the stall weight (stall_weight)"),
+    Field("ALPHA_DISK", 1, "rad", "the rotor disk's angle of attack (rotor_flow_angles)"),
+    Field("COS_BETA_BAR", 1, "-", "cosine of the rotor flow's azimuth"),
+    Field("SIN_BETA_BAR", 1, "-", "its sine"),
+])
+"""The entries of the :func:`incident_flow` tuple."""
+FLOW_SIZE = FLOW.size
+(F_V, F_ALPHA, F_SIN_ALPHA, F_COS_ALPHA, F_Q, F_SIGMA, F_ALPHA_DISK, F_COS_BETA_BAR,
+ F_SIN_BETA_BAR) = FLOW.offsets(*(f.name for f in FLOW.fields))
 
 
 @njit(cache=True)

@@ -129,6 +129,12 @@ class BlockLayout:
         """``(name, offset, size, unit, doc)`` per field, for documentation and tests."""
         return [(f.name, self._offset[f.name], f.size, f.unit, f.doc) for f in self.fields]
 
+    def bounds(self) -> np.ndarray:
+        """The first slot of every field, in order, then :attr:`size` (int64, ``len(fields) + 1``):
+        field ``i`` spans ``bounds[i]:bounds[i + 1]``, for a kernel whose layout is known only at run
+        time (sizes chosen per run) while the order of its fields is fixed."""
+        return np.array([self._offset[f.name] for f in self.fields] + [self.size], dtype=np.int64)
+
     def pack(self, **values) -> np.ndarray:
         """A zero array of :attr:`size` with the named fields filled (scalars or sequences)."""
         out = np.zeros(self.size)
@@ -140,9 +146,17 @@ class BlockLayout:
         return f"BlockLayout({self.title!r}, {len(self.fields)} fields, size {self.size})"
 
 # --- plant state x ---------------------------------------------------------------------------
-N_MOTORS = 5
-N_LIFT = 4
-MOTOR_PUSHER = 4
+ACTUATORS = BlockLayout("actuator commands", [
+    Field("LIFT", 4, "-", "the four lift rotors' throttles, fractions (rotor order of the vehicle file)",
+          columns=("motor1_cmd_frac", "motor2_cmd_frac", "motor3_cmd_frac", "motor4_cmd_frac")),
+    Field("PUSHER", 1, "-", "the pusher's throttle, fraction", columns=("pusher_cmd_frac",)),
+])
+"""What the mixer writes and the plant's motors follow (after the actuator faults): the actuator
+command vector. The plant state's ``MOTOR`` block holds the same actuators' outputs after their lags.
+An actuator added to the airframe (a control surface) is a field here and one in the state."""
+N_LIFT = ACTUATORS.field("LIFT").size
+N_MOTORS = ACTUATORS.size
+(MOTOR_PUSHER,) = ACTUATORS.offsets("PUSHER")
 
 STATE = BlockLayout("plant state", [
     Field("P_W", 3, "m", "position, NED", columns=("p_N_m", "p_E_m", "p_D_m")),
@@ -200,8 +214,31 @@ CMD_U_X, CMD_U_Z, CMD_TAU_B = COMMAND.offsets("U_X", "U_Z", "TAU_B")
 CMD_SIZE = COMMAND.size
 COMMAND_COLUMNS = COMMAND.columns
 
-# --- wind --------------------------------------------------------------------------------------
+# --- the truth of a tick: the wind at the vehicle, what the plant gives the sensors -------------
 WIND_COLUMNS = ("wind_N_mps", "wind_E_mps", "wind_D_mps")
+
+WIND = BlockLayout("wind at the vehicle", [
+    Field("V_W", 3, "m/s", "wind velocity, NED: the sum of every wind part's contribution", columns=WIND_COLUMNS),
+    Field("MEAN_W", 3, "m/s", "the steady parts' sum (fan array, constant wind), NED: what convects the "
+          "turbulence and scales its fractional intensities",
+          columns=("wind_mean_N_mps", "wind_mean_E_mps", "wind_mean_D_mps")),
+])
+"""What the wind parts add to, each tick (:mod:`vtoladapt.wind`)."""
+W_V_W, W_MEAN_W = WIND.offsets("V_W", "MEAN_W")
+WIND_SIZE = WIND.size
+
+TRUTH = BlockLayout("truth of a tick", [
+    Field("WIND", WIND.size, "m/s", "the wind at the vehicle (WIND), held over the tick"),
+    Field("F_B", 3, "m/s^2", "true specific force a - g, body FRD (what an accelerometer measures)",
+          columns=("f_B_x_mps2", "f_B_y_mps2", "f_B_z_mps2")),
+    Field("V_I_B", 3, "m/s", "true incident velocity (the air relative to the vehicle), body FRD",
+          columns=("v_i_x_mps", "v_i_y_mps", "v_i_z_mps")),
+])
+"""Each tick's truth beyond the plant state: the wind parts write its wind, the plant's first stage
+its specific force and incident velocity, and every sensor channel reads it."""
+TRUTH_WIND, TRUTH_F_B, TRUTH_V_I_B = TRUTH.offsets("WIND", "F_B", "V_I_B")
+TRUTH_V_WIND_W, TRUTH_MEAN_WIND_W = TRUTH.nested("WIND", WIND, "V_W", "MEAN_W")
+TRUTH_SIZE = TRUTH.size
 
 
 def pack_state(p_W, v_W, q_WB, omega_B, motor_frac) -> np.ndarray:

@@ -331,6 +331,15 @@ class OutputDir:
         Write into a foreign non-empty folder anyway (replacing only files of the same name).
     flag : str
         How the user gave the path, for messages.
+    planned : iterable of str
+        Relative paths the command will write, when it knows them: one that exists and is not an
+        earlier output of the command (a user's own ``fig_run.png``) is refused here, before
+        anything is touched, rather than when the run reaches it.
+
+    Entering the ``with`` block takes the folder's lock (:mod:`vtoladapt.folder_lock`: a second
+    run into it is refused) and checks the folder again under it. The earlier run's outputs are
+    deleted and the manifest written only when the first output is (:meth:`claim`), so a command
+    that fails before writing anything leaves the folder exactly as it was.
 
     Raises
     ------
@@ -338,23 +347,30 @@ class OutputDir:
         On construction and again on entry, when the folder is refused.
     """
 
-    def __init__(self, path, command: str, *, force: bool = False, flag: str = "--out"):
+    def __init__(self, path, command: str, *, force: bool = False, flag: str = "--out",
+                 planned: Iterable[str] = ()):
         self.path = Path(path)
         self.command = command
         self.force = force
         self.flag = flag
+        self.planned = tuple(planned)
         self._root = Path(os.path.abspath(self.path))
         self._files: dict[str, dict] = {}
         self._before: dict[str, list[int]] = {}
         self._created: Optional[Path] = None
         self._entered = False
+        self._claimed = False
+        self._lock = None
         self._stale: list[tuple[str, dict]] = []
         self._was_ours = False
         self.check()
 
     # --- checks ---------------------------------------------------------------------------------
     def check(self) -> None:
-        """Refuse the folder (``OutputError``) unless it is new, empty, ours, or ``force``."""
+        """Refuse the folder (``OutputError``) unless it is new, empty, ours, or ``force``, and
+        not in use by another run."""
+        from .folder_lock import LOCK_NAME, holder_if_locked
+
         path, flag = self.path, self.flag
         _check_path_text(path, flag)
         if path.exists() and not path.is_dir():
@@ -366,8 +382,12 @@ class OutputDir:
             return
         if not os.access(path, os.W_OK | os.X_OK):
             raise OutputError(f"{flag} {str(path)!r}: no permission to write in this folder")
+        if self._lock is None:
+            holder = holder_if_locked(self._root)
+            if holder is not None:
+                raise _in_use(flag, path, holder)
         manifest = read_manifest(path)
-        present = sorted(e.name for e in os.scandir(path) if e.name != MANIFEST_NAME)
+        present = sorted(e.name for e in os.scandir(path) if e.name not in (MANIFEST_NAME, LOCK_NAME))
         if manifest is None:
             if present and not self.force:
                 some = ", ".join(present[:3]) + (", ..." if len(present) > 3 else "")
@@ -375,6 +395,7 @@ class OutputDir:
                     f"{flag} {str(path)!r}: folder is not empty ({some}) "
                     f"and is not an output of 'vtoladapt {self.command}'; choose a new folder, or "
                     "add --force to write into it (files of the same name are replaced)")
+            self._check_planned()
             return
         if manifest["command"] != self.command:
             if not self.force:
@@ -382,6 +403,7 @@ class OutputDir:
                     f"{flag} {str(path)!r}: holds the outputs of 'vtoladapt {manifest['command']}'; "
                     f"'vtoladapt {self.command}' would mix with or replace them; choose a new "
                     "folder, or add --force")
+            self._check_planned()
             return
         self._was_ours = True
         for rel, entry in manifest["files"].items():
@@ -399,29 +421,74 @@ class OutputDir:
                 raise OutputError(
                     f"{flag} {str(path)!r}: {rel} {why}; move it away, or add --force (it is then kept, "
                     "or replaced if the new run writes a file of that name)")
+        self._check_planned()
+
+    def _check_planned(self) -> None:
+        """Refuse a planned output whose name is taken by a file that is not an earlier output
+        (unless ``force``), or that would be written through a symbolic link (always)."""
+        ours = {rel for rel, _ in self._stale}
+        for rel in self.planned:
+            inner = self._root
+            for part in Path(rel).parts:
+                inner = inner / part
+                if inner.is_symlink():
+                    raise OutputError(f"{self.flag} {str(self.path)!r}: {rel}: {inner} is a symbolic link; "
+                                      "vtoladapt writes its outputs only into the folder itself; remove the "
+                                      "link or choose another folder")
+            if rel not in ours and os.path.lexists(self._root / rel) and not self.force:
+                raise OutputError(f"{self.flag} {str(self.path)!r}: {rel} exists and is not an output of "
+                                  f"'vtoladapt {self.command}', and this run writes a file of that name; move "
+                                  "it away, or add --force to replace it")
 
     # --- claim ------------------------------------------------------------------------------------
     def __enter__(self) -> "OutputDir":
+        from .folder_lock import FolderInUse, acquire
+
         if self._entered:
             raise RuntimeError("an OutputDir is claimed once")
         self.check()  # again: the folder may have changed while the inputs were validated
-        self._entered = True
+        created = None
         if not self._root.exists():
-            top = self._root
-            while not top.parent.exists():
-                top = top.parent
-            self._root.mkdir(parents=True)
-            self._created = top
-        for rel, entry in self._stale:  # an earlier run of this command: its outputs go first
-            _remove_if_ours(self._root, rel, entry)
-        self._before = _walk_files(self._root)
+            created = self._root
+            while not created.parent.exists():
+                created = created.parent
+            self._root.mkdir(parents=True, exist_ok=True)
+        try:
+            try:
+                self._lock = acquire(self._root, self.command)
+            except FolderInUse as exc:
+                raise _in_use(self.flag, self.path, exc.holder) from None
+            self.check()  # under the lock: no other run changes the folder from here on
+        except BaseException:
+            if self._lock is not None:
+                self._lock.release()
+                self._lock = None
+            if created is not None:
+                _remove_empty_tree(created)
+            raise
+        self._entered = True
+        self._created = created
+        stale = {rel for rel, _ in self._stale}  # the earlier run's, deleted at the claim: not foreign
+        self._before = {rel: sig for rel, sig in _walk_files(self._root).items() if rel not in stale}
         with _LOCK:
             _ACTIVE.append(self)
-        self._write_manifest("running")
         return self
+
+    def claim(self) -> None:
+        """Delete the earlier run's outputs and write the manifest ("running"): done by the first
+        output written through this module (or at a successful end), not on entry, so that a
+        command failing before it writes anything changes nothing on disk."""
+        with _LOCK:
+            if self._claimed:
+                return
+            self._claimed = True
+            for rel, entry in self._stale:  # an earlier run of this command: its outputs go first
+                _remove_if_ours(self._root, rel, entry)
+            self._write_manifest("running")
 
     def record(self, path) -> None:
         """Note ``path`` (inside the folder) as a complete output of this run."""
+        self.claim()
         full = Path(os.path.abspath(path))
         rel = full.relative_to(self._root).as_posix()
         entry = _content_entry(self._root, rel)
@@ -440,36 +507,46 @@ class OutputDir:
         return rel in self._before and rel not in self._files
 
     def __exit__(self, exc_type, exc, tb) -> bool:
+        from .folder_lock import LOCK_NAME
+
         with _LOCK:
             if self in _ACTIVE:
                 _ACTIVE.remove(self)
-        now = _walk_files(self._root)
-        new = {rel: sig for rel, sig in now.items() if self._before.get(rel) != sig}
-        for rel in list(new):
-            if Path(rel).name.startswith(PARTIAL_MARK):  # a writer's temporary file: never an output
-                _unlink_new(self._root, rel)
-                new.pop(rel)
-        if exc_type is None:
+        try:
+            now = _walk_files(self._root)
+            now.pop(LOCK_NAME, None)
+            new = {rel: sig for rel, sig in now.items() if self._before.get(rel) != sig}
+            for rel in list(new):
+                if Path(rel).name.startswith(PARTIAL_MARK):  # a writer's temporary file: never an output
+                    _unlink_new(self._root, rel)
+                    new.pop(rel)
+            if exc_type is None:
+                self.claim()
+                for rel in new:
+                    if rel.endswith(".json"):
+                        _repair_json(self._root / rel)
+                self._files.update(_entries(self._root, (rel for rel in new if rel not in self._files)))
+                self._write_manifest("complete")
+                return False
+            # failed or interrupted: keep the files written completely (through this module); remove
+            # the rest, which may be truncated, unless they overwrote a file that was here before
             for rel in new:
-                if rel.endswith(".json"):
-                    _repair_json(self._root / rel)
-            self._files.update(_entries(self._root, (rel for rel in new if rel not in self._files)))
-            self._write_manifest("complete")
-            return False
-        # failed or interrupted: keep the files written completely (through this module); remove
-        # the rest, which may be truncated, unless they overwrote a file that was here before
-        for rel in new:
-            if rel not in self._files and rel not in self._before:
-                _unlink_new(self._root, rel)
-        self._files = {rel: sig for rel, sig in self._files.items() if (self._root / rel).exists()}
-        status = "interrupted" if issubclass(exc_type, KeyboardInterrupt) else "failed"
-        if self._files or self._was_ours:
-            self._write_manifest(status)
-        else:  # nothing of this run survived: leave the disk as it was
-            (self._root / MANIFEST_NAME).unlink(missing_ok=True)
-            if self._created is not None:
+                if rel not in self._files and rel not in self._before:
+                    _unlink_new(self._root, rel)
+            self._files = {rel: e for rel, e in self._files.items() if (self._root / rel).exists()}
+            from .errors import Terminated
+
+            status = ("terminated" if issubclass(exc_type, Terminated) else
+                      "interrupted" if issubclass(exc_type, KeyboardInterrupt) else "failed")
+            if self._claimed:
+                self._write_manifest(status)
+            elif self._created is not None:  # nothing of this run was written: leave the disk as it was
+                self._lock.release()
                 _remove_empty_tree(self._created)
-        return False
+            return False
+        finally:
+            if self._lock is not None:
+                self._lock.release()
 
     @property
     def files(self) -> list[str]:
@@ -477,7 +554,7 @@ class OutputDir:
         return sorted(self._files)
 
     def _write_manifest(self, status: str) -> None:
-        from . import __version__ as version
+        from ._version import __version__ as version
 
         doc = {"format": MANIFEST_FORMAT, "version": MANIFEST_VERSION, "command": self.command,
                "status": status, "argv": list(sys.argv[1:]), "vtoladapt": version,
@@ -485,6 +562,11 @@ class OutputDir:
                "files": dict(sorted(self._files.items()))}
         _atomic_write_bytes(self._root / MANIFEST_NAME,
                             (json.dumps(doc, indent=1) + "\n").encode(), register=False)
+
+
+def _in_use(flag: str, path: Path, holder: str) -> OutputError:
+    return OutputError(f"{flag} {str(path)!r}: in use by another vtoladapt run ({holder}); wait for it to end, "
+                       "or choose another folder")
 
 
 def _entries(root: Path, rels: Iterable[str]) -> dict[str, dict]:
@@ -597,6 +679,7 @@ def _refuse_foreign(path: Path) -> None:
     if not owner.force and owner.is_foreign(path):
         raise OutputError(f"{path}: exists and was not written by 'vtoladapt {owner.command}'; "
                           "move it away, or add --force to replace it")
+    owner.claim()  # the first output: the earlier run's go now (one of them may have this name)
 
 
 @contextlib.contextmanager

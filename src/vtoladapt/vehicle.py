@@ -33,9 +33,9 @@ class MassProperties(Validated):
 
     config_section = "mass"
 
-    mass_kg: float = setting("kg", "take-off mass (small UAS: <= 150 kg)", gt=0.0, le=150.0)
+    mass_kg: float = setting("kg", "take-off mass (small UAS: <= 150 kg)", ge=0.1, le=150.0)
     inertia_kgm2: tuple[float, ...] = setting(
-        "kg m^2", "principal moments of inertia Ixx, Iyy, Izz", gt=0.0, le=500.0, length=3)
+        "kg m^2", "principal moments of inertia Ixx, Iyy, Izz", ge=1e-5, le=500.0, length=3)
     product_of_inertia_xz_kgm2: float = setting("kg m^2", "product of inertia Ixz", default=0.0, ge=-500.0, le=500.0)
 
     def _check(self, source: str) -> None:
@@ -60,17 +60,17 @@ class Geometry(Validated):
 
     config_section = "geometry"
 
-    wing_area_m2: float = setting("m^2", "reference wing area S_ref", gt=0.0, le=50.0)
-    wingspan_m: float = setting("m", "wingspan", gt=0.0, le=40.0)
+    wing_area_m2: float = setting("m^2", "reference wing area S_ref", ge=0.01, le=50.0)
+    wingspan_m: float = setting("m", "wingspan", ge=0.1, le=40.0)
     lift_rotor_positions_m: tuple[tuple[float, ...], ...] = setting(
         "m", "body x, y of the four lift rotors (front-right, rear-left, front-left, rear-right)",
         ge=-10.0, le=10.0, length=4)
     lift_rotor_spin: tuple[int, ...] = setting(
         "-", "+1 if the rotor turns clockwise seen from above (yaw reaction torque -z), else -1",
         length=4, choices=None)
-    lift_prop_diameter_m: float = setting("m", "lift propeller diameter", gt=0.0, le=3.0)
-    pusher_prop_diameter_m: float = setting("m", "pusher propeller diameter", gt=0.0, le=3.0)
-    pusher_prop_pitch_m: float = setting("m", "pusher propeller geometric pitch", gt=0.0, le=3.0)
+    lift_prop_diameter_m: float = setting("m", "lift propeller diameter", ge=0.025, le=3.0)
+    pusher_prop_diameter_m: float = setting("m", "pusher propeller diameter", ge=0.025, le=3.0)
+    pusher_prop_pitch_m: float = setting("m", "pusher propeller geometric pitch", ge=0.01, le=3.0)
 
     def _check(self, source: str) -> None:
         for i, pos in enumerate(self.lift_rotor_positions_m):
@@ -180,10 +180,10 @@ class Actuators(Validated):
     config_section = "actuators"
 
     throttle_max_pct: float = setting("%", "maximum throttle of every motor", gt=0.0, le=100.0)
-    lift_motor_time_constant_s: float = setting("s", "first-order lag of a lift motor", gt=0.0, le=1.0)
-    pusher_motor_time_constant_s: float = setting("s", "first-order lag of the pusher", gt=0.0, le=1.0)
+    lift_motor_time_constant_s: float = setting("s", "first-order lag of a lift motor", ge=0.001, le=1.0)
+    pusher_motor_time_constant_s: float = setting("s", "first-order lag of the pusher", ge=0.001, le=1.0)
     yaw_torque_per_thrust_m: float = setting(
-        "m", "lift-rotor reaction torque per unit thrust (Nm/N)", gt=0.0, le=1.0)
+        "m", "lift-rotor reaction torque per unit thrust (Nm/N)", ge=0.001, le=1.0)
 
 
 @dataclass(frozen=True)
@@ -196,7 +196,7 @@ class Envelope(Validated):
     hover_blend_airspeed_mps: tuple[float, ...] = setting(
         "m/s", "below the first airspeed the desired attitude is the multirotor solution, above the "
         "second the incident-wind solution; smooth blend between", ge=0.0, le=100.0, length=2)
-    air_density_kgpm3: float = setting("kg/m^3", "air density the coefficients refer to", gt=0.0, le=2.0)
+    air_density_kgpm3: float = setting("kg/m^3", "air density the coefficients refer to", ge=0.3, le=2.0)
     stall_angle_deg: float = setting(
         "deg", "angle of attack at which the wing is believed to stall (the controller's belief, not the "
         "plant's truth)", gt=0.0, le=60.0)
@@ -273,6 +273,15 @@ class Vehicle(Validated):
             if key == basis_id:
                 return _thawed(table)
         return None
+    def _check(self, source: str) -> None:
+        # the mixer inverts this matrix every tick; a layout it cannot invert is the file's mistake
+        cond = np.linalg.cond(lift_allocation_matrix(self.geometry, self.actuators.yaw_torque_per_thrust_m))
+        if not cond < LIFT_ALLOCATION_COND_MAX:
+            positions = [list(p) for p in self.geometry.lift_rotor_positions_m]
+            raise ConfigError(
+                f"{source}: [geometry] lift_rotor_positions_m = {positions}, lift_rotor_spin = {list(self.geometry.lift_rotor_spin)}: the four lift rotors cannot produce "
+                f"independent thrust, roll, pitch and yaw moments (allocation condition number {cond:.3g}); "
+                "allowed: rotors on both sides of both body axes, two spinning each way")
 
     def replace(self, **changes) -> "Vehicle":
         """A copy with some top-level sections replaced (validated sections, not dicts)."""
@@ -301,6 +310,21 @@ def _frozen_tables(tables: Any, source: str) -> tuple:
         raise ConfigError(f"{source or 'Vehicle'}: basis_settings = {tables!r:.60}: must be tables "
                           "[basis_settings.<basis id>]")
     return tuple((str(k), _frozen(v)) for k, v in tables.items())
+LIFT_ALLOCATION_COND_MAX = 1e6
+"""Largest condition number of the lift rotors' allocation matrix a vehicle may have: the mixer
+solves it every tick, and beyond this a rounding error in a command becomes a motor's full range."""
+
+
+def lift_allocation_matrix(geometry: Geometry, yaw_torque_per_thrust_m: float) -> np.ndarray:
+    """``A`` with ``[T, tau_x, tau_y, tau_z] = A [T_1 .. T_4]``: collective thrust and body moments
+    of the four lift-rotor thrusts (body FRD; rotor i at ``(x_i, y_i)``, spin ``s_i``)."""
+    A = np.zeros((4, 4))
+    for i, (x, y) in enumerate(geometry.lift_rotor_positions_m):
+        A[0, i] = 1.0
+        A[1, i] = -y
+        A[2, i] = x
+        A[3, i] = -geometry.lift_rotor_spin[i] * yaw_torque_per_thrust_m
+    return A
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:

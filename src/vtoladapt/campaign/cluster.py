@@ -14,7 +14,7 @@ import re
 import signal
 import socket
 import threading
-from typing import Optional
+from typing import Any, Callable, Optional
 
 from ..config import ConfigError
 
@@ -92,14 +92,17 @@ def local_cluster(n_workers: Optional[int] = None, listen: str = LOOPBACK):
 
     Scheduler, workers (and their nannies) and the status page all listen on ``listen``
     (loopback by default, so nothing is reachable from the network), each on a free port so two
-    campaigns can run at once. The worker processes ignore SIGINT from their first instruction
-    (they are started inside :class:`_SigintHeld`) and any worker the nannies start later does
-    so from its start-up (:func:`dask_setup`, its preload), so a Ctrl-C reaches only this process.
+    campaigns can run at once. The worker processes start with SIGINT blocked (they are started
+    inside :class:`_SigintHeld`, and the nannies' later restarts from its threads) and ignore it
+    from their preload (:func:`dask_setup`) on, so a Ctrl-C reaches only this process.
     """
     import logging
 
     from dask.distributed import LocalCluster
 
+    # multiprocessing starts its resource tracker with SIGINT blocked and then *unblocks* it in the
+    # starting thread: started inside the block, that unblocked Dask's threads and so the workers
+    _start_resource_tracker()
     with _SigintHeld() as release:
         # Dask's own log lines are kept to the critical ones: at shutdown a worker whose heartbeat
         # meets the closing scheduler logs a three-part traceback at ERROR, which is noise; a failed
@@ -109,43 +112,167 @@ def local_cluster(n_workers: Optional[int] = None, listen: str = LOOPBACK):
                                preload=[__name__])
         try:
             release()  # a Ctrl-C held back while the cluster started is raised here
+        except KeyboardInterrupt:
+            _abandon(None, cluster)  # workers still starting: a graceful close waited up to 10 s
+            raise
         except BaseException:
             cluster.close()
             raise
     return cluster
 
 
+INTERRUPT_CLOSE_TIMEOUT_S = 2.0
+"""After Ctrl-C, how long the client and the local cluster each get to close (their runs are discarded;
+the command then exits without waiting further, and the worker processes are already gone)."""
+
+
+def run_on_dask(fn: Callable, items: list, scheduler: str, n_workers: Optional[int], listen: str,
+                started: Callable[[], None], done: Callable[[Any], None]) -> None:
+    """``fn`` over ``items`` on the local cluster (``scheduler == "local"``) or the scheduler at
+    ``scheduler``; ``started()`` once it is up, ``done(result)`` per result as they finish.
+
+    Ctrl-C at any point -- the cluster's start included (held by :class:`_SigintHeld` and raised
+    once it is up) -- kills the local workers at once (:func:`stop_local_workers`) and gives the
+    client and the cluster :data:`INTERRUPT_CLOSE_TIMEOUT_S` each to close, then raises
+    KeyboardInterrupt; otherwise they are closed normally.
+    """
+    from dask.distributed import Client, as_completed
+
+    cluster = client = None
+    try:
+        if scheduler == "local":
+            cluster = local_cluster(n_workers, listen)
+            client = Client(cluster)
+        else:
+            client = connect_scheduler(scheduler)
+        started()
+        for fut in as_completed(client.map(fn, items, pure=False)):
+            done(fut.result())
+    except KeyboardInterrupt:
+        _abandon(client, cluster)
+        raise
+    except BaseException:
+        _close(client, cluster)
+        raise
+    _close(client, cluster)
+
+
+def _close(client, cluster) -> None:
+    """Close normally; a Ctrl-C meanwhile abandons them as :func:`_abandon` does."""
+    try:
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+    except KeyboardInterrupt:
+        _abandon(client, cluster)
+        raise
+
+
+def _abandon(client, cluster) -> None:
+    """After Ctrl-C: kill the local workers, give each a short close, never wait longer."""
+    if cluster is not None:  # the runs are discarded: no need to wait for any of them
+        stop_local_workers(cluster)
+    for closing in (client, cluster):
+        if closing is not None:
+            try:
+                closing.close(timeout=INTERRUPT_CLOSE_TIMEOUT_S)
+            except BaseException:  # a close that times out, or a second Ctrl-C: the process is ending
+                pass
+    if cluster is not None:
+        # Dask's exit handler closes every cluster it knows again, gracefully, for up to 10 s more:
+        # this one's workers are gone, and the command is ending
+        instances = getattr(type(cluster), "_instances", None)
+        if instances is not None:
+            instances.discard(cluster)
+
+
+def stop_local_workers(cluster=None) -> None:
+    """Kill this process's Dask worker processes at once: an interrupted campaign discards their
+    runs, and a graceful close waited for the run (or the kernel loading) each was busy with, up to
+    10 s after Ctrl-C. Only children this process spawned through multiprocessing are touched. The
+    cluster's nannies are told first that the cluster is closing, or each would start a new worker
+    in place of the one killed (and the close would wait for it)."""
+    import contextlib
+
+    import psutil
+
+    for nanny in list(getattr(cluster, "workers", {}).values()):
+        with contextlib.suppress(Exception):
+            nanny.close_gracefully(reason="vtoladapt: interrupted")
+
+    try:
+        children = psutil.Process().children()
+    except psutil.Error:
+        return
+    workers = []
+    for child in children:
+        try:
+            if "spawn_main" in " ".join(child.cmdline()):
+                child.kill()
+                workers.append(child)
+        except psutil.Error:  # already gone
+            continue
+    psutil.wait_procs(workers, timeout=5)
+
+
+def _start_resource_tracker() -> None:
+    try:
+        from multiprocessing import resource_tracker
+
+        resource_tracker.ensure_running()
+    except (ImportError, OSError):  # no tracker on this platform: nothing to unblock
+        pass
+
+
 def dask_setup(worker) -> None:
     """Dask's preload hook, run in each worker process of :func:`local_cluster` as it starts:
     SIGINT is left to the campaign's own process, which shuts the cluster down."""
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # discards a Ctrl-C held pending since the start
+        if hasattr(signal, "pthread_sigmask"):
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 class _SigintHeld:
-    """For the block, SIGINT is ignored (so every process started meanwhile inherits "ignored",
-    which survives exec and which Python and asyncio then leave alone) and blocked in this
-    thread (so a Ctrl-C meanwhile stays pending rather than being discarded); ``release()`` (or
-    the block's end) puts the handler back and then unblocks, raising that Ctrl-C.
+    """For the block, SIGINT is blocked in this thread and only remembered by its handler;
+    ``release()`` (or the block's end) unblocks it, puts the handler back and raises
+    KeyboardInterrupt if a Ctrl-C came meanwhile.
 
-    Dask starts its worker processes from threads it creates inside the block; those inherit
-    the block too, so the signal stays pending for this thread. Only the main thread handles
-    signals in Python: elsewhere (and without ``pthread_sigmask``) nothing is changed.
+    Processes started meanwhile (Dask's worker processes, spawned from threads Dask creates inside
+    the block, which inherit the mask) start with SIGINT blocked, a mask that survives ``exec``:
+    a Ctrl-C to the process group stays pending in them until their preload (:func:`dask_setup`)
+    ignores it, which discards it, so no worker prints a traceback.
+
+    The signal is never set to "ignored" in this process: a process-wide SIGINT is delivered to a
+    thread that does not block it -- native threads of numerical libraries started earlier do not --
+    and an ignored one was dropped there (a Ctrl-C 1.5-2 s into a campaign was lost, issue #27).
+    With the handler installed, such a delivery runs the handler in the main thread as always.
+    Only the main thread handles signals in Python: elsewhere (and without ``pthread_sigmask``)
+    nothing is changed.
     """
 
     def __enter__(self):
         self._mask = self._handler = None
+        self._pending = False
         if threading.current_thread() is threading.main_thread() and hasattr(signal, "pthread_sigmask"):
+            self._handler = signal.signal(signal.SIGINT, self._remember)
             self._mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-            self._handler = signal.signal(signal.SIGINT, signal.SIG_IGN)
         return self.release
 
+    def _remember(self, signum, frame) -> None:
+        self._pending = True
+
     def release(self) -> None:
-        """Restore the handler, then the mask (once); a pending Ctrl-C raises KeyboardInterrupt here."""
+        """Unblock, restore the handler (once); a Ctrl-C held meanwhile raises KeyboardInterrupt here."""
         mask, self._mask = self._mask, None
-        if mask is not None:
-            signal.signal(signal.SIGINT, signal.default_int_handler if self._handler is None else self._handler)
-            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        if mask is None:
+            return
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # one pending reaches _remember now
+        signal.signal(signal.SIGINT, signal.default_int_handler if self._handler is None else self._handler)
+        if self._pending:
+            self._pending = False
+            raise KeyboardInterrupt
 
     def __exit__(self, *exc) -> None:
         self.release()

@@ -33,13 +33,13 @@ import os
 import re
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Optional
 
 import numpy as np
 
-from .cluster import LOOPBACK, check_listen, check_scheduler, connect_scheduler, local_cluster
+from .cluster import LOOPBACK, check_listen, check_scheduler, run_on_dask
 from ..config import (PATH_PATTERN, ConfigError, Validated, build, check_flag, read_toml, refuse_internal_keys,
                      setting)
 from ..control.registry import controller_ids
@@ -138,7 +138,9 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
     """
     from ..config import check_value
     from ..control.settings import ControllerConfig
-    from ..sim.limits import check_campaign_runs, check_run_size
+    from ..ceilings import check_campaign_runs
+    from ..preflight import check_flyable
+    from ..sim.limits import check_worker_runs
     from ..sim.scenario import Scenario, scenario_from_mapping
 
     runs = check_runs_flag(runs)
@@ -160,7 +162,7 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
             f"single runs of one controller and would fly only [controller] kind = "
             f"{base_scenario.controller.kind!r}; pass --controller ID to say which")
     check_campaign_runs(runs, base)
-    check_run_size(base_scenario, f"{path} (each campaign run)", n_runs=os.cpu_count() or 1)
+    check_worker_runs(base_scenario, f"{path} (each campaign run)", workers=os.cpu_count() or 1)
     rng = np.random.default_rng(base_scenario.seed if seed is None else seed)
     specs = []
     for i in range(runs):
@@ -171,7 +173,8 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
             drawn[v.key] = float(rng.uniform(v.low, v.high))
             _set_dotted(mapping, v.key, drawn[v.key], f"--vary {v.key}")
         mapping["experiment"] = {"kind": "single"}
-        scenario_from_mapping(mapping, f"{path} (campaign run {i}, {drawn})", source_path=path)
+        where = f"{path} (campaign run {i}, {drawn})"
+        check_flyable(scenario_from_mapping(mapping, where, source_path=path), where)  # before --out is claimed
         specs.append(RunSpec(i, mapping, str(path), drawn))
     return specs
 
@@ -411,7 +414,9 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
     first, then the ``[campaign.choices]`` (an option is the stratum ``floor(u n_options)``).
     """
     from ..config import check_value
-    from ..sim.limits import check_campaign_runs, check_run_size
+    from ..ceilings import check_campaign_runs
+    from ..preflight import check_all
+    from ..sim.limits import check_worker_runs
     from ..sim.scenario import scenario_from_mapping
 
     cf = load_campaign_file(path)
@@ -444,7 +449,7 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
     source = str(cf.base_path)
     where = f"{cf.path} ([campaign] base {cfg.base} with [campaign.set])"
     check_campaign_runs(runs * len(cfg.controllers), base)
-    check_run_size(base_scenario, f"{where} (each campaign run)", n_runs=os.cpu_count() or 1)
+    check_worker_runs(base_scenario, f"{where} (each campaign run)", workers=os.cpu_count() or 1)
 
     dims = [(v, k) for v in cfg.vary for k in v.keys]
     rng = np.random.default_rng(seed)
@@ -487,7 +492,10 @@ def plan_campaign_file(path: str | Path, runs: Optional[int] = None,
                 groups[v.name] = v.band(x, _setting_unit(key))
         mapping["controller"] = {**mapping.get("controller", {}), "kind": cfg.controllers[0]}
         shown = {k: (round(val, 4) if isinstance(val, float) else val) for k, val in drawn.items()}
-        scenario_from_mapping(mapping, f"{cf.path} (campaign draw {i}: {shown})", source_path=cf.base_path)
+        where = f"{cf.path} (campaign draw {i}: {shown})"
+        sc = scenario_from_mapping(mapping, where, source_path=cf.base_path)
+        check_all((replace(sc, controller=replace(sc.controller, kind=cid)), f"{where}, controller {cid!r}")
+                  for cid in cfg.controllers)  # every run's setup, before --out is claimed
         specs += [RunSpec(i, mapping, source, drawn, cid, groups) for cid in cfg.controllers]
     return cf, specs
 
@@ -544,6 +552,7 @@ def run_one(spec: RunSpec) -> dict:
     return row
 
 
+CAMPAIGN_OUTPUTS = ("campaign.parquet", "summary.json", "fig_campaign.png")
 MAX_WORKERS = 1024
 """Most local worker processes or threads (each holds one run's log)."""
 
@@ -580,27 +589,19 @@ def run_campaign(specs: list[RunSpec], out: Path, scheduler: Optional[str] = "lo
             # on an error or Ctrl-C no queued run starts; running ones finish their chunk
             pool.shutdown(wait=False, cancel_futures=True)
     else:
-        from dask.distributed import Client, as_completed
+        bars = []
 
-        cluster = client = None
-        bar = _NoProgress()
-        try:  # a Ctrl-C at any point, the cluster's start included, still shuts every worker down
-            if scheduler == "local":
-                cluster = local_cluster(n_workers, listen)
-                client = Client(cluster)
-            else:
-                client = connect_scheduler(scheduler)
-            bar = _progress(len(specs), show_progress)
-            futures = client.map(run_one, specs, pure=False)
-            for fut in as_completed(futures):
-                rows.append(fut.result())
-                bar.update(1)
+        def started() -> None:  # the bar appears once the cluster is up
+            bars.append(_progress(len(specs), show_progress))
+
+        def done(row: dict) -> None:
+            rows.append(row)
+            bars[0].update(1)
+        try:
+            run_on_dask(run_one, specs, scheduler, n_workers, listen, started, done)
         finally:
-            bar.close()
-            if client is not None:
-                client.close()
-            if cluster is not None:
-                cluster.close()
+            for bar in bars:
+                bar.close()
     out.mkdir(parents=True, exist_ok=True)
     if specs and specs[0].controller is not None:
         order = {s.controller: i for i, s in enumerate(specs) if s.index == specs[0].index}
@@ -733,15 +734,17 @@ def _cmd_campaign(args) -> int:
     _check_variations(variations)
     check_scheduler(args.scheduler)
     check_listen(args.listen)
-    target = OutputDir(args.out, "campaign", force=args.force)
+    target = OutputDir(args.out, "campaign", force=args.force, planned=CAMPAIGN_OUTPUTS)
     if args.workers is not None:
         check_flag("--workers", args.workers, ge=1, le=MAX_WORKERS, integer=True)
     specs = plan_campaign(args.scenario, args.runs, variations, args.seed, args.controller)
     with target:
         rows = run_campaign(specs, target.path, args.scheduler, args.workers, not args.quiet,
                             listen=args.listen)
-    v = np.array([r["vel_err_rms_mps"] for r in rows])
-    print(f"{len(rows)} runs: RMS velocity error mean {v.mean():.4f} m/s, max {v.max():.4f} m/s; "
+    v = np.array([r.get("vel_err_rms_mps", np.nan) for r in rows])  # a run diverged at once has none
+    n_div = int(sum(r.get("diverged", 0.0) for r in rows))
+    mean, top = (f"{np.nanmean(v):.4f}", f"{np.nanmax(v):.4f}") if np.isfinite(v).any() else ("-", "-")
+    print(f"{len(rows)} runs ({n_div} diverged): RMS velocity error mean {mean} m/s, max {top} m/s; "
           f"wrote {args.out}/campaign.parquet, summary.json, fig_campaign.png")
     return 0
 
@@ -757,7 +760,7 @@ def _cmd_campaign_file(args) -> int:
         check_runs_flag(args.runs)
     check_scheduler(args.scheduler)
     check_listen(args.listen)
-    target = OutputDir(args.out, "campaign", force=args.force)
+    target = OutputDir(args.out, "campaign", force=args.force, planned=CAMPAIGN_OUTPUTS)
     if args.workers is not None:
         check_flag("--workers", args.workers, ge=1, le=MAX_WORKERS, integer=True)
     cf, specs = plan_campaign_file(args.scenario, args.runs, args.seed)

@@ -69,10 +69,11 @@ A law is a module with these seven names, and two optional ones (:func:`.laws.ch
     ``source``. :class:`ControllerConfig` runs it for its ``kind`` whenever it is made (from a file
     or in Python), a scenario for every law it compares.
 ``TUNABLE`` (optional)
-    The gains ``vtoladapt tune`` may search: a tuple of ``(setting, low, high, log_scale)``, the
-    setting a key of the law's table (``"K_I[0:2]"`` for components of a tuple,
-    ``"controller.<key>"`` for a shared key that is the law's gain); see
-    :mod:`vtoladapt.experiments.tuning`. Absent or empty: nothing to tune.
+    The law's own gains ``vtoladapt tune`` may search: a tuple of ``(setting, low, high,
+    log_scale)``, the setting a key of the law's table (``"K_I[0:2]"`` for components of a tuple,
+    ``"controller.<key>"`` for a shared key that is the law's gain and not already among the shared
+    gains every law's search includes, :data:`.config.TUNABLE`); see
+    :mod:`vtoladapt.experiments.tuning`. Absent or empty: only the shared gains are searched.
 ``init_state(params, state) -> None``
     Python, at start and reset: anything the law's memory needs beyond zeros (the shared start
     is theta-hat = theta_init, P^-1 = P0^-1, filters empty; ``state`` is the whole array).

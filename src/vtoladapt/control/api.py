@@ -37,7 +37,7 @@ from .step import (
     default_theta_bounds,
     diagnostics_columns,
     diagnostics_size,
-    function_addresses,
+    function_table,
     law_of_params,
     state_P,
     state_P_inv,
@@ -317,7 +317,7 @@ class Controller:
         # the law's and the basis's compiled functions, and their addresses for the compiled step (the
         # functions are kept here so the addresses stay valid)
         self._fns = controller_functions(self._params)
-        self._addresses = function_addresses(self._fns)
+        self._addresses = function_table(self._fns)
 
     def __getstate__(self):
         # compiled functions do not pickle, and their addresses belong to this process: bound again on load

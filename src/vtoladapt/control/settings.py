@@ -41,6 +41,20 @@ linearised attitude and velocity loops, with the motor lag and the one-tick hold
   torque and saturated the mixer 70-95 % of the time in the paper_comparison scenario, against
   0.1 N m and < 1 % (outside the 9 m/s segment) without them. ``Lambda_q`` = 10 /s tracks the slow
   changes of ``R_d`` in that experiment without feed-forward; turn it on for smooth references.
+* **What ``vtoladapt tune`` searches of these** (:data:`TUNABLE`, every law's search space
+  besides its own gains; :mod:`vtoladapt.experiments.tuning`): ``K_v`` horizontal and vertical,
+  ``Lambda_p`` horizontal and vertical, ``Lambda_q`` roll and pitch. Every registered law uses all
+  five (``K_v`` in eq:f_ctrl or as the PID's velocity P gain, ``Lambda_p`` in eq:wr, ``Lambda_q``
+  in the shared attitude loop), so a law that may tune extra loop gains of its own (the PID's
+  integral and derivative) no longer competes against laws held at PX4's loop gains. Horizontal
+  and vertical are separate because the two loops act through different actuators (tilt through
+  the attitude loop; the lift rotors directly). ``Lambda_q`` is searched because it sets how fast
+  the horizontal force follows the command (measured on six tuning draws: roll/pitch 10 -> 20 /s
+  takes C. Adapt's and L1's RMS velocity error from 0.046 to 0.037 m/s, the PID's stays 0.104);
+  yaw's is not (the fan blows head-on). Not searched: the rate loop's ``rate_bandwidth_radps``
+  (20 -> 40 rad/s does about what ``Lambda_q`` 10 -> 20 does; the attitude cascade's speed is
+  searched once, through ``Lambda_q``, and each extra dimension thins the equal budget of every
+  law), the filters and the safety limits.
 * **Safety limits** (not in the paper): a tilt limit and a minimum lift for the multirotor
   attitude (PX4 ``MPC_TILTMAX_AIR`` = 45 deg), a 2 g limit on the commanded acceleration, a
   5 m/s limit on the position loop's velocity correction and a 10 m/s limit on the velocity error,
@@ -56,6 +70,15 @@ from ..bases import basis_ids
 from ..config import ConfigError, Validated, build, check_flag, read_toml, setting
 from .registry import CONTROLLERS, ControllerInfo, controller_ids, controller_info
 
+
+TUNABLE = (("K_v[0:2]", 0.5, 8.0, True), ("K_v[2]", 1.0, 20.0, True),
+           ("Lambda_p[0:2]", 0.2, 5.0, True), ("Lambda_p[2]", 0.2, 5.0, True),
+           ("Lambda_q[0:2]", 3.0, 30.0, True))
+"""The shared ``[controller]`` gains ``vtoladapt tune`` searches for every law, besides the law's own
+``TUNABLE`` (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale). Boxes: ``K_v``
+a factor ~4 each side of PX4's defaults (1.8, 4.0 /s); ``Lambda_p`` 0.2-5 /s around PX4's 0.95-1.0;
+``Lambda_q`` 3-30 /s, whose top keeps the attitude loop's ``Lambda_q / 2`` = 15 rad/s below the
+rate loop's 20 rad/s."""
 
 LOOP_RATE_MIN_HZ = 10.0
 """Slowest controller rate: the compiled step takes a tick longer than 0.1 s for a fault."""
@@ -229,7 +252,7 @@ class ControllerConfig(Validated):
         return {law_id: _law_settings_class(law_id) for law_id in controller_ids()}
 
     @classmethod
-    def table_extras(cls, data: Mapping[str, Any], source: str, section: str) -> tuple[dict, dict]:
+    def component_tables(cls, data: Mapping[str, Any], *, source: str, section: str) -> tuple[dict, dict]:
         """The ``[controller.<id>]`` sub-tables of a registered law, built as that law's ``Settings``
         (:func:`vtoladapt.config.build`); the rest of the table is returned for the shared keys."""
         data = dict(data)
@@ -381,7 +404,7 @@ def load_controller_config(path) -> ControllerConfig:
 
 
 __all__ = ["LOOP_RATE_MAX_HZ", "LOOP_RATE_MIN_HZ", "LOOP_RATE_RTOL", "SCENARIO_DT_DEFAULT_S",
-           "SCENARIO_DT_RANGE_S",
+           "SCENARIO_DT_RANGE_S", "TUNABLE",
            "ControllerConfig", "check_rate_matches_dt", "rate_from_dt",
            "controller_config_from_mapping",
            "load_controller_config"]

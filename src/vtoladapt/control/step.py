@@ -30,9 +30,8 @@ import warnings
 
 import numpy as np
 from numba import njit, types
-from numba.core import cgutils
-from numba.extending import intrinsic
 
+from ..parts import PART_ROW, T_C, function_loader
 from ..bases import REGRESSOR_SIGNATURE, BasisSpec, basis_key, basis_module, basis_of_key, describe_basis
 from . import adaptation as ad
 from .linalg import spd_inverse
@@ -70,43 +69,39 @@ def controller_step(fns, params, state, meas, ref, dt, cmd, diag) -> None:
     back_end(params, state, cmd, diag)
 
 
-@intrinsic
-def functions_at(typingctx, addresses):
-    """``(law update, basis regressor)`` as first-class functions from their addresses (``int64`` array of 2,
-    :func:`function_addresses`), inside compiled code: what a kernel that Python calls once per step passes to
-    :func:`controller_step` (a tuple of functions costs some 10 us per call to unbox, an array nothing)."""
-    if not (isinstance(addresses, types.Array) and isinstance(addresses.dtype, types.Integer)):
-        return None
-    fns_type = types.Tuple((LAW_FUNCTION, BASIS_FUNCTION))
+_load_law = function_loader(UPDATE_SIGNATURE)
+_load_basis = function_loader(REGRESSOR_SIGNATURE)
 
-    def codegen(context, builder, signature, args):
-        arr = context.make_array(signature.args[0])(context, builder, args[0])
-        out = []
-        for i, ftype in enumerate((LAW_FUNCTION, BASIS_FUNCTION)):
-            addr = builder.load(cgutils.gep(builder, arr.data, i))
-            fn = cgutils.create_struct_proxy(ftype)(context, builder)
-            fn.c_addr = builder.inttoptr(addr, context.get_value_type(types.voidptr))
-            out.append(fn._getvalue())
-        return context.make_tuple(builder, fns_type, out)
 
-    return fns_type(addresses), codegen
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
+def functions_at(table):
+    """``(law update, basis regressor)`` as first-class functions from the controller's function table
+    (:func:`function_table`), inside compiled code. A kernel that Python calls once per step takes the
+    table, not the tuple: Numba unboxes a tuple of functions from Python objects on every call (some
+    10 us), an int64 array for nothing (:mod:`vtoladapt.parts`)."""
+    return (_load_law(table, 0), _load_basis(table, 1))
 
 
 @njit(cache=True, _nrt=False)
-def controller_step_at(addresses, params, state, meas, ref, dt, cmd, diag) -> None:
-    """:func:`controller_step` with its two functions given by address (:func:`function_addresses`).
+def controller_step_at(table, params, state, meas, ref, dt, cmd, diag) -> None:
+    """:func:`controller_step` with its two functions given by their table (:func:`function_table`).
 
-    For a caller in Python that steps once per call (the :class:`~vtoladapt.control.api.Controller`):
-    unboxing a tuple of first-class functions costs some 10 us per call in Python, an array of two
-    addresses nothing. The addresses are valid in the process that took them, while the functions live.
+    For a caller in Python that steps once per call (the :class:`~vtoladapt.control.api.Controller`).
+    The addresses are valid in the process that took them, while the functions live.
     """
-    controller_step(functions_at(addresses), params, state, meas, ref, dt, cmd, diag)
+    controller_step(functions_at(table), params, state, meas, ref, dt, cmd, diag)
 
 
-def function_addresses(fns) -> np.ndarray:
-    """The addresses of ``fns = (law update, basis regressor)`` for :func:`controller_step_at` (keep ``fns``
-    alive while they are used: the addresses point into them)."""
-    return np.array([fns[0].address, fns[1].address], dtype=np.int64)
+def function_table(fns) -> np.ndarray:
+    """The controller's function table: ``fns = (law update, basis regressor)`` (:func:`controller_functions`)
+    as two rows of a :data:`vtoladapt.parts.PART_ROW` table (the C entry points of the two ``cfunc``
+    objects; the other columns are unused). The simulator's loop and the Gymnasium environment hand it
+    to the tick beside the wind parts' and sensor channels' tables. Keep ``fns`` alive while it is used
+    (a law's or basis's module holds its function for the process)."""
+    table = np.zeros((2, PART_ROW.size), dtype=np.int64)
+    table[0, T_C] = fns[0].address
+    table[1, T_C] = fns[1].address
+    return table
 
 
 # --- what a parameter array was built for (Python) -------------------------------------------------
@@ -474,7 +469,7 @@ def theta_hat_of_diag(params, diag) -> np.ndarray:
 __all__ = ["BASIS_FUNCTION", "LAW_FUNCTION", "basis_block", "basis_names", "controller_functions",
            "controller_initial_state", "controller_lyapunov", "controller_params", "controller_step",
            "controller_step_at", "default_theta_bounds", "diagnostics_columns", "diagnostics_size", "diagnostics_size_for",
-           "estimate_offsets", "function_addresses", "functions_at", "information_sum", "initial_gain", "law_of_params",
+           "estimate_offsets", "function_table", "functions_at", "information_sum", "initial_gain", "law_of_params",
            "layout_of_params", "set_last_command", "set_state_theta_hat", "state_P", "state_P_inv",
            "state_filtered_accel", "state_filtered_regressor", "state_last_command", "state_law_field",
            "state_theta_hat", "state_wind_estimate", "theta_bound_half_widths", "theta_bounds", "theta_hat_of_diag"]

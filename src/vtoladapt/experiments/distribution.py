@@ -76,8 +76,10 @@ def comparison_variant(scenario: Scenario, progress: Progress = None, workers: O
     """Every controller of the comparison flies ``scenario``; their metrics and the claims.
 
     ``controllers``: id -> :class:`~vtoladapt.control.settings.ControllerConfig` to fly instead of the
-    scenario's own with ``kind`` switched (the tuned settings); ``workers``: threads for this
-    variant's runs (default one per core; 1 when variants run side by side)."""
+    scenario's own with ``kind`` switched (the tuned settings); whatever position gain a law flies,
+    its velocity error ``v~`` is measured with the scenario's ``Lambda_p`` (one yardstick for every
+    law); ``workers``: threads for this variant's runs (default one per core; 1 when variants run
+    side by side)."""
     from ..sim.driver import simulate
 
     fan: dict = {}  # the fan schedule sampled once per variant (every controller logs the same ticks)
@@ -86,7 +88,9 @@ def comparison_variant(scenario: Scenario, progress: Progress = None, workers: O
     def fly(cid: str) -> dict:
         config = (controllers[cid] if controllers is not None
                   else replace(scenario.controller, kind=cid))
-        res = simulate(replace(scenario, controller=config))
+        # every law's v~ is measured with the scenario's position gain, whatever Lambda_p it flies
+        # (tuned settings may change it; SimulationResult.measured_with)
+        res = simulate(replace(scenario, controller=config)).measured_with(scenario.controller.Lambda_p)
         if len(res.time_s) not in fan:
             fan[len(res.time_s)] = fan_throttle_series(scenario, res.time_s)
         out = law_run_metrics(res, fan[len(res.time_s)])

@@ -91,10 +91,48 @@ def _lowpass(x: np.ndarray, dt: float, cutoff_hz: float) -> np.ndarray:
 
 
 def _shade_fan(ax, t, fan_pct) -> None:
-    on = fan_pct > 0.5
+    k = _stride(len(t))
+    on = fan_pct[::k] > 0.5
     if on.any():
-        ax.fill_between(t, 0, 1, where=on, transform=ax.get_xaxis_transform(), color="0.92", zorder=0,
+        ax.fill_between(t[::k], 0, 1, where=on, transform=ax.get_xaxis_transform(), color="0.92", zorder=0,
                         lw=0)
+
+
+MAX_PLOT_POINTS = 20_000
+"""Most points a line of a figure gets. A one-hour log has 900 000 ticks, which matplotlib turned into
+some 700 MB of copies and paths for a figure 1200 pixels wide; a longer series is drawn as the minimum
+and maximum of each of MAX_PLOT_POINTS / 2 equal slices of it (:func:`_thin`), so every peak and dip
+is still drawn, at a memory that does not grow with the run."""
+
+
+def _stride(n: int) -> int:
+    """The step that keeps at most :data:`MAX_PLOT_POINTS` of ``n`` samples (bands and shading)."""
+    return max(1, -(-n // MAX_PLOT_POINTS))
+
+
+def _thin(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(t, y)`` with at most :data:`MAX_PLOT_POINTS` samples: each slice's minimum and maximum, in
+    time order (the envelope a plot of every sample shows)."""
+    n = len(t)
+    if n <= MAX_PLOT_POINTS:
+        return t, y
+    size = -(-n // (MAX_PLOT_POINTS // 2))
+    rows = -(-n // size)
+    y = np.asarray(y, dtype=float)
+    padded = np.full(rows * size, np.nan)
+    padded[:n] = y
+    block = padded.reshape(rows, size)
+    base = np.arange(rows) * size
+    lo = base + np.argmin(np.where(np.isnan(block), np.inf, block), axis=1)
+    hi = base + np.argmax(np.where(np.isnan(block), -np.inf, block), axis=1)
+    idx = np.unique(np.concatenate((lo, hi, [0, n - 1])))
+    idx = idx[idx < n]
+    return t[idx], y[idx]
+
+
+def _plot(ax, t, y, *args, **kwargs):
+    """``ax.plot(t, y, ...)`` of the series thinned by :func:`_thin`."""
+    return ax.plot(*_thin(np.asarray(t), np.asarray(y)), *args, **kwargs)
 
 
 def new_figure(nrows: int, ncols: int, figsize: tuple, **kwargs):
@@ -123,17 +161,18 @@ def plot_parameter_convergence(scenario: Scenario, results: list[SimulationResul
         mean = theta[:, :, i].mean(axis=0)
         std = theta[:, :, i].std(axis=0, ddof=1)
         for n, alpha in ((3, 0.12), (2, 0.18), (1, 0.28)):
-            ax.fill_between(t, mean - n * std, mean + n * std, color="C0", alpha=alpha, lw=0,
+            k = _stride(len(t))
+            ax.fill_between(t[::k], (mean - n * std)[::k], (mean + n * std)[::k], color="C0", alpha=alpha, lw=0,
                             label=f"{n}σ across runs" if i == 0 else None)
         for run in theta:
-            ax.plot(t, run[:, i], color="C0", lw=0.4, alpha=0.5)
-        ax.plot(t, mean, color="C0", lw=1.5, label="mean θ̂" if i == 0 else None)
+            _plot(ax, t, run[:, i], color="C0", lw=0.4, alpha=0.5)
+        _plot(ax, t, mean, color="C0", lw=1.5, label="mean θ̂" if i == 0 else None)
         if truth.size == len(names):
             ax.axhline(truth[i], color="k", ls=":", lw=1, label="plant's linear part" if i == 0 else None)
         ax.set_ylabel(f"{name} [{units[name]}]")
         ax.grid(alpha=0.3)
         ax2 = ax.twinx()
-        ax2.plot(t, wind, color="0.5", lw=1.0, ls="--", label="fan wind" if i == 0 else None)
+        _plot(ax2, t, wind, color="0.5", lw=1.0, ls="--", label="fan wind" if i == 0 else None)
         ax2.set_ylabel("wind [m/s]", color="0.5")
         ax2.tick_params(axis="y", colors="0.5")
         if i == 0:
@@ -164,18 +203,18 @@ def plot_tracking_comparison(scenario: Scenario, results: dict[str, SimulationRe
     fig, axes = new_figure(3, 1, figsize=(10, 8.5), sharex=True)
     ref_id = "composite" if "composite" in results else next(iter(results))
     airspeed = measured_airspeed_mps(results[ref_id])
-    axes[0].plot(t, airspeed, color="k", lw=1,
+    _plot(axes[0], t, airspeed, color="k", lw=1,
                  label=f"measured airspeed ({CONTROLLER_LABELS.get(ref_id, ref_id)} run; gaps: "
                        "reading invalid)")
-    axes[0].plot(t, fan_speed_series(scenario, t), color="0.5", ls="--", lw=1, label="fan mean wind")
+    _plot(axes[0], t, fan_speed_series(scenario, t), color="0.5", ls="--", lw=1, label="fan mean wind")
     axes[0].set_ylabel("airspeed [m/s]")
     for cid, res in results.items():
-        axes[1].plot(t, np.linalg.norm(res.velocity_error_W, axis=1), **controller_style(cid))
+        _plot(axes[1], t, np.linalg.norm(res.velocity_error_W, axis=1), **controller_style(cid))
     axes[1].set_ylabel("‖velocity error‖ [m/s]")
     for cid in composite_ids():
         if cid in results:
             e = np.linalg.norm(results[cid].columns_like(PRED_ERR_COLUMNS), axis=1) / GRAVITY_MPS2
-            axes[2].plot(t, _lowpass(e, dt, PLOT_FILTER_HZ), **controller_style(cid))
+            _plot(axes[2], t, _lowpass(e, dt, PLOT_FILTER_HZ), **controller_style(cid))
     axes[2].axhline(0.05, color="k", ls=":", lw=1, label="0.05 g")
     axes[2].set_ylabel(f"‖prediction error‖ [g]\n(low-passed {PLOT_FILTER_HZ:g} Hz)")
     axes[2].set_xlabel("time [s]")
@@ -203,13 +242,13 @@ def plot_tracking_axes(scenario: Scenario, results: dict[str, SimulationResult])
     for j, axis in enumerate("NED"):
         ax = axes[j, 0]
         for cid, res in results.items():
-            ax.plot(t, res.velocity_error_W[:, j], **controller_style(cid))
+            _plot(ax, t, res.velocity_error_W[:, j], **controller_style(cid))
         ax.set_ylabel(f"velocity error {axis} [m/s]")
         ax = axes[j, 1]
         for cid in composite_ids():
             if cid in results:
                 e = results[cid][PRED_ERR_COLUMNS[j]] / GRAVITY_MPS2
-                ax.plot(t, _lowpass(e, dt, PLOT_FILTER_HZ), **controller_style(cid))
+                _plot(ax, t, _lowpass(e, dt, PLOT_FILTER_HZ), **controller_style(cid))
         ax.set_ylabel(f"prediction error body {'xyz'[j]} [g]")
     for ax in axes.ravel():
         _shade_fan(ax, t, fan)
@@ -237,24 +276,24 @@ def plot_single_run(scenario: Scenario, result: SimulationResult):
     t = result.time_s
     fan = fan_throttle_series(scenario, t)
     fig, axes = new_figure(4, 1, figsize=(10, 10), sharex=True)
-    axes[0].plot(t, result["airspeed_mps"], color="C0", lw=1.4, label="true airspeed")
+    _plot(axes[0], t, result["airspeed_mps"], color="C0", lw=1.4, label="true airspeed")
     if all(c in result for c in MEAS_V_I_COLUMNS):
-        axes[0].plot(t, measured_airspeed_mps(result), color="k", lw=0.7,
+        _plot(axes[0], t, measured_airspeed_mps(result), color="k", lw=0.7,
                      label="measured airspeed (gaps: reading invalid)")
-    axes[0].plot(t, fan_speed_series(scenario, t), color="0.5", ls="--", lw=1, label="fan mean wind")
+    _plot(axes[0], t, fan_speed_series(scenario, t), color="0.5", ls="--", lw=1, label="fan mean wind")
     axes[0].set_ylabel("airspeed [m/s]")
     v = result.velocity_error_W
     for j, axis in enumerate("NED"):
-        axes[1].plot(t, v[:, j], lw=0.9, label=axis)
+        _plot(axes[1], t, v[:, j], lw=0.9, label=axis)
     axes[1].set_ylabel("velocity error [m/s]")
     theta = result.theta_hat
     rel = theta / np.where(theta[0] != 0, theta[0], 1.0)
     for i, name in enumerate(result.theta_names):
-        axes[2].plot(t, rel[:, i], lw=0.9, ls=_LINESTYLES[i // 4 % len(_LINESTYLES)], label=name)
+        _plot(axes[2], t, rel[:, i], lw=0.9, ls=_LINESTYLES[i // 4 % len(_LINESTYLES)], label=name)
     axes[2].set_ylabel("θ̂ / θ̂(0) [-]")
     if all(c in result for c in PRED_ERR_COLUMNS):
         for j in range(3):
-            axes[3].plot(t, result[PRED_ERR_COLUMNS[j]] / GRAVITY_MPS2, lw=0.7, label="body " + "xyz"[j])
+            _plot(axes[3], t, result[PRED_ERR_COLUMNS[j]] / GRAVITY_MPS2, lw=0.7, label="body " + "xyz"[j])
     else:
         axes[3].text(0.5, 0.5, "this controller makes no force prediction", ha="center",
                      va="center", transform=axes[3].transAxes)

@@ -38,7 +38,7 @@ PHASE_METRIC_INFO: dict[str, tuple[str, str]] = {
     **{f"pred_err_p95_{k}_g": (f"95th-percentile prediction error, {label}", "g") for k, label in WIND_PHASES.items()},
 }
 """Label and unit of each per-phase metric (the keys :func:`phase_metrics` adds), as
-:data:`vtoladapt.metrics.METRIC_INFO` has them for the run's other metrics."""
+:data:`vtoladapt.sim.run_metrics.METRIC_INFO` has them for the run's other metrics."""
 
 
 def wind_phase_masks(t: np.ndarray, fan_pct: np.ndarray) -> dict[str, np.ndarray]:
@@ -46,7 +46,7 @@ def wind_phase_masks(t: np.ndarray, fan_pct: np.ndarray) -> dict[str, np.ndarray
 
     ``fan_pct`` is the commanded throttle at each row (the schedule, no spin-up lag). *rising*: from
     the fan's first start to the start of its last constant level before it stops; *plateau*: that
-    last level; *fan-off transient*: the :data:`vtoladapt.metrics.OVERSHOOT_WINDOW_S` after it stops
+    last level; *fan-off transient*: the :data:`vtoladapt.sim.run_metrics.OVERSHOOT_WINDOW_S` after it stops
     (the window of ``overshoot_after_fan_off_mps``). A schedule without a stop, or with one level
     only, has empty masks where a phase does not exist. In the paper's comparison: 5-30 s (30 %
     to 60 %), 30-40 s (70 %), 40-45 s.
@@ -70,7 +70,7 @@ def wind_phase_masks(t: np.ndarray, fan_pct: np.ndarray) -> dict[str, np.ndarray
 def phase_metrics(result: SimulationResult, fan_pct: np.ndarray) -> dict:
     """RMS velocity error and 95th-percentile prediction error in each wind phase (:data:`PHASE_METRIC_INFO`);
     NaN for an empty phase. The prediction error is that of the law's theta-hat (theta_0 for a law
-    that does not adapt it), skipping the first :data:`vtoladapt.metrics.PRED_ERR_SKIP_S` as the
+    that does not adapt it), skipping the first :data:`vtoladapt.sim.run_metrics.PRED_ERR_SKIP_S` as the
     run's own."""
     from ..frames import GRAVITY_MPS2
     from ..sim.run_metrics import PRED_ERR_SKIP_S
@@ -91,7 +91,7 @@ def phase_metrics(result: SimulationResult, fan_pct: np.ndarray) -> dict:
 
 
 def law_run_metrics(result: SimulationResult, fan_pct: np.ndarray) -> dict:
-    """A comparison run's metrics: :func:`vtoladapt.metrics.run_metrics` and :func:`phase_metrics`.
+    """A comparison run's metrics: :func:`vtoladapt.sim.run_metrics.run_metrics` and :func:`phase_metrics`.
 
     Every law has a force model, theta-hat (theta_0 held for the laws that do not adapt it), so its
     prediction error is reported too: the nominal theta_0's is what adaptation is measured against.
@@ -156,11 +156,11 @@ def _predicted_force_spread(scenario: Scenario, results: list[SimulationResult],
     from ..models import THROTTLE_FULL_PCT
 
     vehicle = scenario.load_vehicle()
-    last = np.array([r.data[-1] for r in results])
-    idx = {n: i for i, n in enumerate(results[0].columns)}
-    v_i = last[:, [idx["ctrl_v_i_x_mps"], idx["ctrl_v_i_y_mps"], idx["ctrl_v_i_z_mps"]]].mean(axis=0)
-    u_x = 100.0 * last[:, idx["cmd_u_x_frac"]].mean()
-    u_z = 100.0 * last[:, idx["cmd_u_z_frac"]].mean()
+    names = ("ctrl_v_i_x_mps", "ctrl_v_i_y_mps", "ctrl_v_i_z_mps", "cmd_u_x_frac", "cmd_u_z_frac")
+    last = np.array([[r[n][-1] for n in names] for r in results])  # each run's last tick
+    v_i = last[:, :3].mean(axis=0)
+    u_x = 100.0 * last[:, 3].mean()
+    u_z = 100.0 * last[:, 4].mean()
     x = input_rows(v_i, u_x / THROTTLE_FULL_PCT, u_z / THROTTLE_FULL_PCT, vehicle.model_kernel)
     Phi = evaluate(_basis(scenario), x)[0]
     f_start = theta[:, 0, :] @ Phi.T

@@ -408,13 +408,12 @@ def tuned_table(tuned: dict, default: dict):
     rank_default = {e["id"]: e for e in default["paired"]["ranking"].get(key, [])}
     rank_tuned = {e["id"]: e for e in tuned["paired"]["ranking"].get(key, [])}
     rows = []
-    for cid, s in tuned["settings"].items():
+    for cid in tuned["settings"]:
         rec = tuned["tuning"].get(cid, {})
-        gains = "; ".join(f"{k} {_g(s['default'][k])} → {_g(s['tuned'][k])}" for k in s["tuned"]) or "(none)"
         obj = (f"{rec['default_objective_mps']:.4g} → {rec['tuned_objective_mps']:.4g}"
                if "default_objective_mps" in rec else "–")
         text, separated = fmt_difference(tuned["vs_default"][cid].get(key))
-        rows.append((Cell(controller_label(cid)), Cell(gains), Cell(obj, numeric=True),
+        rows.append((Cell(controller_label(cid)), Cell(obj, numeric=True),
                      Cell(fmt_median_iqr(default["controllers"][cid].get(key)), numeric=True),
                      Cell(fmt_median_iqr(tuned["controllers"][cid].get(key)), numeric=True),
                      Cell(text, numeric=True, strong=separated),
@@ -422,14 +421,44 @@ def tuned_table(tuned: dict, default: dict):
     first = next(iter(tuned["tuning"].values()), {})
     budget = (f"{first.get('evaluations', '?')} evaluations of the objective per law (the first its defaults) × "
               f"{first.get('draws', '?')} tuning draws each") if first else "the shipped budget"
-    caption = (f"Default against tuned settings, RMS ‖ṽ‖ (m/s). Each law's declared gains were searched by "
-               f"DIRECT-L with one budget for every law: {budget}, the tuning draws' seeds from their own "
-               f"stream (SeedSequence([seed, {first.get('seed_stream', 0):#x}])), disjoint from the "
-               f"{tuned['variants']} evaluation variants below (median [interquartile range]; tuned − default: "
-               "paired Hodges–Lehmann estimate [95 % signed-rank interval], bold where it excludes 0; ranks "
-               "among the eight laws with default and with tuned settings, as in the ranking table):")
-    return Table(caption, ("controller", "gains, default → tuned", "objective on the tuning draws",
-                           "default", "tuned", "tuned − default", "rank, default", "rank, tuned"), tuple(rows))
+    caption = (f"Default against tuned settings, RMS ‖ṽ‖ (m/s). Each law's gains, the shared loop gains and "
+               f"its own, were searched by DIRECT-L with one budget for every law: {budget}, the tuning "
+               f"draws' seeds from their own stream (SeedSequence([seed, {first.get('seed_stream', 0):#x}])), "
+               f"disjoint from the {tuned['variants']} evaluation variants below; every run's ‖ṽ‖ measured with "
+               "the scenario's Λ_p (median [interquartile range]; tuned − default: paired Hodges–Lehmann "
+               "estimate [95 % signed-rank interval], bold where it excludes 0; ranks among the eight laws "
+               "with default and with tuned settings, as in the ranking table):")
+    return Table(caption, ("controller", "objective on the tuning draws", "default", "tuned", "tuned − default",
+                           "rank, default", "rank, tuned"), tuple(rows))
+
+
+def tuned_gains_table(tuned: dict):
+    """Each law's searched gains, default → tuned: one column per shared gain, the law's own in the last;
+    a gain within the box's outer :data:`.tuning.EDGE_FRACTION` is marked with the edge it is at."""
+    from .tuning import EDGE_FRACTION, box_edge
+
+    # a column for each shared gain every law searched (a law's own shared key, INDI's filter, is its own)
+    laws = list(tuned["settings"].values())
+    shared = [k for k in (laws[0]["tuned"] if laws else {}) if k.startswith("controller.")
+              and all(k in s["tuned"] for s in laws)]
+
+    def cell(cid: str, name: str) -> str:
+        s = tuned["settings"][cid]
+        text = f"{_g(s['default'][name])} → {_g(s['tuned'][name])}"
+        box = tuned["tuning"].get(cid, {}).get("box", {}).get(name)
+        edge = box_edge(s["tuned"][name], box[0], box[1], box[2] == "log") if box else None
+        return f"{text} ({edge} tenth of box)" if edge else text
+
+    rows = []
+    for cid, s in tuned["settings"].items():
+        own = "; ".join(f"{k} {cell(cid, k)}" for k in s["tuned"] if k not in shared) or "(none)"
+        rows.append((Cell(controller_label(cid)), *(Cell(cell(cid, k), numeric=True) for k in shared), Cell(own)))
+    caption = ("The gains each law flies, default → tuned (the boxes searched: README \"Tuning a law's gains\"; "
+               "[0:2]: north and east, or roll and pitch; [2]: down). \"top tenth of box\", \"bottom tenth of box\": "
+               f"within {100 * EDGE_FRACTION:g} % of the box's width (log width where searched in log scale) "
+               "of that bound: the optimum may lie beyond it:")
+    return Table(caption, ("controller", *(k[len("controller."):] for k in shared), "the law's own gains"),
+                 tuple(rows))
 
 
 def _g(x: float) -> str:
@@ -450,6 +479,11 @@ def comparison_pair_tables(metrics: dict) -> list:
     tables = [ranking_table(dist), paired_table(dist)]
     if "tuned" in metrics:
         tables.append(tuned_table(metrics["tuned"], dist))
+        tables.append(tuned_gains_table(metrics["tuned"]))
+        if metrics["tuned"].get("claims"):
+            claims = distribution_claims_table(metrics["tuned"])
+            tables.append(Table("The paper's tracking claims with every law's tuned settings. " + claims.caption,
+                                claims.headers, claims.rows))
         tables.append(ranking_table(metrics["tuned"], title="With the tuned settings. "))
     return tables
 

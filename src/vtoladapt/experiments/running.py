@@ -96,28 +96,41 @@ def _warm_up(scenario: Scenario, show: bool) -> None:
 
 
 # --- running ---------------------------------------------------------------------------------------
-def run_comparison(scenario: Scenario, progress: Optional[_Progress] = None) -> dict[str, SimulationResult]:
-    """The same scenario flown by each controller of ``[experiment] controllers`` (runs in parallel)."""
+def run_comparison(scenario: Scenario, progress: Optional[_Progress] = None,
+                   out: Optional[Path] = None) -> dict[str, SimulationResult]:
+    """The same scenario flown by each controller of ``[experiment] controllers`` (runs in parallel);
+    with ``out``, each log is streamed to its file there (:func:`log_names`) and read back by column."""
     ids = scenario.experiment.controllers
     runs = [replace(scenario, controller=replace(scenario.controller, kind=cid)) for cid in ids]
-    return dict(zip(ids, _run_all(runs, progress, f"comparison of {len(ids)} controllers")))
+    logs = [out / name for name in log_names(scenario)] if out is not None else None
+    return dict(zip(ids, _run_all(runs, progress, f"comparison of {len(ids)} controllers", logs)))
 
 
-def run_convergence(scenario: Scenario, progress: Optional[_Progress] = None) -> list[SimulationResult]:
-    """``[experiment] runs`` runs from random initial theta-hat, seeds spawned from the scenario seed."""
+def run_convergence(scenario: Scenario, progress: Optional[_Progress] = None,
+                    out: Optional[Path] = None) -> list[SimulationResult]:
+    """``[experiment] runs`` runs from random initial theta-hat, seeds spawned from the scenario seed;
+    with ``out``, each log is streamed to its file there (:func:`log_names`)."""
     from .distribution import convergence_runs
 
     runs = convergence_runs(scenario)
-    return _run_all(runs, progress, f"convergence: {len(runs)} runs")
+    logs = [out / name for name in log_names(scenario)] if out is not None else None
+    return _run_all(runs, progress, f"convergence: {len(runs)} runs", logs)
 
 
-def _run_all(runs: list[Scenario], progress: Optional[_Progress], desc: str) -> list[SimulationResult]:
-    """Every run side by side, one thread per core (bit-identical to running them one by one)."""
+def _run_all(runs: list[Scenario], progress: Optional[_Progress], desc: str,
+             logs: Optional[list[Path]] = None) -> list[SimulationResult]:
+    """Every run side by side, one thread per core (bit-identical to running them one by one): in
+    memory, or each streamed to its log file in ``logs`` (:func:`vtoladapt.sim.longrun.stream_many`)."""
     from ..sim.driver import simulate_many
+    from ..sim.longrun import stream_many
 
     if progress is not None:
         progress.set(desc)
-    results = simulate_many(runs, progress=progress.callback() if progress else None)
+    callback = progress.callback() if progress else None
+    if logs is None:
+        results = simulate_many(runs, progress=callback)
+    else:
+        results = stream_many(list(zip(runs, logs)), progress=callback)
     if progress is not None:
         progress.finish_run(sum(sc.duration_s for sc in runs))
     return results
@@ -145,6 +158,28 @@ def _experiment_title(scenario: Scenario) -> str:
     return f"vtoladapt: scenario {scenario.name}, {what}"
 
 
+FIGURES = {"single": ("fig_run.png",), "comparison": ("fig_tracking_comparison.png", "fig_tracking_axes.png"),
+           "convergence": ("fig_parameter_convergence.png",)}
+"""The figures :func:`run_experiment` writes, per experiment kind."""
+
+
+def log_names(scenario: Scenario) -> list[str]:
+    """The logs :func:`run_experiment` writes, relative to its folder, in the order of its runs."""
+    kind = scenario.experiment.kind
+    if kind == "single":
+        return ["log.parquet"]
+    if kind == "comparison":
+        return [f"runs/{scenario.name}_{cid}.parquet" for cid in scenario.experiment.controllers]
+    return [f"runs/{scenario.name}_run{i + 1}.parquet" for i in range(scenario.experiment.runs)]
+
+
+def planned_outputs(scenario: Scenario) -> list[str]:
+    """Every file :func:`run_experiment` writes for ``scenario`` (relative to its folder), so
+    ``--out`` is checked for a name taken by someone else's file before anything is written."""
+    return log_names(scenario) + list(FIGURES[scenario.experiment.kind]) + ["metrics.json", "report.md",
+                                                                             "report.html"]
+
+
 def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, warm: bool = True,
                    variants: Optional[int] = None) -> dict:
     """Run one scenario per its ``[experiment]`` kind; write logs, figures, metrics.json, report.
@@ -152,7 +187,7 @@ def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, wa
     A comparison or convergence experiment is also flown over ``variants`` seeded variants
     (default ``[experiment] variants``; 1: none): ``metrics["distribution"][kind]``
     (:mod:`vtoladapt.experiments.distribution`)."""
-    from ..sim.driver import simulate
+    from ..sim.longrun import stream_to_parquet
 
     out.mkdir(parents=True, exist_ok=True)
     if warm:
@@ -165,28 +200,24 @@ def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, wa
     figures: list[Path] = []
     try:
         if kind == "single":
-            res = simulate(scenario, progress.callback())
-            res.to_parquet(out / "log.parquet")
+            # every log is streamed to its file in row groups and read back by column: memory holds what
+            # the metrics and figures use, whatever the duration (vtoladapt.sim.limits.check_run_size)
+            res = stream_to_parquet(scenario, out / log_names(scenario)[0], progress.callback())
             metrics["run"] = run_metrics(res, fan_throttle_series(scenario, res.time_s))
-            figures.append(figure_single_run(scenario, res, out / "fig_run.png"))
+            figures.append(figure_single_run(scenario, res, out / FIGURES[kind][0]))
             notes = _scenario_notes(scenario, res, out)
             notes.append("The full log is `log.parquet` (one column per signal, units in the names).")
         elif kind == "comparison":
-            results = run_comparison(scenario, progress)
-            for cid, res in results.items():
-                res.to_parquet(out / "runs" / f"{scenario.name}_{cid}.parquet")
+            results = run_comparison(scenario, progress, out)
             metrics["comparison"] = comparison_metrics(scenario, results)
-            figures.append(figure_tracking_comparison(scenario, results, out / "fig_tracking_comparison.png"))
-            figures.append(figure_tracking_axes(scenario, results, out / "fig_tracking_axes.png"))
+            figures.append(figure_tracking_comparison(scenario, results, out / FIGURES[kind][0]))
+            figures.append(figure_tracking_axes(scenario, results, out / FIGURES[kind][1]))
             notes = _scenario_notes(scenario, next(iter(results.values())), out)
             notes.append("The log of each controller's run is in `runs/`.")
         else:
-            results = run_convergence(scenario, progress)
-            for i, res in enumerate(results):
-                res.to_parquet(out / "runs" / f"{scenario.name}_run{i + 1}.parquet")
+            results = run_convergence(scenario, progress, out)
             metrics["convergence"] = convergence_metrics(scenario, results)
-            figures.append(figure_parameter_convergence(scenario, results,
-                                                        out / "fig_parameter_convergence.png"))
+            figures.append(figure_parameter_convergence(scenario, results, out / FIGURES[kind][0]))
             notes = _scenario_notes(scenario, results[0], out)
             notes.append("The log of each run is in `runs/`.")
     finally:

@@ -1,18 +1,25 @@
 """One tuning budget for every law: ``vtoladapt tune SCENARIO --controller ID``.
 
-Each law declares the gains it may tune, in its own module: ``TUNABLE``, a tuple of
-``(setting, low, high, log_scale)``. ``setting`` is a key of the law's ``[controller.<id>]`` table
-(``"cutoff_radps"``), components of a tuple-valued one set to one value (``"K_I[0:2]"``: north and
-east, ``"K_I[2]"``: down), or ``"controller.<key>"`` for a shared ``[controller]`` key that is the
-law's gain (INDI's filter, ``lowpass_cutoff_hz``). A law without ``TUNABLE`` (or an empty one) has
-nothing to tune: its tuned settings are its defaults.
+Every law's search space is the same shared gains plus its own. The shared gains are declared once,
+in :data:`vtoladapt.control.settings.TUNABLE` (``K_v`` and ``Lambda_p`` horizontal and vertical,
+``Lambda_q`` roll and pitch: the loop gains every law flies, and why those, in that module's
+notes), named here ``controller.<key>`` (``"controller.K_v[0:2]"``). Each law declares its own in
+its module: ``TUNABLE``, a tuple of ``(setting, low, high, log_scale)``. ``setting`` is a key of the
+law's ``[controller.<id>]`` table (``"cutoff_radps"``), components of a tuple-valued one set to one
+value (``"K_I[0:2]"``: north and east, ``"K_I[2]"``: down), or ``"controller.<key>"`` for another
+shared ``[controller]`` key that is the law's gain (INDI's filter, ``lowpass_cutoff_hz``). A law
+without ``TUNABLE`` (nominal) searches the shared gains alone.
 
 The search
 ----------
 * **Objective**: the mean over the tuning draws of the run's RMS velocity error ``|v~|`` (the
   comparison's headline metric); a draw that leaves the envelope counts as
   :data:`DIVERGED_PENALTY_MPS`. The draws are fixed for the whole search (common random numbers),
-  so the objective is a deterministic function of the gains.
+  so the objective is a deterministic function of the gains. ``v~ = v - v_r`` weighs the position
+  error by ``Lambda_p`` (eq:wr), a searched gain: every run is measured with the scenario's
+  ``Lambda_p`` whatever it flies (:meth:`vtoladapt.sim.results.SimulationResult.measured_with`),
+  so the yardstick is the same for every law and every evaluation (measured with its own, a law
+  would score better simply by flying a lower position gain).
 * **Tuning draws**: seeds ``0 .. draws-1`` of ``SeedSequence([seed, TUNING_STREAM])`` (each its own
   plant draw from Table I, turbulence and sensor noise), disjoint from the evaluation variants of
   ``SeedSequence([seed, VARIANT_STREAM])`` that ``make reproduce`` reports (checked, not assumed).
@@ -23,14 +30,15 @@ The search
   (Gablonsky & Kelley 2001), from SciPy (``scipy.optimize.direct``), over the declared box (log
   coordinates where declared). Why: it is derivative-free and deterministic (the same budget gives
   the same answer, which a shipped result needs), it needs no starting point or step size (the
-  laws' gains span decades), it works from one dimension (composite_pconst's sigma) to a few (the
-  PID's four), it explores the whole box globally before it refines, which suits budgets of tens
-  of evaluations on a box of unknown shape, and SciPy is already a dependency: nothing is added.
-  CMA-ES (pycma) and Optuna's samplers need a population or a model over tens of points before
-  they beat a space-filling search at this budget, are stochastic, and pycma does not run in one
-  dimension; Nelder-Mead and Powell are local and need a start and a step.
+  laws' gains span decades), it works in the five to nine dimensions of these spaces (nominal: the
+  five shared gains; the PID: nine), it explores the whole box globally before it refines, which
+  suits a budget of about fifteen evaluations per dimension on a box of unknown shape, and SciPy
+  is already a dependency: nothing is added. CMA-ES (pycma) and Optuna's samplers need a
+  population or a model over tens of points before they beat a space-filling search at this
+  budget and are stochastic (a shipped result would depend on their seed); Nelder-Mead and Powell
+  are local and need a start and a step.
 
-The result is written as a controller settings file (:func:`write_tuned_file`): ``dt_control_s``,
+The result is written as a controller settings file (:func:`tuned_file_text`): ``dt_control_s``,
 a ``[controller]`` table with ``kind``, the tuned shared keys and the law's table of tuned gains,
 and a ``[tuning]`` table with the search's record. :func:`vtoladapt.control.load_controller_config`
 loads it (the other tables are ignored); :func:`tuned_controller` puts its gains into a scenario's
@@ -56,11 +64,19 @@ from ..sim.scenario import SCENARIO_DIR, Scenario
 TUNING_STREAM = 0x7E5E
 """Second entropy word of the tuning draws' seed sequence (the evaluation variants use
 :data:`vtoladapt.experiments.distribution.VARIANT_STREAM`)."""
-EVALUATIONS = 60
-"""Evaluations of the objective per law (the first is the law's defaults)."""
+EVALUATIONS = 150
+"""Evaluations of the objective per law (the first is the law's defaults): about fifteen per searched
+dimension for the largest space (the PID's nine; issue #25's first budget was 60 for at most four)."""
 DRAWS = 10
 """Tuning draws each evaluation flies."""
 OBJECTIVE = "vel_err_rms_mps"
+TRACKING_CLAIMS = ("pd_large_errors_at_high_wind", "pid_overshoots_when_fan_stops", "adaptive_track_best")
+"""The paper's tracking claims :func:`tuned_comparison` judges again with every law's tuned settings."""
+EDGE_FRACTION = 0.1
+"""A tuned gain within this fraction of its box's width (log width where log-scaled) of a bound is
+reported as at that edge of its box (:func:`box_edge`): the optimum may lie beyond it. A tenth, not
+less: DIRECT samples the centres of thirds, so after two refinements its points nearest a bound are
+1/18 of the width from it."""
 DIVERGED_PENALTY_MPS = 10.0
 """A tuning draw that leaves the envelope counts as this RMS velocity error (m/s)."""
 OPTIMISER = "DIRECT-L (scipy.optimize.direct, locally_biased=True)"
@@ -87,21 +103,40 @@ class Tunable:
             return float(self.low * (self.high / self.low) ** u)
         return float(self.low + u * (self.high - self.low))
 
+    def unit(self, value: float) -> float:
+        """Where ``value`` lies in the box, 0 at ``low`` and 1 at ``high`` (log coordinates if ``log_scale``)."""
+        if self.log_scale:
+            return float(math.log(value / self.low) / math.log(self.high / self.low))
+        return float((value - self.low) / (self.high - self.low))
+
+
+def box_edge(value: float, low: float, high: float, log_scale: bool) -> Optional[str]:
+    """``"bottom"`` or ``"top"`` if ``value`` lies within :data:`EDGE_FRACTION` of that end of the box
+    ``[low, high]`` (log coordinates if ``log_scale``), else None."""
+    u = Tunable("", "", False, None, float(low), float(high), bool(log_scale)).unit(float(value))
+    return "bottom" if u <= EDGE_FRACTION else "top" if u >= 1.0 - EDGE_FRACTION else None
+
 
 def tunables(cid: str) -> tuple[Tunable, ...]:
-    """The gains law ``cid`` declares (its module's ``TUNABLE``), checked against its settings.
+    """The gains ``vtoladapt tune`` searches for law ``cid``: the shared gains
+    (:data:`vtoladapt.control.settings.TUNABLE`, named ``controller.<key>``), then the law's own
+    (its module's ``TUNABLE``), each checked against its setting.
 
-    Raises ``ValueError`` naming the law and the entry if a name is not a setting of the law (or of
-    ``[controller]``), a component is out of range, the box is empty, a log box does not start
-    above 0, or the box leaves the setting's allowed range.
+    Raises ``ValueError`` naming the declaration and the entry if a name is not a setting of the law
+    (or of ``[controller]``), a component is out of range, the box is empty, a log box does not
+    start above 0, the box leaves the setting's allowed range, or a law declares a shared gain again.
     """
+    from ..control import settings as shared_module
     from ..control.settings import ControllerConfig
     from ..control.registry import CONTROLLERS
 
     info = CONTROLLERS[cid]
+    declared = [(f"{shared_module.__name__}.TUNABLE", (f"controller.{e[0]}", *e[1:]) if len(e) == 4 else e)
+                for e in shared_module.TUNABLE]
+    declared += [(f"{info.law.__name__}.TUNABLE", e) for e in getattr(info.law, "TUNABLE", ())]
     out = []
-    for entry in getattr(info.law, "TUNABLE", ()):
-        where = f"{info.law.__name__}.TUNABLE {entry!r}"
+    for source, entry in declared:
+        where = f"{source} {entry!r}"
         if len(entry) != 4:
             raise ValueError(f"{where}: must be (setting, low, high, log_scale)")
         name, low, high, log_scale = entry
@@ -124,6 +159,11 @@ def tunables(cid: str) -> tuple[Tunable, ...]:
             components = tuple(range(i0, i1))
         elif isinstance(default, tuple):
             raise ValueError(f"{where}: '{key}' is a tuple: name its components, e.g. '{key}[0:2]'")
+        for t in out:
+            if t.shared == shared and t.key == key and (
+                    components is None or t.components is None or set(components) & set(t.components)):
+                raise ValueError(f"{where}: '{key}' is already searched by '{t.name}' (the shared gains are "
+                                 f"{shared_module.__name__}.TUNABLE); declare each gain once")
         low, high = float(low), float(high)
         if not (math.isfinite(low) and math.isfinite(high) and low < high) or (log_scale and low <= 0.0):
             raise ValueError(f"{where}: box [{low}, {high}] must be finite and non-empty, above 0 if log-scaled")
@@ -187,7 +227,8 @@ def objective(scenario: Scenario, config, seeds: Sequence[int], progress: Option
     from .metrics import fan_throttle_series
 
     def fly(seed: int) -> float:
-        res = simulate(replace(scenario, seed=seed, controller=config))
+        # measured with the scenario's Lambda_p whatever position gain the law flies: one yardstick
+        res = simulate(replace(scenario, seed=seed, controller=config)).measured_with(scenario.controller.Lambda_p)
         if progress is not None:
             progress(scenario.duration_s)
         if res.diverged:
@@ -308,6 +349,10 @@ def tuned_file_text(record: dict, scenario: Scenario) -> str:
     for name in ("default", "tuned"):
         lines += ["", f"[tuning.{name}]"] + [f"{json.dumps(k)} = {_toml_value(v)}"
                                              for k, v in record[name]["settings"].items()]
+    # the box each gain was searched in: [low, high, "log" or "linear"]
+    lines += ["", "[tuning.box]"] + [
+        f"{json.dumps(t['name'])} = {_toml_value([t['low'], t['high'], 'log' if t['log_scale'] else 'linear'])}"
+        for t in record.get("tunables", [])]
     return "\n".join(lines) + "\n"
 
 
@@ -443,9 +488,14 @@ def tuned_comparison(scenario: Scenario, n: int, default: dict, progress: Option
     whose tuned settings are its defaults (nothing to tune, or the search kept them) is not flown
     again. Returns ``{variants, seeds, settings: {id: {default, tuned}}, tuning: {id: the file's
     [tuning] record}, controllers (median and IQR), per_variant, paired (the tuned laws against each
-    other), vs_default: {id: {metric: paired difference tuned - default}}}``.
+    other), vs_default: {id: {metric: paired difference tuned - default}}, claims}``; ``claims``: the
+    paper's three tracking claims (:data:`TRACKING_CLAIMS`) judged in each variant with every law's
+    tuned settings, as :func:`~vtoladapt.experiments.distribution.summarize_claims` reports them
+    (the prediction-error claim needs each run's airspeed bins, which are not kept).
     """
-    from .distribution import PAIRED_METRICS, fly_variants, per_variant_values, summarize_controllers, variant_seeds
+    from .claims import check_claims
+    from .distribution import (PAIRED_METRICS, fly_variants, per_variant_values, summarize_claims,
+                               summarize_controllers, variant_seeds)
     from .pairs import compare_laws, paired_difference
 
     ids = list(scenario.experiment.controllers)
@@ -465,15 +515,24 @@ def tuned_comparison(scenario: Scenario, n: int, default: dict, progress: Option
     vs_default = {cid: {m: paired_difference(_nan(per_variant[cid][m]), _nan(default["per_variant"][cid][m]))
                         for m in PAIRED_METRICS if m in per_variant[cid] and m in default["per_variant"][cid]}
                   for cid in ids}
+    judged = []
+    for i in range(n):
+        runs = {cid: {k: v[i] for k, v in per_variant[cid].items() if v[i] is not None} for cid in ids}
+        try:
+            claims = check_claims({"scenario": scenario.name, "controllers": runs}, None)
+        except KeyError:            # a law without a finite value this variant judges nothing there
+            continue
+        judged.append({"claims": {k: c for k, c in claims.items() if k in TRACKING_CLAIMS}})
     return {"variants": n, "seeds": variant_seeds(scenario.seed, n), "settings": settings, "tuning": records,
             "flown": sorted(configs), "controllers": summary, "per_variant": per_variant,
-            "paired": compare_laws(per_variant, PAIRED_METRICS, ids), "vs_default": vs_default}
+            "paired": compare_laws(per_variant, PAIRED_METRICS, ids), "vs_default": vs_default,
+            "claims": summarize_claims(judged)}
 
 
 def _nan(values: Sequence) -> list[float]:
     return [math.nan if v is None else float(v) for v in values]
 
 
-__all__ = ["DIVERGED_PENALTY_MPS", "DRAWS", "EVALUATIONS", "OBJECTIVE", "OPTIMISER", "TUNED_DIR", "TUNING_STREAM",
-           "Tunable", "objective", "read_tuned_file", "settings_of", "shipped_tuned_file", "tune",
+__all__ = ["DIVERGED_PENALTY_MPS", "DRAWS", "EDGE_FRACTION", "EVALUATIONS", "OBJECTIVE", "OPTIMISER", "TUNED_DIR", "TUNING_STREAM",
+           "TRACKING_CLAIMS", "Tunable", "box_edge", "objective", "read_tuned_file", "settings_of", "shipped_tuned_file", "tune",
            "tuned_comparison", "tuned_controller", "tuned_file_name", "tuned_file_text", "tuning_seeds", "tunables", "with_gains"]

@@ -179,7 +179,7 @@ def _is_tunnel_output(path: Path) -> bool:
 
 def cmd_tunnel(args: argparse.Namespace) -> int:
     """Handler of ``vtoladapt tunnel``; returns the exit code."""
-    from ..sim.limits import check_tunnel_rows
+    from ..ceilings import check_tunnel_rows
     from .tunnel import BalanceNoise, design_points, make_design, run_virtual_tunnel, \
         truth_path_for, write_tunnel_run
 
@@ -245,7 +245,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     """Handler of ``vtoladapt fit``; returns the exit code."""
     import dataclasses
 
-    from ..sim.limits import check_fit_size
+    from ..ceilings import check_fit_size
     from .bayes import SamplerSettings, fit_table1
     from .data import read_force_balance_csv
 

@@ -74,18 +74,23 @@ REQUIRED_COLUMNS = ("airspeed_mps", "alpha_deg", "beta_deg", "throttle_x_pct", "
 OPTIONAL_COLUMNS = ("air_density_kgpm3", "mass_kg", "wing_on", "label")
 ALL_COLUMNS = REQUIRED_COLUMNS + OPTIONAL_COLUMNS
 
+FORCE_MAX_N = 1e4
+"""Largest force-balance reading: a 150 kg aircraft (the heaviest vehicle) at 6 g is 8.8 kN. The other
+columns take the vehicle file's ranges (mass 0.1-150 kg, air 0.3-2 kg/m^3) and a small UAS's
+airspeeds (<= 100 m/s); a reading of 1e300 N overflowed the fit into an internal LinAlgError."""
+
 # column -> (lower, lower inclusive, upper, upper inclusive, unit); None = unbounded
 _RANGES = {
-    "airspeed_mps": (0.0, True, None, False, "m/s"),
+    "airspeed_mps": (0.0, True, 100.0, True, "m/s"),
     "alpha_deg": (-90.0, False, 90.0, False, "deg"),
     "beta_deg": (-90.0, False, 90.0, False, "deg"),
     "throttle_x_pct": (0.0, True, 100.0, True, "%"),
     "throttle_z_pct": (0.0, True, 100.0, True, "%"),
-    "force_x_N": (None, False, None, False, "N"),
-    "force_y_N": (None, False, None, False, "N"),
-    "force_z_N": (None, False, None, False, "N"),
-    "air_density_kgpm3": (0.0, False, None, False, "kg/m^3"),
-    "mass_kg": (0.0, False, None, False, "kg"),
+    "force_x_N": (-FORCE_MAX_N, True, FORCE_MAX_N, True, "N"),
+    "force_y_N": (-FORCE_MAX_N, True, FORCE_MAX_N, True, "N"),
+    "force_z_N": (-FORCE_MAX_N, True, FORCE_MAX_N, True, "N"),
+    "air_density_kgpm3": (0.3, True, 2.0, True, "kg/m^3"),
+    "mass_kg": (0.1, True, 150.0, True, "kg"),
 }
 
 

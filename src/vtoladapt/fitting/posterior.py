@@ -336,7 +336,7 @@ def posterior_dict_from_fit(fit, *, data_path: str | Path | None = None,
     ``truth_theta_table`` (the paper's 8, or the basis's p) and ``truth_k`` = (k1, k2), when given (a
     virtual tunnel's truth), add ``truth_check`` with the z-score ``(mean - truth) / std`` of each parameter.
     """
-    from .. import __version__
+    from .._version import __version__
 
     s = fit.summary()
     units = parameter_units()

@@ -11,13 +11,13 @@ Importing this package registers the environment (single: :class:`HoldEnv`, vect
 
 ``gym.make("vtoladapt.gym:vtoladapt/Hold-v0")`` imports it on the fly. The spaces are documented
 in :mod:`vtoladapt.gym.spaces`, the episode, reward and termination in :mod:`vtoladapt.gym.env`,
-the keyword arguments in :class:`vtoladapt.gym.config.HoldEnvConfig`.
+the keyword arguments in :class:`vtoladapt.gym.settings.HoldEnvConfig`.
 """
 from __future__ import annotations
 
 from gymnasium.envs.registration import register, registry
 
-from .config import ENV_ID, HoldEnvConfig
+from .settings import ENV_ID, HoldEnvConfig
 from .env import HoldEnv
 from .vector import HoldVectorEnv
 

@@ -1,11 +1,11 @@
 """Kernel state of a batch of episodes in one array per chunk, and the compiled calls that step them.
 
 :class:`RunBatch` is shared by the single environment (a batch of one) and the vector
-environment, so both step through the same compiled :func:`~vtoladapt.gym.kernel.step_batch` and
+environment, so both step through the same compiled :func:`~vtoladapt.gym.batch_kernel.step_batch` and
 an environment of a batch is, draw for draw, the single environment with the same seed.
 
 Each :class:`_Chunk` (a contiguous range of environments) owns one 2-D array whose rows are its
-environments' whole kernel state (the blocks of :data:`~vtoladapt.gym.kernel.BLOCKS`) and its own
+environments' whole kernel state (the blocks of :data:`~vtoladapt.gym.batch_kernel.ROW_BLOCKS`) and its own
 copy of the shared tables: Numba counts references to an array's buffer atomically whenever the
 kernel takes a slice of it, so two threads slicing one allocation would bounce that counter's
 cache line between the cores at every slice. The actions, operations, tick counters and outputs
@@ -29,17 +29,17 @@ import numpy as np
 from numba import typed
 
 from ..control.blocks import P_TAU_MAX, P_U_MAX
-from ..control.step import controller_functions, diagnostics_size, function_addresses
 from ..control.trajectory import trajectory_from_reference
-from ..layout import CMD_SIZE, MEAS_SIZE, N_MOTORS, X_SIZE
+from ..layout import CMD_SIZE, MEAS_SIZE, N_MOTORS, REF_P_W, TRUTH_SIZE, X_P_W, X_SIZE, BlockLayout, Field
+from ..sensors import mocap
+from ..sim.driver import PreparedRun, chunk_ticks, prepare
+from ..sim.loop import diagnostics_columns
 from ..sim.plant import RK4_WORK_SIZE
 from ..sim.scenario import Scenario
-from ..sensors import SENSOR_STATE
-from ..sim.driver import PreparedRun, prepare
-from .config import HoldEnvConfig
-from .kernel import (B_SENS_S, BLOCKS, MODE_DIRECT, MODE_RESIDUAL, O_SHARED, OP_BEGIN, OP_SKIP, OP_STEP,
-                     SET_ACTION_COST, SET_COS_TILT_MAX, SET_DT_S, SET_MAX_ERR_M, SET_MODE, SET_N_SUB, SET_N_TICKS,
-                     SET_PREFETCH_END, SET_RESIDUAL_SCALE, SET_U_MAX, SETTINGS_SIZE, SHARED_BLOCKS, step_batch)
+from .batch_kernel import (B_FAULT_S, B_SENS_S, BOUNDS, MODE_DIRECT, MODE_RESIDUAL, OP_BEGIN, OP_SKIP, OP_STEP,
+                           ROW_BLOCKS, SET_PREFETCH_END, SET_PREFETCH_RESUME, SET_PREFETCH_STOP, SETTINGS,
+                           SHARED_BLOCKS, step_batch)
+from .settings import HoldEnvConfig
 from .spaces import ACTION_SIZE, OBS_SIZE
 
 CHUNKS_PER_WORKER = 4
@@ -48,24 +48,63 @@ others, few enough that the per-chunk call (about 3 us, unboxing its arguments) 
 MIN_CHUNK_ENVS = 16
 """No fewer environments per chunk (except when there are fewer than ``workers`` x this)."""
 
-_PER_RUN = BLOCKS[BLOCKS.index("plant_params"):] + SHARED_BLOCKS
-"""The blocks loaded from a :class:`~vtoladapt.sim.driver.PreparedRun` (attributes of that name)."""
-_SCRATCH_SIZES = {"x": X_SIZE, "v_wind": 3, "f_B": 3, "v_i": 3, "meas": MEAS_SIZE, "cmd": CMD_SIZE,
-                  "base": CMD_SIZE, "motor": N_MOTORS, "work": RK4_WORK_SIZE}
-"""Sizes of the scratch blocks; the controller's diagnostics (``diag``) are as long as its law and basis make them."""
+_PER_RUN = ("PLANT_PARAMS", "CONTROLLER_STATE", "WIND_PARAMS", "WIND_STATE", "SENSOR_PARAMS", "SENSOR_STATE",
+            "FAULT_STATE")
+"""The row's blocks loaded from a :class:`~vtoladapt.sim.driver.PreparedRun` (its attribute of that name,
+lower case); the shared table's come from it too."""
 
-# The sensor state ends in the motion-capture delay ring, of which a step touches two entries:
-# the prefetch stops where the ring begins.
-_SENSOR_RING = SENSOR_STATE.offset("RING")
+
+def _sized(fields, sizes: dict) -> list[Field]:
+    return [Field(f.name, sizes[f.name], f.unit, f.doc) for f in fields]
+
+
+def row_layouts(template: PreparedRun) -> tuple[BlockLayout, BlockLayout]:
+    """The layouts of an environment's row (:data:`~vtoladapt.gym.batch_kernel.ROW_BLOCKS`) and of a
+    shared table row (:data:`~vtoladapt.gym.batch_kernel.SHARED_BLOCKS`), sized for ``template``'s scenario."""
+    sizes = {"X": X_SIZE, "TRUTH": TRUTH_SIZE, "MEAS": MEAS_SIZE, "CMD": CMD_SIZE, "BASE": CMD_SIZE,
+             "DIAG": len(diagnostics_columns(template.controller_params)), "MOTOR": N_MOTORS, "WORK": RK4_WORK_SIZE,
+             "WIND_DRAWS": template.wind_parts.draws_size, "SENSOR_DRAWS": template.sensor_parts.draws_size}
+    sizes.update({name: getattr(template, name.lower()).size for name in _PER_RUN})
+    shared = {f.name: _shared_value(template, f.name).size for f in SHARED_BLOCKS}
+    return (BlockLayout("environment row", _sized(ROW_BLOCKS, sizes)),
+            BlockLayout("shared table row", _sized(SHARED_BLOCKS, shared)))
+
+
+def _shared_value(run: PreparedRun, name: str) -> np.ndarray:
+    """Shared block ``name`` of a run (the fault schedule flattened, row after row)."""
+    return run.fault_schedule.ravel() if name == "FAULT_SCHEDULE" else getattr(run, name.lower())
+
+
+def _tables(template: PreparedRun) -> list[tuple[str, np.ndarray]]:
+    """The function tables of :data:`~vtoladapt.gym.batch_kernel.TABLES`, in order."""
+    return [("WIND_TABLE", template.wind_parts.table), ("SENSOR_TABLE", template.sensor_parts.table),
+            ("CONTROLLER_FNS", template.controller_fns)]
 
 
 def block_offsets(template: PreparedRun) -> np.ndarray:
-    """Column where each block of :data:`~vtoladapt.gym.kernel.BLOCKS` starts and the row width, then
-    the same for the shared table's :data:`~vtoladapt.gym.kernel.SHARED_BLOCKS` (from index ``O_SHARED``)."""
-    scratch = dict(_SCRATCH_SIZES, diag=diagnostics_size(template.controller_params))
-    sizes = [scratch[b] if b in scratch else getattr(template, b).size for b in BLOCKS]
-    shared = [getattr(template, b).size for b in SHARED_BLOCKS]
-    return np.concatenate([[0], np.cumsum(sizes), [0], np.cumsum(shared)]).astype(np.int64)
+    """The kernel's ``off`` array (laid out as :data:`~vtoladapt.gym.batch_kernel.BOUNDS`): where each
+    block of a row starts and the row's width, the same for the shared table, then the rows of the
+    function tables."""
+    row, shared = row_layouts(template)
+    tables = BlockLayout("function tables", [Field(name, t.shape[0], "rows", name) for name, t in _tables(template)])
+    off = np.zeros(BOUNDS.size, dtype=np.int64)
+    for lay, end in ((row, "ROW_END"), (shared, "SHARED_END"), (tables, "TABLES_END")):
+        for f in lay.fields:
+            off[BOUNDS.offset(f.name)] = lay.offset(f.name)
+        off[BOUNDS.offset(end)] = lay.size
+    return off
+
+
+def prefetch_range(template: PreparedRun, off: np.ndarray) -> tuple[int, int, int]:
+    """``(end, resume, stop)``: the columns of the next row a step prefetches, ``[0, end)`` and
+    ``[resume, stop)``: everything before the fault state but the motion-capture ring, of which a step
+    touches two entries (the fault state, mostly its own latency ring, is touched only under faults)."""
+    stop = int(off[B_FAULT_S])
+    sensors = template.sensor_parts
+    if "mocap" not in sensors.ids:
+        return stop, stop, stop
+    ring = int(off[B_SENS_S]) + sensors.state_layout.offset("MOCAP") + mocap.STATE.offset("RING")
+    return ring, ring + mocap.STATE.field("RING").size, stop
 
 
 class _Chunk:
@@ -74,10 +113,11 @@ class _Chunk:
     def __init__(self, batch: "RunBatch", lo: int, hi: int, template: PreparedRun):
         m = hi - lo
         self.lo, self.hi = lo, hi
+        self.row_layout, self.shared_layout = row_layouts(template)
         self.off = block_offsets(template)
-        self.S = np.zeros((m, int(self.off[O_SHARED - 1])))
+        self.S = np.zeros((m, self.row_layout.size))
         # the shared blocks' distinct values, one table row each, counted by the rows using them
-        self.P = np.zeros((m, int(self.off[-1])))
+        self.P = np.zeros((m, self.shared_layout.size))
         self.pidx = np.zeros(m, dtype=np.int64)
         self._p_rows: dict[bytes, list[int]] = {}  # value -> [table row, rows using it]
         self._p_key: list[Optional[bytes]] = [None] * m
@@ -97,29 +137,32 @@ class _Chunk:
         for _ in range(m):
             self.rngs.append(template.rng)
         self.settings = batch.settings.copy()
-        self.settings[SET_PREFETCH_END] = self.off[B_SENS_S] + min(_SENSOR_RING, self.off[B_SENS_S + 1]
-                                                                    - self.off[B_SENS_S])
-        # the controller's law and basis functions, kept alive here while the kernel calls them by address
-        self.ctrl_fns = controller_functions(template.controller_params)
+        (self.settings[SET_PREFETCH_END], self.settings[SET_PREFETCH_RESUME],
+         self.settings[SET_PREFETCH_STOP]) = prefetch_range(template, self.off)
+        # the function tables every environment of the batch calls through (the template's parts keep
+        # the functions alive)
+        self.template = template
+        self.tables = np.ascontiguousarray(np.vstack([t for _, t in _tables(template)]), dtype=np.int64)
         # every array is updated in place, so the arguments are bound once
         self.args = (self.rngs, self.op, self.actions, self.settings, batch.tau_max.copy(), batch.ref_table.copy(),
                      self.S, self.off, self.P, self.pidx, self.K, self.obs, self.reward, self.terminated,
-                     self.truncated, np.empty(0), function_addresses(self.ctrl_fns))
+                     self.truncated, self.tables, np.empty(0))
+        self._slices = {}
+        for lay, shared in ((self.row_layout, False), (self.shared_layout, True)):
+            for f in lay.fields:
+                self._slices[f.name] = self._slices[f.name.lower()] = (shared, lay.slice(f.name))
 
     def block(self, j: int, name: str) -> np.ndarray:
-        """Row ``j``'s block ``name`` (a view; a shared block's is the table row it uses)."""
-        if name in SHARED_BLOCKS:
-            b = O_SHARED + SHARED_BLOCKS.index(name)
-            return self.P[self.pidx[j], self.off[b]:self.off[b + 1]]
-        b = BLOCKS.index(name)
-        return self.S[j, self.off[b]:self.off[b + 1]]
+        """Row ``j``'s block ``name`` (a view; a shared block's is the table row it uses); ``name`` is a
+        block of :data:`~vtoladapt.gym.batch_kernel.ROW_BLOCKS` or ``SHARED_BLOCKS``, in either case."""
+        shared, columns = self._slices[name] if name in self._slices else self._slices[name.upper()]
+        return self.P[self.pidx[j], columns] if shared else self.S[j, columns]
 
-    def _columns(self, key: str, value: np.ndarray, name: str) -> slice:
-        b = O_SHARED + SHARED_BLOCKS.index(key) if key in SHARED_BLOCKS else BLOCKS.index(key)
-        if value.size != self.off[b + 1] - self.off[b]:
-            raise ValueError(f"episode scenario {name!r}: {key} has {value.size} entries, the batch "
-                             f"{self.off[b + 1] - self.off[b]}; the randomisation must not change array sizes")
-        return slice(int(self.off[b]), int(self.off[b + 1]))
+    def _check_size(self, key: str, value: np.ndarray, name: str) -> None:
+        lay = self.shared_layout if key in self.shared_layout else self.row_layout
+        if value.size != lay.field(key).size:
+            raise ValueError(f"episode scenario {name!r}: {key.lower()} has {value.size} entries, the batch "
+                             f"{lay.field(key).size}; the randomisation must not change array sizes")
 
     def _share(self, j: int, shared: np.ndarray) -> None:
         """Point row ``j`` at the table row holding ``shared`` (stored there if no row holds it yet)."""
@@ -141,14 +184,22 @@ class _Chunk:
         self.pidx[j] = entry[0]
 
     def load(self, j: int, run: PreparedRun, name: str) -> None:
+        if run.wind_parts.ids != self.template.wind_parts.ids or run.sensor_parts.ids != self.template.sensor_parts.ids:
+            raise ValueError(f"episode scenario {name!r}: its wind parts or sensor channels differ from the base "
+                             "scenario's; the randomisation must not change them")
         row = self.S[j]
         row[:] = 0.0
         shared = np.zeros(self.P.shape[1])
         for key in _PER_RUN:
-            value = getattr(run, key)
-            (shared if key in SHARED_BLOCKS else row)[self._columns(key, value, name)] = value
+            value = getattr(run, key.lower())
+            self._check_size(key, value, name)
+            row[self.row_layout.slice(key)] = value
+        for f in SHARED_BLOCKS:
+            value = _shared_value(run, f.name)
+            self._check_size(f.name, value, name)
+            shared[self.shared_layout.slice(f.name)] = value
         self._share(j, shared)
-        self.block(j, "x")[:] = run.x0
+        self.block(j, "X")[:] = run.x0
         self.K[j] = 0
         self.generators[j] = run.rng
         self.rngs[j] = run.rng
@@ -284,11 +335,10 @@ class RunBatch:
         self.u_max = float(template.controller_params[P_U_MAX])
         self.tau_max = np.array(template.controller_params[P_TAU_MAX:P_TAU_MAX + 3], dtype=float)
         self.cos_tilt_max = math.cos(math.radians(cfg.max_tilt_deg))
-        self.settings = np.zeros(SETTINGS_SIZE)
-        self.settings[[SET_MODE, SET_RESIDUAL_SCALE, SET_U_MAX, SET_MAX_ERR_M, SET_COS_TILT_MAX, SET_ACTION_COST,
-                       SET_DT_S, SET_N_SUB, SET_N_TICKS]] = (
-            self.mode, cfg.residual_scale, self.u_max, cfg.max_position_error_m, self.cos_tilt_max, cfg.action_cost,
-            self.dt, self.n_sub, self.n_ticks)
+        self.settings = SETTINGS.pack(MODE=self.mode, RESIDUAL_SCALE=cfg.residual_scale, U_MAX=self.u_max,
+                                      MAX_ERR_M=cfg.max_position_error_m, COS_TILT_MAX=self.cos_tilt_max,
+                                      ACTION_COST=cfg.action_cost, DT_S=self.dt, N_SUB=self.n_sub,
+                                      N_TICKS=self.n_ticks, CHUNK_TICKS=chunk_ticks(self.dt))
         self.scenarios: list[Optional[Scenario]] = [None] * n
         self.K = np.zeros(n, dtype=np.int64)
         self.op = np.zeros(n, dtype=np.int64)
@@ -347,7 +397,7 @@ class RunBatch:
         c = self.chunks[self._chunk_of[i]]
         j = i - c.lo
         k = int(c.K[j])
-        return k * self.dt, c.block(j, "x")[0:3] - self.ref_table[k, 0:3]
+        return k * self.dt, c.block(j, "X")[X_P_W:X_P_W + 3] - self.ref_table[k, REF_P_W:REF_P_W + 3]
 
     def close(self) -> None:
         """Stop the worker threads."""

@@ -2,7 +2,7 @@
 
 Episode
     One scenario (default: the shipped ``gym_hold``; any scenario via ``scenario=``). ``reset``
-    draws the episode's scenario from the environment's generator (:func:`~vtoladapt.gym.config.episode_scenario`:
+    draws the episode's scenario from the environment's generator (:func:`~vtoladapt.gym.settings.episode_scenario`:
     plant coefficients from the vehicle's Table I posterior, fan throttle factor and array bearing,
     then the run's seed) and prepares it exactly as ``vtoladapt run`` would; ``episode_scenario``
     holds it, so any episode can be replayed with :func:`vtoladapt.sim.driver.simulate`.
@@ -32,8 +32,8 @@ import numpy as np
 from ..config import ConfigError
 from ..sim.scenario import Scenario
 from .batch import RunBatch
-from .config import ENV_ID, HoldEnvConfig, episode_scenario, make_config
-from .kernel import OP_SKIP, OP_STEP
+from .settings import ENV_ID, HoldEnvConfig, episode_scenario, make_config
+from .batch_kernel import OP_SKIP, OP_STEP
 from .spaces import ACTION_SIZE, action_space, observation_space
 
 
@@ -49,6 +49,33 @@ def check_options(options: Optional[dict]) -> None:
     if options:
         raise ConfigError(f"{ENV_ID}: reset options = {options!r}: none are accepted (the episode is "
                           "set by the environment's keyword arguments)")
+
+
+def check_seed(seed: Any, where: str = "reset seed") -> Optional[int]:
+    """A reset seed: None or a whole number >= 0 (a bool, a float or a negative number is refused in
+    one line, rather than by Gymnasium's or Python's own errors)."""
+    if seed is None:
+        return None
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ConfigError(f"{ENV_ID}: {where} = {seed!r}: must be None or a whole number >= 0")
+    return int(seed)
+
+
+def as_actions(action: Any) -> Optional[np.ndarray]:
+    """``action`` as a real array (not yet float64), or None if it is not numbers: a complex action
+    (whose imaginary part a cast to float64 would silently drop), text or objects."""
+    try:
+        a = np.asarray(action)
+    except (TypeError, ValueError):
+        return None
+    if a.dtype.kind in "fiu":
+        return a
+    if a.dtype.kind == "O":
+        try:
+            return np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError):
+            return None
+    return None
 
 
 class HoldEnv(gym.Env):
@@ -71,7 +98,7 @@ class HoldEnv(gym.Env):
 
     def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None):
         """Start an episode: draw its scenario from ``np_random`` (seeded by ``seed``), sense tick 0."""
-        super().reset(seed=seed)
+        super().reset(seed=check_seed(seed))
         check_options(options)
         self.episode_scenario = episode_scenario(self.config, self.config.scenario, self.np_random)
         self._batch.load(0, self.episode_scenario)
@@ -83,8 +110,8 @@ class HoldEnv(gym.Env):
         """Apply ``action`` over one controller tick; return the observation at the next tick."""
         if self._over:
             raise RuntimeError(f"{ENV_ID}: step() after the episode ended (or before reset()): call reset()")
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != (ACTION_SIZE,) or not np.isfinite(a).all():
+        a = as_actions(action)
+        if a is None or a.shape != (ACTION_SIZE,) or not np.isfinite(a).all():
             raise ValueError(f"{ENV_ID}: action {action!r}: must be {ACTION_SIZE} finite numbers "
                              "(values outside [-1, 1] are clipped to it)")
         c = self._chunk  # a batch of one: write its row and call the kernel directly

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from gymnasium import spaces
 
+from ..layout import BlockLayout, Field
+
 
 @dataclass(frozen=True)
 class SpaceField:
@@ -60,19 +62,17 @@ ACTION_FIELDS: tuple[SpaceField, ...] = (
 )
 
 
-def _offsets(fields: tuple[SpaceField, ...]) -> dict[str, int]:
-    out, n = {}, 0
-    for f in fields:
-        out[f.name] = n
-        n += f.size
-    return out
+def space_layout(title: str, fields: tuple[SpaceField, ...]) -> BlockLayout:
+    """The fields of a space as a :class:`~vtoladapt.layout.BlockLayout` (their offsets, sizes and units)."""
+    return BlockLayout(title, [Field(f.name, f.size, f.unit, f.doc) for f in fields])
 
 
-OBS_OFFSET = _offsets(OBSERVATION_FIELDS)
-OBS_SIZE = sum(f.size for f in OBSERVATION_FIELDS)
-ACTION_SIZE = sum(f.size for f in ACTION_FIELDS)
-OBS_P_ERR, OBS_V, OBS_Q, OBS_OMEGA, OBS_V_I, OBS_V_I_VALID, OBS_CMD = (
-    OBS_OFFSET[f.name] for f in OBSERVATION_FIELDS)
+OBSERVATION = space_layout("observation", OBSERVATION_FIELDS)
+ACTION = space_layout("action", ACTION_FIELDS)
+OBS_SIZE = OBSERVATION.size
+ACTION_SIZE = ACTION.size
+OBS_P_ERR, OBS_V, OBS_Q, OBS_OMEGA, OBS_V_I, OBS_V_I_VALID, OBS_CMD = OBSERVATION.offsets(
+    *(f.name for f in OBSERVATION_FIELDS))
 
 
 def _bounds(fields: tuple[SpaceField, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -99,9 +99,9 @@ def action_space() -> spaces.Box:
 def markdown_table(fields: tuple[SpaceField, ...]) -> str:
     """The fields as a Markdown table (index, name, unit, bounds, meaning), as in the README."""
     rows = ["| index | name | unit | bounds | meaning |", "| --- | --- | --- | --- | --- |"]
-    n = 0
+    lay = space_layout("space", fields)
     for f in fields:
+        n = lay.offset(f.name)
         idx = str(n) if f.size == 1 else f"{n}-{n + f.size - 1}"
         rows.append(f"| {idx} | `{f.name}` | {f.unit} | [{f.low:g}, {f.high:g}] | {f.doc} |")
-        n += f.size
     return "\n".join(rows)

@@ -24,8 +24,8 @@ from gymnasium.vector.utils import batch_space
 
 from ..config import ConfigError
 from .batch import RunBatch
-from .config import ENV_ID, HoldEnvConfig, episode_scenario, make_config
-from .env import check_options, check_render_mode
+from .settings import ENV_ID, HoldEnvConfig, episode_scenario, make_config
+from .env import as_actions, check_options, check_render_mode, check_seed
 from .spaces import ACTION_SIZE, action_space, observation_space
 
 
@@ -43,7 +43,7 @@ class HoldVectorEnv(VectorEnv):
     """``num_envs`` copies of :class:`~vtoladapt.gym.env.HoldEnv` in one batch (see the module docstring).
 
     Keyword arguments: ``num_envs``, ``workers`` (threads; default one per core) and those of
-    :class:`~vtoladapt.gym.config.HoldEnvConfig`. ``step`` returns an empty info dict (per-step
+    :class:`~vtoladapt.gym.settings.HoldEnvConfig`. ``step`` returns an empty info dict (per-step
     dicts of arrays would cost more than the step); ``episode_scenarios`` lists each environment's
     current episode scenario.
     """
@@ -82,8 +82,11 @@ class HoldVectorEnv(VectorEnv):
         if seed is None:
             return [None] * self.num_envs
         if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            return [int(seed) + i for i in range(self.num_envs)]
-        seeds = list(seed)
+            return [check_seed(seed) + i for i in range(self.num_envs)]
+        if isinstance(seed, (str, bytes)) or not hasattr(seed, "__iter__"):
+            raise ConfigError(f"{ENV_ID}: reset seed = {seed!r}: must be None, a whole number >= 0 (environment "
+                              "i gets seed + i) or one such number (or None) per environment")
+        seeds = [check_seed(s, f"reset seed[{i}]") for i, s in enumerate(seed)]
         if len(seeds) != self.num_envs:
             raise ConfigError(f"{ENV_ID}: reset seed = {seed!r}: {len(seeds)} seeds for {self.num_envs} "
                               "environments; give one integer, one per environment, or None")
@@ -106,11 +109,7 @@ class HoldVectorEnv(VectorEnv):
         if not self._started:
             raise RuntimeError(f"{ENV_ID}: step() before reset()")
         b = self._batch
-        try:
-            a = actions if isinstance(actions, np.ndarray) and actions.dtype.kind in "fiub" else \
-                np.asarray(actions, dtype=np.float64)
-        except (TypeError, ValueError):
-            a = None
+        a = actions if isinstance(actions, np.ndarray) and actions.dtype.kind in "fiu" else as_actions(actions)
         # one cast-and-copy into the batch's float64 actions (the kernels read them there)
         if a is None or a.shape != b.actions.shape or not _copy_finite(a, b.actions):
             raise ValueError(f"{ENV_ID}: actions of shape {np.shape(actions)}: must be "

@@ -710,7 +710,7 @@ def save_calibration(path: str | Path, models: Mapping, *, source: str = "",
     -------
     pathlib.Path
     """
-    from vtoladapt import __version__
+    from vtoladapt._version import __version__
 
     path = Path(path)
     for name in models:

@@ -68,7 +68,7 @@ CAL_KIND = SK_KIND
 _CQ_MIN = 1.0e-3
 
 
-# inline="always" here and below: the simulator's sensors_step calls these every tick, and
+# inline="always" here and below: the simulator's airflow-probe channel calls these every tick, and
 # as separate calls their array arguments' reference counting cost more than their arithmetic.
 @njit(cache=True, inline="always")
 def aoa_incident_velocity(q_inf, q_alpha, q_beta, rho, k, out_v_i_B):

@@ -133,8 +133,39 @@ class SDP33Sensor:
         return self.noise_std_Pa ** 2 + self.resolution_Pa ** 2 / 12.0
 
 
-# inline="always" here and below: the simulator's sensors_step calls these every tick, and
+# inline="always" here and below: the simulator's airflow-probe channel calls these every tick, and
 # as separate calls their array arguments' reference counting cost more than their arithmetic.
+@njit(cache=True, inline="always")
+def sdp33_sensor_step_drawn(q_true, state, sensor, dt, normals, out_q):
+    """:func:`sdp33_sensor_step` with its three standard normals given (``normals[0:3]``, one per sensor)."""
+    tau = sensor[SENSOR_TIME_CONSTANT_S]
+    if tau > 0.0 and dt > 0.0:
+        a = 1.0 - np.exp(-dt / tau)
+    else:
+        a = 1.0
+    sigma = sensor[SENSOR_NOISE_STD_PA]
+    step = sensor[SENSOR_RESOLUTION_PA]
+    full = sensor[SENSOR_RANGE_PA]
+    for i in range(3):
+        z = normals[i]
+        x = q_true[i]
+        if not np.isfinite(x):
+            out_q[i] = np.nan
+            continue
+        if np.isfinite(state[i]):
+            state[i] += a * (x - state[i])
+        else:
+            state[i] = x
+        m = state[i] + sensor[SENSOR_OFFSET_PA + i] + sigma * z
+        if m > full:
+            m = full
+        elif m < -full:
+            m = -full
+        if step > 0.0:
+            m = np.floor(m / step + 0.5) * step
+        out_q[i] = m
+
+
 @njit(cache=True, inline="always")
 def sdp33_sensor_step(q_true, state, sensor, dt, rng, out_q):
     """Advance the three sensors by ``dt`` and write their readings.
@@ -156,32 +187,10 @@ def sdp33_sensor_step(q_true, state, sensor, dt, rng, out_q):
         ``q_true`` is not finite reads NaN (and its state is left unchanged);
         :func:`~vtoladapt.probe.estimation.incident_velocity_from_pressures` flags that.
     """
-    tau = sensor[SENSOR_TIME_CONSTANT_S]
-    if tau > 0.0 and dt > 0.0:
-        a = 1.0 - np.exp(-dt / tau)
-    else:
-        a = 1.0
-    sigma = sensor[SENSOR_NOISE_STD_PA]
-    step = sensor[SENSOR_RESOLUTION_PA]
-    full = sensor[SENSOR_RANGE_PA]
-    for i in range(3):
-        z = rng.standard_normal()
-        x = q_true[i]
-        if not np.isfinite(x):
-            out_q[i] = np.nan
-            continue
-        if np.isfinite(state[i]):
-            state[i] += a * (x - state[i])
-        else:
-            state[i] = x
-        m = state[i] + sensor[SENSOR_OFFSET_PA + i] + sigma * z
-        if m > full:
-            m = full
-        elif m < -full:
-            m = -full
-        if step > 0.0:
-            m = np.floor(m / step + 0.5) * step
-        out_q[i] = m
+    z0 = rng.standard_normal()
+    z1 = rng.standard_normal()
+    z2 = rng.standard_normal()
+    sdp33_sensor_step_drawn(q_true, state, sensor, dt, (z0, z1, z2), out_q)
 
 
 @njit(cache=True)

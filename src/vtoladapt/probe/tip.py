@@ -193,7 +193,7 @@ def port_pressure_coefficient(cos_theta, K):
     return (1.0 - K) * (1.0 - c2) + CP_WAKE * c2
 
 
-# inline="always" here and below: the simulator's sensors_step calls these every tick, and
+# inline="always" here and below: the simulator's airflow-probe channel calls these every tick, and
 # as separate calls their array arguments' reference counting cost more than their arithmetic.
 @njit(cache=True, inline="always")
 def _ports(v_i_B, rho, tip):

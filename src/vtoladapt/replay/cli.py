@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ..config import ConfigError
 from ..outputs import OutputDir, add_force_argument
-from .flightlog import FlightLog, ReadSettings, ReplayError, parse_throttle_source
+from .flightlog import FlightLog, ReadSettings, ReplayError, no_usable_samples, parse_throttle_source
 
 
 def register_cli(subparsers) -> argparse.ArgumentParser:
@@ -84,6 +84,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
                                   use_landed=args.use_landed)
         log = read_flight_log(args.log, read)
         result = run_replay(log, vehicle, settings)
+        if not result.used.any():  # metrics of nothing (all null) with exit 0 passed for a replay
+            raise ReplayError(no_usable_samples(log, settings.use_landed))
         with target:
             metrics = write_outputs(result, target.path)
     except ReplayError as exc:

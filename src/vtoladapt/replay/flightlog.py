@@ -306,6 +306,61 @@ def _rate(ts: np.ndarray) -> float:
     return 1.0 / dt if np.isfinite(dt) and dt > 0 else 0.0
 
 
+SPEED_MAX_MPS = 200.0
+"""Largest inertial speed or airspeed a sample may read: no small UAS flies faster; a reading beyond
+it (1e300) is a broken sample, set to NaN (unused), not a number to square."""
+WIND_MAX_MPS = 100.0
+"""Largest wind estimate taken; beyond it the estimate is unknown (zero), as where there is none."""
+SPECIFIC_FORCE_MAX_MPS2 = 1000.0
+"""Largest specific force a sample may read (about 100 g, beyond any flight IMU's range)."""
+
+
+def _keep_rows(values: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """``values`` with the rows that fail ``valid`` (or hold a non-finite value) set to NaN."""
+    values = np.array(values, dtype=np.float64)
+    finite = np.isfinite(values) if values.ndim == 1 else np.all(np.isfinite(values), axis=1)
+    values[~(valid & finite)] = np.nan
+    return values
+
+
+def _require_some(values: np.ndarray, source: str, what: str, allowed: str) -> np.ndarray:
+    if not np.any(np.all(np.isfinite(values), axis=-1) if values.ndim > 1 else np.isfinite(values)):
+        raise ReplayError(f"{source}: no usable samples: {what} is never {allowed} (NaN, inf, text or out of "
+                          "range in every row); allowed: a log whose required inputs hold such samples")
+    return values
+
+
+def _unit_quaternions(q: np.ndarray) -> np.ndarray:
+    with np.errstate(all="ignore"):
+        norm = np.linalg.norm(q, axis=1)
+    return _keep_rows(q, np.abs(norm - 1.0) <= 0.1)
+
+
+def _bounded(values: np.ndarray, limit: float) -> np.ndarray:
+    with np.errstate(all="ignore"):
+        return _keep_rows(values, np.linalg.norm(values.reshape(len(values), -1), axis=1) <= limit)
+
+
+def no_usable_samples(log: "FlightLog", use_landed: bool) -> str:
+    """Why no sample of ``log`` can be used (every input finite at once, and airborne unless
+    ``use_landed``): the inputs never finite on the grid, named by their log columns, else the land
+    detector, else that they are never finite at the same time."""
+    inputs = {"attitude": log.q_WB, "inertial velocity": log.v_W_mps, "specific force": log.f_meas_B_mps2,
+              "incident velocity": log.v_i_B_mps, "pusher u_x": log.throttle_x_pct,
+              "lift collective u_z": log.throttle_z_pct}
+    finite = {k: (np.all(np.isfinite(v), axis=1) if v.ndim > 1 else np.isfinite(v)) for k, v in inputs.items()}
+    never = [k for k, ok in finite.items() if not ok.any()]
+    if never:
+        cols = "; ".join(f"{log.sources.get(k, k)}" for k in never)
+        return f"{log.source}: no usable samples: {', '.join(never)} never finite on the resampled grid ({cols})"
+    together = np.logical_and.reduce(list(finite.values()))
+    if together.any() and not use_landed and not (together & ~log.landed).any():
+        return (f"{log.source}: no usable samples: every sample with finite inputs is on the ground per "
+                f"{log.sources.get('ground contact', LAND_DETECTED)}; add --use-landed to use them")
+    return (f"{log.source}: no usable samples: the inputs ({', '.join(log.sources.get(k, k) for k in inputs)}) "
+            "are never finite at the same time")
+
+
 def _usable(table: TopicTable | None) -> bool:
     return table is not None and "timestamp" in table and len(table["timestamp"]) >= 2
 
@@ -349,8 +404,11 @@ def assemble_flight_log(tables: Mapping[TopicKey, TopicTable], source: str, log_
     lp = get(LOCAL_POSITION)
     ts_att = _timestamps(att, ATTITUDE, source)
     ts_lp = _timestamps(lp, LOCAL_POSITION, source)
-    q_raw = _fields(att, [f"q[{i}]" for i in range(4)], ATTITUDE, source)
-    v_raw = _fields(lp, ["vx", "vy", "vz"], LOCAL_POSITION, source)
+    # broken samples (NaN, inf, text, q = 0, 1e300 m/s) become NaN: unused, never squared or normalised
+    q_raw = _require_some(_unit_quaternions(_fields(att, [f"q[{i}]" for i in range(4)], ATTITUDE, source)),
+                          source, f"{ATTITUDE}.q[0..3]", "a unit quaternion")
+    v_raw = _require_some(_bounded(_fields(lp, ["vx", "vy", "vz"], LOCAL_POSITION, source), SPEED_MAX_MPS),
+                          source, f"{LOCAL_POSITION}.vx, vy, vz", f"a finite velocity within {SPEED_MAX_MPS:g} m/s")
     sc = get(SENSOR_COMBINED)
     accel_names = [f"accelerometer_m_s2[{i}]" for i in range(3)]
     use_imu = sc is not None and all(n in sc for n in accel_names)
@@ -383,18 +441,22 @@ def assemble_flight_log(tables: Mapping[TopicKey, TopicTable], source: str, log_
     # measured specific force, body
     if use_imu:
         mark(SENSOR_COMBINED, 0, ts_sc)
-        f_B = resample_linear(ts_sc, _fields(sc, accel_names, SENSOR_COMBINED, source), grid, gap)
+        f_raw = _require_some(_bounded(_fields(sc, accel_names, SENSOR_COMBINED, source), SPECIFIC_FORCE_MAX_MPS2),
+                              source, f"{SENSOR_COMBINED}.accelerometer_m_s2[0..2]",
+                              f"a finite specific force within {SPECIFIC_FORCE_MAX_MPS2:g} m/s^2")
+        f_B = resample_linear(ts_sc, f_raw, grid, gap)
         sources["specific force"] = f"{SENSOR_COMBINED}.accelerometer_m_s2[0..2] (body FRD)"
     else:
         if all(k in lp for k in ("ax", "ay", "az")):
-            a_raw = _fields(lp, ["ax", "ay", "az"], LOCAL_POSITION, source)
+            a_raw = _bounded(_fields(lp, ["ax", "ay", "az"], LOCAL_POSITION, source), SPECIFIC_FORCE_MAX_MPS2)
             how = f"{LOCAL_POSITION}.ax, ay, az (PX4's NED velocity derivative)"
         else:
             tsec = ts_lp * 1e-6
             a_raw = np.column_stack([np.gradient(v_raw[:, i], tsec) for i in range(3)])
             how = f"the central difference of {LOCAL_POSITION}.vx, vy, vz"
         a_W = resample_linear(ts_lp, a_raw, grid, gap)
-        f_B = np.einsum("nji,nj->ni", R, a_W - np.array([0.0, 0.0, GRAVITY_MPS2]))
+        with np.errstate(invalid="ignore"):  # NaN where the attitude or velocity is: unused samples
+            f_B = np.einsum("nji,nj->ni", R, a_W - np.array([0.0, 0.0, GRAVITY_MPS2]))
         sources["specific force"] = f"R^T (a_W - g_W) from {how}"
         notes.append(LogNote("specific force", f"no accelerometer ({SENSOR_COMBINED} absent)",
                              f"R^T (a_W - g_W) with a_W from {how}, at {_rate(ts_lp):.3g} Hz"))
@@ -411,8 +473,8 @@ def assemble_flight_log(tables: Mapping[TopicKey, TopicTable], source: str, log_
         tw = get(wind_topic)
         ts_w = _timestamps(tw, wind_topic, source)
         mark(wind_topic, 0, ts_w)
-        wne = resample_hold(ts_w, _fields(tw, ["windspeed_north", "windspeed_east"], wind_topic, source),
-                            grid, gap)
+        wne = resample_hold(ts_w, _bounded(_fields(tw, ["windspeed_north", "windspeed_east"], wind_topic, source),
+                                           WIND_MAX_MPS), grid, gap)
         # before the first estimate or in its gaps the wind is unknown: zero, said below
         wind[:, :2] = np.nan_to_num(wne, nan=0.0)
         sources["wind"] = f"{wind_topic}.windspeed_north, windspeed_east (held); vertical zero"
@@ -431,7 +493,8 @@ def assemble_flight_log(tables: Mapping[TopicKey, TopicTable], source: str, log_
         topic, ta = max(cands, key=lambda c: _rate(_timestamps(c[1], c[0], source)))
         ts_a = _timestamps(ta, topic, source)
         mark(topic, 0, ts_a)
-        tas = resample_linear(ts_a, np.asarray(ta["true_airspeed_m_s"], dtype=np.float64), grid, gap)
+        tas = resample_linear(ts_a, _bounded(np.asarray(ta["true_airspeed_m_s"], dtype=np.float64)[:, None],
+                                             SPEED_MAX_MPS)[:, 0], grid, gap)
         if "airspeed_sensor_measurement_valid" in ta:
             ok = resample_hold(ts_a, np.asarray(ta["airspeed_sensor_measurement_valid"], float), grid, gap)
             tas[~(ok == 1.0)] = np.nan
@@ -521,5 +584,5 @@ def assemble_flight_log(tables: Mapping[TopicKey, TopicTable], source: str, log_
 
 
 __all__ = ["FlightLog", "KNOWN_TOPICS", "LogNote", "ReadSettings", "ReplayError", "ThrottleSource",
-           "TopicTable", "assemble_flight_log", "parse_throttle_source", "resample_hold",
+           "TopicTable", "assemble_flight_log", "no_usable_samples", "parse_throttle_source", "resample_hold",
            "resample_linear", "resample_quaternion", "rotation_matrices"]

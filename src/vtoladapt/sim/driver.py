@@ -17,6 +17,8 @@ from .. import layout
 from ..config import ConfigError
 from ..errors import check_interrupt
 from ..frames import quat_from_euler
+from ..layout import BlockLayout
+from ..parts import Assembly
 from .mixer import mixer_params
 from .plant import hover_trim_motor
 from .results import SimulationResult
@@ -29,9 +31,25 @@ ProgressCallback = Callable[[float, float], None]
 CHUNK_S = 5.0
 
 
+def chunk_ticks(dt_s: float) -> int:
+    """Ticks per chunk of :func:`simulate` (about :data:`CHUNK_S` of flight): the loop returns to Python
+    between chunks (progress, Ctrl-C), and chunk ``c`` times its ticks from ``c chunk dt``
+    (:func:`vtoladapt.sim.loop.tick_time`)."""
+    return max(1, int(round(CHUNK_S / dt_s)))
+
+
 @dataclass
 class PreparedRun:
-    """Everything the compiled loop needs for one scenario, as plain arrays (built once)."""
+    """Everything the compiled loop needs for one scenario, as plain arrays (built once).
+
+    ``wind_parts`` and ``sensor_parts`` are the run's wind parts and sensor channels
+    (:class:`vtoladapt.parts.Assembly`: their parameter layout and the table the loop calls them
+    through); their parameter and state arrays are ``wind_params``, ``wind_state``,
+    ``sensor_params``, ``sensor_state``. ``controller_fns`` holds the addresses of the controller's law
+    ``update`` and basis ``regressor`` (:func:`vtoladapt.control.step.function_table`; they live
+    in their modules for the process). ``log_layout`` is the layout of the run's log
+    rows (:func:`vtoladapt.sim.loop.log_layout`).
+    """
 
     scenario: Scenario
     vehicle: Vehicle
@@ -40,8 +58,11 @@ class PreparedRun:
     mixer_params: np.ndarray
     controller_params: np.ndarray
     controller_state: np.ndarray
+    controller_fns: np.ndarray
+    wind_parts: Assembly
     wind_params: np.ndarray
     wind_state: np.ndarray
+    sensor_parts: Assembly
     sensor_params: np.ndarray
     sensor_state: np.ndarray
     reference_table: np.ndarray
@@ -53,18 +74,42 @@ class PreparedRun:
     rng: np.random.Generator
     prior_description: str
     plant_coefficients: dict
+    log_layout: BlockLayout
     basis_id: str = "paper"
+
+    def scratch(self) -> tuple:
+        """Fresh scratch of a tick: ``(truth, meas, cmd, diag, motor_cmd, work)``, zeros (the loop's
+        ``scratch`` argument; a new one per chunk of ticks)."""
+        from .loop import diagnostics_columns
+        from .plant import RK4_WORK_SIZE
+
+        return (np.zeros(layout.TRUTH_SIZE), np.zeros(layout.MEAS_SIZE), np.zeros(layout.CMD_SIZE),
+                np.zeros(len(diagnostics_columns(self.controller_params))), np.zeros(layout.N_MOTORS),
+                np.zeros(RK4_WORK_SIZE))
+
+    def wind(self) -> tuple:
+        """The loop's ``wind`` argument: ``(table, params, state, draws)`` (fresh draws scratch)."""
+        return self.wind_parts.table, self.wind_params, self.wind_state, np.zeros(self.wind_parts.draws_size)
+
+    def sensors(self) -> tuple:
+        """The loop's ``sensors`` argument: ``(table, params, state, draws)`` (fresh draws scratch)."""
+        return self.sensor_parts.table, self.sensor_params, self.sensor_state, np.zeros(self.sensor_parts.draws_size)
 
 
 def prepare(scenario: Scenario) -> PreparedRun:
-    """Convert a validated scenario into kernel arrays. All random draws come from the scenario seed."""
+    """Convert a validated scenario into kernel arrays. All random draws come from the scenario seed.
+
+    The draws, in order: a random initial theta-hat (if asked), the sensor channels' initial states
+    (the IMU biases; the pressure probe's offsets), the wind parts' (the turbulence's stationary
+    start); then the loop's, tick by tick.
+    """
     from ..control.api import controller_arrays
     from ..control.trajectory import trajectory_from_reference
+    from ..sensors import SensorContext
     from .faults import faults_to_kernel
-    from ..sensors import draw_probe_offsets, sensors_initial_state
-    from ..wind import wind_initial_state
-
+    from .loop import diagnostics_columns, log_layout
     from ..bases import truth_of
+    from ..control.step import controller_functions, function_table
 
     vehicle = scenario.load_vehicle()
     plant = scenario.plant.resolved(vehicle, scenario.seed)
@@ -88,15 +133,14 @@ def prepare(scenario: Scenario) -> PreparedRun:
     motors = hover_trim_motor(vehicle, plant) if ic.trimmed_motors else np.zeros(layout.N_MOTORS)
     q0 = quat_from_euler(np.radians(ic.yaw_deg), np.radians(ic.pitch_deg), np.radians(ic.roll_deg))
     x0 = layout.pack_state(ic.position_m, ic.velocity_mps, q0, (0.0, 0.0, 0.0), motors)
-    wind_params = scenario.wind.to_kernel()
     plant_density = scenario.plant.air_density_kgpm3 or vehicle.envelope.air_density_kgpm3
-    sensor_params = scenario.sensors.to_kernel(plant_density, vehicle.envelope.air_density_kgpm3, scenario.base_dir)
+    sensor_parts = scenario.sensors.assemble(SensorContext(plant_density, vehicle.envelope.air_density_kgpm3,
+                                                           scenario.base_dir))
+    wind_parts = scenario.wind.assemble()
     times = np.arange(scenario.n_ticks) * scenario.dt_control_s
     reference = trajectory_from_reference(scenario.reference).reference_table(times)
-    sensor_state = sensors_initial_state(sensor_params, rng)
-    probe = scenario.sensors.probe
-    if probe.model == "pressure" and not probe.ideal:
-        draw_probe_offsets(sensor_params, probe.sdp33_offset_std_Pa, rng)
+    sensor_state = sensor_parts.initial_state(rng)
+    wind_state = wind_parts.initial_state(rng)
     fault_schedule, fault_state = faults_to_kernel(scenario.faults, scenario.dt_control_s)
     # the plant's truth in the controller's basis, for the logged Lyapunov function only (empty where the
     # basis has none: the function's parameter term is then left out)
@@ -106,11 +150,13 @@ def prepare(scenario: Scenario) -> PreparedRun:
         envelope=scenario.envelope.to_kernel(),
         plant_params=plant.to_kernel(vehicle), mixer_params=mixer_params(ctrl_vehicle),
         controller_params=ctrl_params, controller_state=ctrl_state,
-        wind_params=wind_params, wind_state=wind_initial_state(wind_params),
-        sensor_params=sensor_params, sensor_state=sensor_state,
+        controller_fns=function_table(controller_functions(ctrl_params)),
+        wind_parts=wind_parts, wind_params=wind_parts.params, wind_state=wind_state,
+        sensor_parts=sensor_parts, sensor_params=sensor_parts.params, sensor_state=sensor_state,
         reference_table=reference, theta_true=np.zeros(0) if theta_true is None else theta_true,
         gamma=scenario.controller.gamma, rng=rng, prior_description=prior_description,
-        plant_coefficients=plant.true_coefficients(vehicle), basis_id=basis.id)
+        plant_coefficients=plant.true_coefficients(vehicle), log_layout=log_layout(diagnostics_columns(ctrl_params)),
+        basis_id=basis.id)
 
 
 def controller_basis(scenario: Scenario, vehicle: Vehicle):
@@ -143,7 +189,7 @@ def controller_prior(scenario: Scenario, vehicle: Vehicle):
         lower, upper = default_theta_bounds(vehicle, theta0, basis=basis)
         return vehicle, theta0, np.array(basis.P0_diag), lower, upper, \
             f"{basis.source} (published means)"
-    from ..fitting import apply_posterior
+    from ..fitting.posterior import apply_posterior
 
     ctrl_vehicle, (theta0, P0, lower, upper) = apply_posterior(vehicle, path, basis=scenario.controller.basis)
     return ctrl_vehicle, theta0, P0, lower, upper, f"posterior {path}"
@@ -162,11 +208,10 @@ def run_chunk(run: PreparedRun, x: np.ndarray, k0: int, k1: int, log: np.ndarray
     check_interrupt()
     sc = run.scenario
     done, reason = run_closed_loop(
-        x, run.plant_params, run.mixer_params, controller_functions(run.controller_params), run.controller_params,
-        run.controller_state,
-        run.wind_params, run.wind_state, run.sensor_params, run.sensor_state, run.reference_table[k0:k1],
-        k0 * sc.dt_control_s, sc.dt_control_s, sc.plant_substeps, run.rng, run.theta_true, run.gamma,
-        run.fault_schedule, run.fault_state, run.envelope, log)
+        x, run.scratch(), run.plant_params, run.mixer_params, run.wind(), run.sensors(),
+        (run.fault_schedule, run.fault_state), run.envelope,
+        (run.controller_fns, run.controller_params, run.controller_state), run.reference_table[k0:k1],
+        k0 * sc.dt_control_s, sc.dt_control_s, sc.plant_substeps, run.rng, run.theta_true, run.gamma, log)
     return int(done), int(reason)
 
 
@@ -177,17 +222,14 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
     ticks before it, and ``result.diverged_at_s`` / ``result.divergence_reason`` say when and why
     (:mod:`vtoladapt.sim.monitor`); nothing is raised (``result.raise_if_diverged()`` does).
     """
-    from .loop import log_columns
-    from ..control.step import basis_names, diagnostics_columns, information_sum
     from .limits import check_in_memory_runs
 
     check_in_memory_runs([scenario], scenario.source_path or f"scenario {scenario.name!r}")
     run = prepare(scenario)
     n = scenario.n_ticks
-    columns = log_columns(diagnostics_columns(run.controller_params))
-    log = np.empty((n, len(columns)))
+    log = np.empty((n, run.log_layout.size))
     x = run.x0.copy()
-    chunk = max(1, int(round(CHUNK_S / scenario.dt_control_s)))
+    chunk = chunk_ticks(scenario.dt_control_s)
     wall0 = time.perf_counter()
     n_done, reason = n, 0
     for k0 in range(0, n, chunk):
@@ -198,17 +240,27 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
             break
         if progress is not None:
             progress(k1 * scenario.dt_control_s, scenario.duration_s)
-    wall = time.perf_counter() - wall0
-    diverged_at_s = None
-    why = None
     if reason != 0:
         # a view, not a copy: the rows never written were never touched, so they hold no memory
         log = log[:n_done]
+    metadata = run_metadata(run, x, n_done, reason, k1 - 1, time.perf_counter() - wall0)
+    return SimulationResult(run.log_layout.columns, log, metadata)
+
+
+def run_metadata(run: PreparedRun, x: np.ndarray, n_done: int, reason: int, k_last: int, wall: float) -> dict:
+    """The metadata of a finished run (:attr:`SimulationResult.metadata`): ``n_done`` ticks, ended by
+    envelope ``reason`` (0: none) with state ``x``, ``k_last`` the last tick of the chunk it ended in."""
+    from ..control.step import basis_names, information_sum
+
+    scenario = run.scenario
+    diverged_at_s = None
+    why = None
+    if reason != 0:
         diverged_at_s = n_done * scenario.dt_control_s
         # the row the failed check read: the tick's own, or the chunk's last for the check after it
         why = scenario.envelope.describe_violation(reason, x, diverged_at_s,
-                                                   run.reference_table[min(n_done, k1 - 1)])
-    metadata = {
+                                                   run.reference_table[min(n_done, k_last)])
+    return {
         "scenario": scenario.name, "scenario_path": scenario.source_path, "vehicle": run.vehicle.name,
         "controller": scenario.controller.kind, "seed": scenario.seed,
         "basis": run.basis_id, "theta_names": list(basis_names(run.controller_params)),
@@ -225,7 +277,6 @@ def simulate(scenario: Scenario, progress: Optional[ProgressCallback] = None) ->
         # the adaptation's un-forgotten information sum (identifiability; zero for non-adaptive laws)
         "information_sum": information_sum(run.controller_params, run.controller_state).tolist(),
     }
-    return SimulationResult(columns, log, metadata)
 
 
 def simulate_many(scenarios: Sequence[Scenario], workers: Optional[int] = None,
@@ -288,21 +339,20 @@ def _controller_step_compiled() -> None:
 
 def _plant_wind_sensors_compiled(run: PreparedRun) -> None:
     """Compile (or load) the plant, wind and sensor kernels for the simulator loop's argument types."""
+    from ..sensors import run_sensor_model
+    from ..wind import run_wind_model
     from .plant import RK4_WORK_SIZE, plant_advance, plant_first_stage
-    from ..sensors import sensors_step
-    from ..wind import wind_step
 
     x = run.x0.copy()
-    v_wind = np.zeros(3)
-    f_B = np.zeros(3)
-    v_i = np.zeros(3)
+    truth = np.zeros(layout.TRUTH_SIZE)
+    v_wind = truth[layout.TRUTH_V_WIND_W:layout.TRUTH_V_WIND_W + 3]
     work = np.zeros(RK4_WORK_SIZE)
-    wind_step(run.wind_params, run.wind_state.copy(), 0.0, 0.004, x[layout.X_P_W:layout.X_P_W + 3],
-              np.random.default_rng(0), v_wind)
-    plant_first_stage(x, v_wind, run.plant_params, f_B, v_i, work)
+    run_wind_model(run.wind_parts, run.wind_state.copy(), 1, 0.004, np.random.default_rng(0))
+    plant_first_stage(x, v_wind, run.plant_params, truth[layout.TRUTH_F_B:layout.TRUTH_F_B + 3],
+                      truth[layout.TRUTH_V_I_B:layout.TRUTH_V_I_B + 3], work)
     plant_advance(x, np.zeros(layout.N_MOTORS), v_wind, run.plant_params, 0.001, 1, True, work)
-    sensors_step(run.sensor_params, run.sensor_state.copy(), 0.0, 0.004, x, f_B, v_i,
-                 np.random.default_rng(0), np.zeros(layout.MEAS_SIZE))
+    run_sensor_model(run.sensor_parts, run.sensor_state.copy(), 0.004, x[None, :], np.zeros((1, 3)),
+                     np.zeros((1, 3)), np.random.default_rng(0))
 
 
 def load_kernels(scenario: Scenario) -> None:

@@ -50,7 +50,11 @@ FAULT_KINDS: tuple[str, ...] = (
     "probe_dropout", "probe_stuck", "probe_nan", "probe_blocked_port", "imu_spike", "imu_nan",
     "mocap_dropout", "mocap_latency", "lift_motor_loss", "pusher_saturated", "stuck_throttle")
 (K_PROBE_DROPOUT, K_PROBE_STUCK, K_PROBE_NAN, K_PROBE_BLOCKED, K_IMU_SPIKE, K_IMU_NAN, K_MOCAP_DROPOUT,
- K_MOCAP_LATENCY, K_LIFT_LOSS, K_PUSHER_SAT, K_STUCK_THROTTLE) = range(len(FAULT_KINDS))
+ K_MOCAP_LATENCY, K_LIFT_LOSS, K_PUSHER_SAT, K_STUCK_THROTTLE) = (FAULT_KINDS.index(k) for k in (
+    "probe_dropout", "probe_stuck", "probe_nan", "probe_blocked_port", "imu_spike", "imu_nan", "mocap_dropout",
+    "mocap_latency", "lift_motor_loss", "pusher_saturated", "stuck_throttle"))
+"""The kinds' codes in a schedule row (what :meth:`FaultConfig.to_row` packs); the actuator kinds come
+last, from ``K_LIFT_LOSS`` on."""
 ACTUATOR_KINDS = ("lift_motor_loss", "pusher_saturated", "stuck_throttle")
 _KIND_KEYS: dict[str, tuple[str, ...]] = {
     "probe_blocked_port": ("port",), "imu_spike": ("spike_gyro_radps", "spike_accel_mps2"),
@@ -76,14 +80,34 @@ FAULT_ROW = BlockLayout("fault schedule row", [
  _F_PORT) = FAULT_ROW.offsets(*(f.name for f in FAULT_ROW.fields))
 FAULT_ROW_SIZE = FAULT_ROW.size
 
+RING_ENTRY = BlockLayout("fault latency ring entry", [
+    Field("P_W", 3, "m", "measured motion-capture position, NED"),
+    Field("V_W", 3, "m/s", "measured motion-capture velocity, NED"),
+])
+"""One tick of what the motion capture delivered, for a ``mocap_latency`` fault."""
+_R_P, _R_V = RING_ENTRY.offsets("P_W", "V_W")
+_RING_STRIDE = RING_ENTRY.size
+
+HOLD_ENTRY = BlockLayout("fault hold slots of one schedule entry", [
+    Field("ACTIVE", 1, "-", "1.0 if the entry was active last tick (a fault begins when it turns on)"),
+    Field("HELD", 4, "-", "values held from the tick the fault began: a probe's reading and validity, a motor command"),
+])
+"""Per schedule entry: what a fault that holds a value keeps."""
+_H_ACTIVE, _H_HELD = HOLD_ENTRY.offsets("ACTIVE", "HELD")
+_HOLD_STRIDE = HOLD_ENTRY.size
+PROBE_HELD = BlockLayout("held probe reading (probe_stuck), in HELD", [
+    Field("V_I_B", 3, "m/s", "the incident velocity read when the fault began, body"),
+    Field("VALID", 1, "-", "its validity flag"),
+])
+_PH_V_I_B, _PH_VALID = HOLD_ENTRY.nested("HELD", PROBE_HELD, "V_I_B", "VALID")
+
 FAULT_STATE = BlockLayout("fault state", [
     Field("RING_HEAD", 1, "-", "latency ring slot written this tick"),
     Field("RING_COUNT", 1, "-", "ticks written into the ring so far (saturates at its size)"),
-    Field("RING", 6 * LATENCY_RING_TICKS, "m, m/s", "measured mocap position and velocity, per tick"),
-    Field("HOLD", 5 * MAX_FAULTS, "-", "per entry: active last tick, then up to 4 held values"),
+    Field("RING", RING_ENTRY.size * LATENCY_RING_TICKS, "m, m/s", "LATENCY_RING_TICKS entries of RING_ENTRY"),
+    Field("HOLD", HOLD_ENTRY.size * MAX_FAULTS, "-", "MAX_FAULTS entries of HOLD_ENTRY"),
 ])
 _S_HEAD, _S_COUNT, _S_RING, _S_HOLD = FAULT_STATE.offsets("RING_HEAD", "RING_COUNT", "RING", "HOLD")
-_HOLD_STRIDE = 5
 
 
 @dataclass(frozen=True)
@@ -170,10 +194,10 @@ def apply_measurement_faults(faults, fstate, t, dt, meas) -> None:
         return
     # the latency ring holds what the motion capture delivered, before any fault of this tick
     head = int(fstate[_S_HEAD])
-    o = _S_RING + 6 * head
+    o = _S_RING + _RING_STRIDE * head
     for j in range(3):
-        fstate[o + j] = meas[MEAS_P_W + j]
-        fstate[o + 3 + j] = meas[MEAS_V_W + j]
+        fstate[o + _R_P + j] = meas[MEAS_P_W + j]
+        fstate[o + _R_V + j] = meas[MEAS_V_W + j]
     count = min(fstate[_S_COUNT] + 1.0, float(LATENCY_RING_TICKS))
     fstate[_S_COUNT] = count
     fstate[_S_HEAD] = float((head + 1) % LATENCY_RING_TICKS)
@@ -184,8 +208,8 @@ def apply_measurement_faults(faults, fstate, t, dt, meas) -> None:
             continue  # actuator faults: apply_actuator_faults
         h = _S_HOLD + _HOLD_STRIDE * i
         on = _active(faults, i, t)
-        began = on and fstate[h] == 0.0
-        fstate[h] = 1.0 if on else 0.0
+        began = on and fstate[h + _H_ACTIVE] == 0.0
+        fstate[h + _H_ACTIVE] = 1.0 if on else 0.0
         if not on:
             continue
         if kind == K_PROBE_DROPOUT:
@@ -195,11 +219,11 @@ def apply_measurement_faults(faults, fstate, t, dt, meas) -> None:
         elif kind == K_PROBE_STUCK:
             if began:
                 for j in range(3):
-                    fstate[h + 1 + j] = meas[MEAS_V_I_B + j]
-                fstate[h + 4] = meas[MEAS_V_I_VALID]
+                    fstate[h + _PH_V_I_B + j] = meas[MEAS_V_I_B + j]
+                fstate[h + _PH_VALID] = meas[MEAS_V_I_VALID]
             for j in range(3):
-                meas[MEAS_V_I_B + j] = fstate[h + 1 + j]
-            meas[MEAS_V_I_VALID] = fstate[h + 4]
+                meas[MEAS_V_I_B + j] = fstate[h + _PH_V_I_B + j]
+            meas[MEAS_V_I_VALID] = fstate[h + _PH_VALID]
         elif kind == K_PROBE_NAN:
             for j in range(3):
                 meas[MEAS_V_I_B + j] = nan
@@ -222,10 +246,10 @@ def apply_measurement_faults(faults, fstate, t, dt, meas) -> None:
                 meas[MEAS_V_W + j] = nan
         elif kind == K_MOCAP_LATENCY:
             d = min(int(round(faults[i, _F_EXTRA_DELAY] / dt)), int(count) - 1)
-            o = _S_RING + 6 * ((head - d) % LATENCY_RING_TICKS)
+            o = _S_RING + _RING_STRIDE * ((head - d) % LATENCY_RING_TICKS)
             for j in range(3):
-                meas[MEAS_P_W + j] = fstate[o + j]
-                meas[MEAS_V_W + j] = fstate[o + 3 + j]
+                meas[MEAS_P_W + j] = fstate[o + _R_P + j]
+                meas[MEAS_V_W + j] = fstate[o + _R_V + j]
 
 
 @njit(cache=True, nogil=True, _nrt=False)
@@ -237,8 +261,8 @@ def apply_actuator_faults(faults, fstate, t, u_max, motor_cmd) -> None:
             continue
         h = _S_HOLD + _HOLD_STRIDE * i
         on = _active(faults, i, t)
-        began = on and fstate[h] == 0.0
-        fstate[h] = 1.0 if on else 0.0
+        began = on and fstate[h + _H_ACTIVE] == 0.0
+        fstate[h + _H_ACTIVE] = 1.0 if on else 0.0
         if not on:
             continue
         m = int(faults[i, _F_MOTOR])
@@ -250,8 +274,8 @@ def apply_actuator_faults(faults, fstate, t, u_max, motor_cmd) -> None:
             motor_cmd[MOTOR_PUSHER] = u_max
         elif kind == K_STUCK_THROTTLE:
             if began:
-                fstate[h + 1] = motor_cmd[m]
-            motor_cmd[m] = fstate[h + 1]
+                fstate[h + _H_HELD] = motor_cmd[m]
+            motor_cmd[m] = fstate[h + _H_HELD]
 
 
 RECOVERED_POSITION_ERROR_M = 0.3

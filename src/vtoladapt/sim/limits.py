@@ -1,27 +1,17 @@
-"""Size ceilings, each derived from the memory its arrays need against one budget.
+"""The simulator's size ceilings (its logs), derived from the memory they need against one budget.
 
-Every size a user chooses (simulated duration over the control period, runs of an experiment or
-a campaign, tunnel repeats, MCMC walkers and steps) is checked here before anything runs or is
-written, against :data:`vtoladapt.config.MEMORY_BUDGET_BYTES` (6 GiB unless
-``VTOLADAPT_MEMORY_BUDGET_GB`` says otherwise). The message says how the bytes were counted.
-README "When things go wrong" lists the resulting ceilings.
+The simulated duration over the control period and the runs held together are checked here before
+anything runs or is written, against :data:`vtoladapt.config.MEMORY_BUDGET_BYTES` (6 GiB unless
+``VTOLADAPT_MEMORY_BUDGET_GB`` says otherwise); the ceilings that have nothing to do with the
+simulator (a campaign's plan, a tunnel design, a fit) are :mod:`vtoladapt.ceilings`'. The message
+says how the bytes were counted. README "When things go wrong" lists the resulting ceilings. Also
+here: the README's table of every numeric key's range.
 """
 from __future__ import annotations
 
-import math
-import pickle
-
 from ..config import MEMORY_BUDGET_BYTES, ConfigError, check_memory
 
-FLOAT_BYTES = 8
-FORCE_BALANCE_COLUMNS = 16
-"""Float columns of a force-balance table in memory (inputs, forces, moments, derived values)."""
-FIT_PARAMETERS_MAX = 8
-"""Most dimensions the MCMC samples (k1, k2 and the noise model), an upper count for its chain."""
-FIT_WORK_COPIES = 4
-"""Residual arrays (walkers x rows x 3 axes) alive at once in one vectorised likelihood call."""
-CAMPAIGN_ROW_BYTES = 4096
-"""A campaign row (about forty metrics in a dict) and its Dask task record, generously."""
+from ..ceilings import FLOAT_BYTES
 
 
 def log_columns(scenario=None) -> int:
@@ -33,19 +23,25 @@ def log_columns(scenario=None) -> int:
 
     if scenario is None:
         return log_size(diagnostics_size_for(8))
-    from ..bases import describe_basis
-
-    try:
-        n = describe_basis(scenario.load_vehicle(), scenario.controller.basis).n
-    except ConfigError:
-        n = 8  # an unknown basis is refused, naming the file, when the run is prepared
+    n = basis_size(scenario)
     laws = (scenario.experiment.controllers if scenario.experiment.kind == "comparison"
             else (scenario.controller.kind,))
     return log_size(max(diagnostics_size_for(n, law) for law in laws))
 
 
+def basis_size(scenario) -> int:
+    """n, the parameters of the force-model basis ``scenario``'s controller adapts (8 if it names an unknown
+    basis: that is refused, naming the file, when the run is prepared)."""
+    from ..bases import describe_basis
+
+    try:
+        return describe_basis(scenario.load_vehicle(), scenario.controller.basis).n
+    except ConfigError:
+        return 8
+
+
 def experiment_runs(scenario) -> int:
-    """How many runs of ``scenario`` are held in memory together by ``vtoladapt run``."""
+    """How many runs of ``scenario``'s experiment ``vtoladapt run`` flies (each streamed to its log)."""
     kind = scenario.experiment.kind
     if kind == "comparison":
         return len(scenario.experiment.controllers)
@@ -54,22 +50,87 @@ def experiment_runs(scenario) -> int:
     return 1
 
 
-def check_run_size(scenario, where: str, n_runs: int | None = None) -> None:
-    """Refuse a scenario whose logs (runs x ticks x columns x 8 bytes) exceed the budget."""
-    n_runs = experiment_runs(scenario) if n_runs is None else n_runs
+# What a run holds, per control tick, in float64 values (measured with LoggedResult.loaded_columns and
+# the peak resident memory of `vtoladapt run`; tests/test_memory.py holds the model to the measurement)
+ANALYSIS_COLUMNS_PER_RUN = 38
+"""Log columns the metrics and figures of ``vtoladapt run`` read back from each run's streamed log
+(at most 35: a convergence run; 33 a single run, 25 a compared controller) and the cached velocity error (3)."""
+ANALYSIS_TRANSIENT_COLUMNS = 64
+"""Values per tick of the run being analysed that its metrics and figures create and drop again (norms,
+errors, filtered series): measured 56 for the one-hour single run (peak minus a short run's)."""
+STREAM_ROW_GROUP_ROWS = 15_000
+"""Rows of the row group a streamed run holds (60 s at 250 Hz; :data:`vtoladapt.sim.longrun.ROW_GROUP_S`),
+held twice while it is written (the buffer and its Arrow copy)."""
+
+
+def run_memory(scenario, variants: int | None = None, workers: int | None = None) -> tuple[float, str]:
+    """``(bytes, how they were counted)`` that ``vtoladapt run`` of ``scenario`` holds at its peak.
+
+    Three phases, the largest counts: flying the runs (``workers`` at a time, each streaming its log:
+    its reference table and tick times per tick, and a row group), analysing them (every run's
+    :data:`ANALYSIS_COLUMNS_PER_RUN`, the one being analysed's transients, theta-hat stacked for a
+    convergence study), and the seeded variants of a comparison or convergence study (flown in memory
+    ``workers`` at a time, each a whole log with its transients, reduced to metrics as it ends).
+    """
+    import os
+
+    from ..layout import REF_SIZE
+
+    ticks = float(scenario.n_ticks)
+    runs = experiment_runs(scenario)
+    workers = min(runs, workers or os.cpu_count() or 1)
+    cols = log_columns(scenario)
+    row_group = min(ticks, STREAM_ROW_GROUP_ROWS) * cols * 2
+    flying = workers * (ticks * (REF_SIZE + 1) + row_group)
+    theta = basis_size(scenario) if scenario.experiment.kind == "convergence" else 0  # theta-hat stacked for the figure
+    analysing = ticks * (runs * (ANALYSIS_COLUMNS_PER_RUN + theta) + ANALYSIS_TRANSIENT_COLUMNS)
+    phases = {f"flying {workers} run(s) at a time: {ticks:.0f} ticks x ({REF_SIZE} reference + 1 time) "
+              f"+ a {min(ticks, STREAM_ROW_GROUP_ROWS):.0f}-row group x {cols} columns x 2": flying,
+              f"analysing {runs} run(s) x {ticks:.0f} ticks x {ANALYSIS_COLUMNS_PER_RUN + theta} columns + "
+              f"{ANALYSIS_TRANSIENT_COLUMNS} transient": analysing}
+    n_var = scenario.experiment.variants if variants is None else variants
+    if scenario.experiment.kind != "single" and n_var > 1:
+        per_variant = min(workers, runs) if scenario.experiment.kind == "comparison" else runs
+        phases[f"variants: {per_variant} run(s) at a time in memory x {ticks:.0f} ticks x ({cols} log + "
+               f"{REF_SIZE + 1} reference and time + {ANALYSIS_TRANSIENT_COLUMNS} transient)"] = (
+            per_variant * ticks * (cols + REF_SIZE + 1 + ANALYSIS_TRANSIENT_COLUMNS))
+    what, values = max(phases.items(), key=lambda kv: kv[1])
+    return values * FLOAT_BYTES, f"{what}, x {FLOAT_BYTES} bytes"
+
+
+def check_ticks(scenario, where: str, at_least: int = 2) -> None:
+    """Refuse a scenario of fewer than ``at_least`` control ticks (a command's run needs two: the metrics
+    compare ticks; a run of the Python API one)."""
     ticks = scenario.n_ticks
-    if ticks < 2:
+    if ticks < at_least:
         raise ConfigError(f"{where}: duration_s = {scenario.duration_s:g} s at dt_control_s = "
                           f"{scenario.dt_control_s:g} s is {ticks} control ticks; a run needs at "
-                          "least 2")
+                          f"least {at_least}")
+
+
+def check_run_size(scenario, where: str, variants: int | None = None) -> None:
+    """Refuse a scenario whose run (:func:`run_memory`) exceeds the budget, or that is shorter than two ticks."""
+    check_ticks(scenario, where)
+    n_bytes, what = run_memory(scenario, variants)
+    check_memory(what, n_bytes, where, "shorten duration_s, lengthen dt_control_s or fly fewer runs at once")
+
+
+def check_worker_runs(scenario, where: str, workers: int) -> None:
+    """Refuse a scenario whose in-memory runs, ``workers`` at a time (a campaign's workers: each holds
+    one log while it computes the run's metrics), exceed the budget."""
+    from ..layout import REF_SIZE
+
+    check_ticks(scenario, where)
     cols = log_columns(scenario)
-    check_memory(f"{n_runs} run(s) x {ticks} log rows x {cols} columns x {FLOAT_BYTES} bytes",
-                 float(n_runs) * ticks * cols * FLOAT_BYTES, where,
-                 "shorten duration_s, lengthen dt_control_s or fly fewer runs at once")
+    per_tick = cols + REF_SIZE + 1 + ANALYSIS_TRANSIENT_COLUMNS
+    check_memory(f"{workers} run(s) at a time in memory x {scenario.n_ticks} ticks x ({cols} log + "
+                 f"{REF_SIZE + 1} reference and time + {ANALYSIS_TRANSIENT_COLUMNS} transient) x {FLOAT_BYTES} bytes",
+                 float(workers) * scenario.n_ticks * per_tick * FLOAT_BYTES, where,
+                 "shorten duration_s, lengthen dt_control_s or use fewer workers")
 
 
 def in_memory_run_bytes(scenario) -> float:
-    """Bytes :func:`vtoladapt.simulate.simulate` holds for one run: the log, the reference table and
+    """Bytes :func:`vtoladapt.sim.driver.simulate` holds for one run: the log, the reference table and
     the tick times, one float64 each per control tick (``log_columns() + REF_SIZE + 1`` per tick)."""
     from ..layout import REF_SIZE
 
@@ -82,6 +143,8 @@ def check_in_memory_runs(scenarios, where: str) -> None:
     from ..layout import REF_SIZE
 
     scenarios = list(scenarios)
+    for sc in scenarios:
+        check_ticks(sc, sc.source_path or f"scenario {sc.name!r}", at_least=1)
     ticks = sum(sc.n_ticks for sc in scenarios)
     cols = max((log_columns(sc) for sc in scenarios), default=log_columns())
     check_memory(f"{len(scenarios)} run(s), {ticks} ticks in all x ({cols} log + {REF_SIZE} reference "
@@ -89,38 +152,41 @@ def check_in_memory_runs(scenarios, where: str) -> None:
                  where, "shorten duration_s, lengthen dt_control_s or fly fewer runs at once")
 
 
-def max_duration_s(scenario, n_runs: int = 1) -> float:
-    """The longest duration whose logs fit the budget at the scenario's control period."""
-    return MEMORY_BUDGET_BYTES / (n_runs * log_columns(scenario) * FLOAT_BYTES) * scenario.dt_control_s
+def max_duration_s(scenario, variants: int | None = None, workers: int | None = None) -> float:
+    """The longest ``duration_s`` whose run (:func:`run_memory`) fits the budget at the scenario's
+    control period (the memory grows linearly with the ticks: found from two durations)."""
+    a = run_memory(scenario.replace(duration_s=1000.0 * scenario.dt_control_s), variants, workers)[0]
+    b = run_memory(scenario.replace(duration_s=2000.0 * scenario.dt_control_s), variants, workers)[0]
+    per_tick = (b - a) / 1000.0
+    return (MEMORY_BUDGET_BYTES - (a - 1000.0 * per_tick)) / per_tick * scenario.dt_control_s
 
 
-def check_campaign_runs(runs: int, base_mapping: dict, where: str = "--runs") -> None:
-    """Refuse a campaign whose planned runs (each a scenario copy and a result row) exceed the budget."""
-    per_run = len(pickle.dumps(base_mapping)) * 3 + CAMPAIGN_ROW_BYTES  # dict overhead ~3x pickle
-    check_memory(f"{runs} runs x {per_run} bytes (scenario copy and result row)",
-                 float(runs) * per_run, where, "split the campaign into several")
-
-
-def check_tunnel_rows(points_per_repeat: int, repeats: int, where: str = "--repeats") -> None:
-    """Refuse a tunnel design whose table (rows x columns x 8 bytes) exceeds the budget."""
-    rows = float(points_per_repeat) * repeats
-    check_memory(f"{points_per_repeat} points x {repeats} repeats x {FORCE_BALANCE_COLUMNS} "
-                 f"columns x {FLOAT_BYTES} bytes", rows * FORCE_BALANCE_COLUMNS * FLOAT_BYTES, where)
-
-
-def check_fit_size(walkers: int, max_steps: int, n_rows: int, where: str) -> None:
-    """Refuse MCMC settings whose chain and vectorised residuals exceed the budget."""
-    chain = float(walkers) * max_steps * FIT_PARAMETERS_MAX * FLOAT_BYTES
-    work = float(walkers) * n_rows * 3 * FLOAT_BYTES * FIT_WORK_COPIES
-    check_memory(f"chain {walkers} walkers x {max_steps} steps x {FIT_PARAMETERS_MAX} parameters "
-                 f"x {FLOAT_BYTES} bytes + residuals {walkers} walkers x {n_rows} rows x 3 axes x "
-                 f"{FLOAT_BYTES} bytes x {FIT_WORK_COPIES}", chain + work, where)
-
-
-def ceiling(n_bytes_per_unit: float) -> int:
-    """How many units of ``n_bytes_per_unit`` the budget holds."""
-    return int(math.floor(MEMORY_BUDGET_BYTES / n_bytes_per_unit))
-
+_LIGHTEST = ("0.1 kg: the lightest aircraft this model describes (a 100 g micro VTOL); the forces are "
+             "per unit mass, and 5e-324 kg divided by zero")
+_SMALLEST_INERTIA = "1e-5 kg m^2: the lightest aircraft (0.1 kg) with a 1 cm radius of gyration"
+_THINNEST_AIR = "0.3 kg/m^3: air at 12 km, above any small UAS's ceiling"
+_FASTEST_MOTOR = ("1 ms: the fastest small motor and propeller spin up in about 10 ms; the run also checks "
+                  "the plant's RK4 step against it")
+_SMALLEST_EDDY = ("1 m: the Dryden model treats the aircraft as a point in the turbulence, which scales "
+                  "shorter than its span break (MIL-F-8785C's low-altitude L_w at 1 m height is 1 m)")
+BOUND_REASONS = {
+    "mass.mass_kg": _LIGHTEST, "plant.mass_kg": _LIGHTEST,
+    "mass.inertia_kgm2": _SMALLEST_INERTIA, "plant.inertia_kgm2": _SMALLEST_INERTIA,
+    "geometry.wing_area_m2": "0.01 m^2: the wing of the lightest aircraft (10 cm x 10 cm)",
+    "geometry.wingspan_m": "0.1 m: the span of the lightest aircraft; 5e-324 m diverged instead of being refused",
+    "geometry.lift_prop_diameter_m": "25 mm: the one-inch propellers of the smallest drones",
+    "geometry.pusher_prop_diameter_m": "25 mm: the one-inch propellers of the smallest drones",
+    "geometry.pusher_prop_pitch_m": "10 mm: a flat one-inch propeller",
+    "actuators.lift_motor_time_constant_s": _FASTEST_MOTOR, "actuators.pusher_motor_time_constant_s": _FASTEST_MOTOR,
+    "plant.lift_motor_time_constant_s": _FASTEST_MOTOR, "plant.pusher_motor_time_constant_s": _FASTEST_MOTOR,
+    "actuators.yaw_torque_per_thrust_m": ("1 mm: rotor drag torque per thrust is 10-50 mm for real propellers; "
+                                          "below 1 mm the lift rotors have no yaw authority"),
+    "envelope.air_density_kgpm3": _THINNEST_AIR, "plant.air_density_kgpm3": _THINNEST_AIR,
+    "wind.turbulence.length_scale_m": _SMALLEST_EDDY,
+    "wind.turbulence.altitude_m": "1 m: below it the low-altitude length scales fall under a span (see length_scale_m)",
+}
+"""Why a key's lower bound is where it is (README's range table shows it): the physical reason, not
+the arithmetic one, for the keys whose lower bound is not simply 0."""
 
 ROW_CHECKS = {
     "wind.fan_array.schedule": "rows [t_s, throttle_pct]: t_s >= 0 and non-decreasing, "
@@ -188,11 +254,12 @@ def ranges_markdown() -> str:
     from .scenario import Scenario
     from ..vehicle import Vehicle
 
-    lines = ["| file | key | allowed (unit) |", "|---|---|---|"]
+    lines = ["| file | key | allowed (unit) | why the lower bound |", "|---|---|---|---|"]
     for name, cls in (("scenario", Scenario), ("vehicle", Vehicle)):
         for key, unit, text in _settings_rows(cls):
             if key == "source_path":
                 continue
             text = ROW_CHECKS.get(key, text)
-            lines.append(f"| {name} | `{key}` | {text.replace('|', '/')} |")
+            why = BOUND_REASONS.get(key, "")
+            lines.append(f"| {name} | `{key}` | {text.replace('|', '/')} | {why.replace('|', '/')} |")
     return "\n".join(lines)

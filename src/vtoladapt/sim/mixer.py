@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit
 
 from ..layout import CMD_SIZE, CMD_TAU_B, CMD_U_X, CMD_U_Z, MOTOR_PUSHER, N_LIFT, N_MOTORS, BlockLayout, Field
-from ..vehicle import Vehicle
+from ..vehicle import Vehicle, lift_allocation_matrix
 
 MIXER_PARAMS = BlockLayout("mixer parameters", [
     Field("INV", 16, "-", "4x4 inverse of the allocation matrix, row-major"),
@@ -36,15 +36,8 @@ MX_SIZE = MIXER_PARAMS.size
 
 def mixer_params(vehicle: Vehicle) -> np.ndarray:
     """Kernel parameters of the mixer from the vehicle's nominal geometry and Table I."""
-    g = vehicle.geometry
-    km = vehicle.actuators.yaw_torque_per_thrust_m
-    A = np.zeros((4, N_LIFT))
-    for i, (x, y) in enumerate(g.lift_rotor_positions_m):
-        A[0, i] = 1.0
-        A[1, i] = -y
-        A[2, i] = x
-        A[3, i] = -g.lift_rotor_spin[i] * km
-    if abs(np.linalg.det(A)) < 1e-12:
+    A = lift_allocation_matrix(vehicle.geometry, vehicle.actuators.yaw_torque_per_thrust_m)
+    if abs(np.linalg.det(A)) < 1e-12:  # a Vehicle refuses such a layout when it is made
         raise ValueError("lift rotor layout cannot produce independent roll, pitch and yaw moments")
     t_unit = vehicle.mass.mass_kg * vehicle.theta_scaled[1] / N_LIFT
     return MIXER_PARAMS.pack(INV=np.linalg.inv(A).ravel(), T_UNIT=t_unit, TOTAL_UNIT=N_LIFT * t_unit,

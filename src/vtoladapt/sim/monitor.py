@@ -5,7 +5,9 @@ units in the names, defaults below). The compiled loop checks the plant state ag
 start of every tick (:func:`check_envelope`) and once more after the last one; the first
 violation stops the run. The log keeps every tick before it (each of them inside the envelope,
 so finite), and the result says when and why (:attr:`vtoladapt.sim.results.SimulationResult.diverged_at_s`,
-``divergence_reason``). A diverged run is not an exception inside a campaign (the campaign counts
+``divergence_reason``). ``[envelope] enabled = false`` switches the limits off, never the check for a
+non-finite state: NaN or inf in the state stops the run either way. A diverged run is not an exception
+inside a campaign (the campaign counts
 it and goes on); a caller that wants one calls :meth:`SimulationResult.raise_if_diverged`, which
 raises :class:`DivergenceError`.
 """
@@ -21,18 +23,18 @@ from ..config import Validated, setting
 from ..errors import RunFailed
 from ..layout import REF_P_W, X_OMEGA_B, X_P_W, X_SIZE, X_V_W, BlockLayout, Field
 
-REASON_OK = 0
-REASON_NON_FINITE = 1
-REASON_SPEED = 2
-REASON_BODY_RATE = 3
-REASON_HEIGHT_LOW = 4
-REASON_HEIGHT_HIGH = 5
-REASON_POSITION_ERROR = 6
 DIVERGENCE_REASONS: tuple[str, ...] = (
     "", "non-finite state", "speed above envelope.max_speed_mps",
     "body rate above envelope.max_body_rate_radps", "height below envelope.min_height_m",
     "height above envelope.max_height_m", "distance from the reference above envelope.max_position_error_m")
 """Reason code (what :func:`check_envelope` returns) -> words; code 0 is "inside the envelope"."""
+REASON_OK = DIVERGENCE_REASONS.index("")
+REASON_NON_FINITE = DIVERGENCE_REASONS.index("non-finite state")
+REASON_SPEED = DIVERGENCE_REASONS.index("speed above envelope.max_speed_mps")
+REASON_BODY_RATE = DIVERGENCE_REASONS.index("body rate above envelope.max_body_rate_radps")
+REASON_HEIGHT_LOW = DIVERGENCE_REASONS.index("height below envelope.min_height_m")
+REASON_HEIGHT_HIGH = DIVERGENCE_REASONS.index("height above envelope.max_height_m")
+REASON_POSITION_ERROR = DIVERGENCE_REASONS.index("distance from the reference above envelope.max_position_error_m")
 
 ENVELOPE_PARAMS = BlockLayout("envelope parameters", [
     Field("ON", 1, "-", "1.0: check the envelope"),
@@ -53,7 +55,8 @@ class EnvelopeConfig(Validated):
 
     config_section = "envelope"
 
-    enabled: bool = setting("-", "stop the run when the state leaves the envelope", default=True)
+    enabled: bool = setting("-", "stop the run when the state leaves the envelope (a non-finite state stops "
+                            "it even when false)", default=True)
     max_speed_mps: float = setting("m/s", "largest ground speed |v_W|", default=50.0, gt=0.0, le=1000.0)
     max_body_rate_radps: float = setting("rad/s", "largest body rate |omega_B| (35 rad/s is a gyro's range)",
                                          default=30.0, gt=0.0, le=1000.0)
@@ -123,14 +126,18 @@ class DivergenceError(RunFailed):
 def check_envelope(x, env, ref) -> int:
     """Reason code (:data:`DIVERGENCE_REASONS`) of the first envelope limit ``x`` violates, else 0.
 
+    A non-finite state is refused whether the envelope is on or not (``ON`` switches the limits only).
+
     ``ref`` is the reference row (``REF_*``) of the same tick. A handful of multiplications per
     tick: the speed, rate and position error are compared squared.
     """
-    if env[_E_ON] == 0.0:
-        return REASON_OK
+    # a non-finite state stops the run with the envelope off too: nothing after it means anything,
+    # and a log of NaN with exit 0 would pass for a run
     for i in range(X_SIZE):
         if not np.isfinite(x[i]):
             return REASON_NON_FINITE
+    if env[_E_ON] == 0.0:
+        return REASON_OK
     v2 = x[X_V_W] ** 2 + x[X_V_W + 1] ** 2 + x[X_V_W + 2] ** 2
     if v2 > env[_E_MAX_SPEED] ** 2:
         return REASON_SPEED

@@ -86,10 +86,10 @@ class PlantConfig(Validated):
         "vehicle's published means, the controller's theta_0) or 'table_i_draw' (one draw from Table "
         "I's mean +- std, seeded by the run seed; see draw_table_i_coefficients)",
         default="table_i_means", choices=("table_i_means", "table_i_draw"))
-    mass_kg: Optional[float] = setting("kg", "true mass (default: vehicle's)", default=None, gt=0.0, le=150.0)
+    mass_kg: Optional[float] = setting("kg", "true mass (default: vehicle's)", default=None, ge=0.1, le=150.0)
     inertia_kgm2: Optional[tuple[float, ...]] = setting(
-        "kg m^2", "true principal inertia (default: vehicle's)", default=None, gt=0.0, le=500.0, length=3)
-    air_density_kgpm3: Optional[float] = setting("kg/m^3", "true air density", default=None, gt=0.0, le=2.0)
+        "kg m^2", "true principal inertia (default: vehicle's)", default=None, ge=1e-5, le=500.0, length=3)
+    air_density_kgpm3: Optional[float] = setting("kg/m^3", "true air density", default=None, ge=0.3, le=2.0)
     stall: bool = setting("-", "blend to flat-plate aerodynamics past stall", default=True)
     stall_angle_deg: float = setting("deg", "angle of attack where the blend is half way", default=16.0,
                                      gt=0.0, lt=60.0)
@@ -105,9 +105,9 @@ class PlantConfig(Validated):
     motor_lag: bool = setting("-", "first-order motor lag (else motors follow commands instantly)",
                               default=True)
     lift_motor_time_constant_s: Optional[float] = setting("s", "true lift motor lag (default: vehicle's)",
-                                                          default=None, gt=0.0, le=1.0)
+                                                          default=None, ge=0.001, le=1.0)
     pusher_motor_time_constant_s: Optional[float] = setting("s", "true pusher lag (default: vehicle's)",
-                                                            default=None, gt=0.0, le=1.0)
+                                                            default=None, ge=0.001, le=1.0)
     rotor_reaction_torque: bool = setting(
         "-", "the pusher's drag torque rolls the airframe (unmodelled by the controller); the lift "
         "rotors' yaw torques are always on: they are how the aircraft yaws", default=True)
@@ -600,7 +600,11 @@ def hover_trim_motor(vehicle: Vehicle, plant: PlantConfig) -> np.ndarray:
     m_true = plant.mass_kg if plant.mass_kg is not None else vehicle.mass.mass_kg
     u = math.sqrt(GRAVITY_MPS2 * m_true / (vehicle.mass.mass_kg * c["CTz"] * 100.0**2))
     if u > 1.0:
-        raise ConfigError(f"plant cannot hover: needs lift throttle {100 * u:.0f} % > 100 % with its true "
+        # three significant digits (a 1e75 % throttle is not 76 digits), more if it would round to the 100 %
+        # it exceeds ("needs 100 % > 100 %")
+        digits = next((d for d in range(3, 16) if float(f"{100 * u:.{d}g}") > 100.0), 16)
+        need = f"{100 * u:.{digits}g} % > 100 %"
+        raise ConfigError(f"[plant] cannot hover: needs lift throttle {need} with its true "
                           f"CTz = {c['CTz']:g} and mass {m_true:g} kg; allowed: [plant.coefficients] CTz and "
                           f"[plant] mass_kg that hover below 100 %")
     return np.array([u, u, u, u, 0.0])

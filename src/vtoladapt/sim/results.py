@@ -76,13 +76,14 @@ class SimulationResult:
 
         ``v_r = p_d' - Lambda_p (p - p_d)`` (eq:wr, with the run's ``Lambda_p`` and correction
         limit from the metadata), so a steady position offset shows as a velocity error, as in
-        the paper's figures. Computed once and cached.
+        the paper's figures. A result :meth:`measured_with` another ``Lambda_p`` uses that one
+        instead of the gain it flew. Computed once and cached.
         """
         if self._v_tilde is None:
             # vtoladapt.control.tracking.reference_velocity's v_r, every row at once (a Python loop
             # over it held the GIL for a third of a comparison run's time): the correction
             # Lambda_p p~, scaled to its limit where longer
-            lam = np.asarray(self.metadata["Lambda_p"], dtype=float)
+            lam = np.asarray(self.metadata.get("metric_Lambda_p") or self.metadata["Lambda_p"], dtype=float)
             corr_max = float(self.metadata["velocity_correction_max_mps"])
             p_tilde = self.position_W - self.columns_like(("ref_p_N_m", "ref_p_E_m", "ref_p_D_m"))
             v_d = self.columns_like(("ref_v_N_mps", "ref_v_E_mps", "ref_v_D_mps"))
@@ -93,6 +94,23 @@ class SimulationResult:
             s[saturated] = corr_max / n[saturated]
             self._v_tilde = self.velocity_W - (v_d - s[:, None] * c)
         return self._v_tilde
+
+    def measured_with(self, Lambda_p) -> "SimulationResult":
+        """The same run (its log shared, not copied) whose :attr:`velocity_error_W` is measured with the
+        position gain ``Lambda_p`` (3 values, 1/s) instead of the one it flew (metadata
+        ``metric_Lambda_p``).
+
+        ``v~ = v - v_r`` weighs the position error by ``Lambda_p``: laws that fly different position
+        gains are compared on one yardstick only if their errors are measured with the same one
+        (``vtoladapt tune`` searches ``Lambda_p``; :mod:`vtoladapt.experiments.tuning`).
+        """
+        lam = [float(x) for x in Lambda_p]
+        if len(lam) != 3 or not all(np.isfinite(lam)):
+            raise ValueError(f"measured_with: Lambda_p = {Lambda_p!r}: three finite values (1/s)")
+        out = SimulationResult(self.columns, self.data, {**self.metadata, "metric_Lambda_p": lam})
+        if lam == [float(x) for x in self.metadata["Lambda_p"]]:
+            out._v_tilde = self._v_tilde
+        return out
 
     @property
     def position_error_W(self) -> np.ndarray:
@@ -142,9 +160,7 @@ class SimulationResult:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         table = pa.table({name: self.data[:, i] for i, name in enumerate(self.columns)})
-        meta = {b"vtoladapt_format": str(PARQUET_FORMAT_VERSION).encode(),
-                b"vtoladapt_metadata": json.dumps(self.metadata, default=_jsonable).encode()}
-        table = table.replace_schema_metadata({**(table.schema.metadata or {}), **meta})
+        table = table.replace_schema_metadata({**(table.schema.metadata or {}), **log_metadata_entries(self.metadata)})
         from ..outputs import atomic_path
 
         with atomic_path(path) as tmp:  # never a half-written log; recorded in the folder's manifest
@@ -153,13 +169,78 @@ class SimulationResult:
 
     @classmethod
     def from_parquet(cls, path: str | Path) -> "SimulationResult":
-        """Read a log written by :meth:`to_parquet`."""
+        """Read a log written by :meth:`to_parquet` or streamed (:func:`vtoladapt.sim.longrun.stream_to_parquet`)."""
+        meta = log_file_metadata(path)
         table = pq.read_table(path)
-        meta = table.schema.metadata or {}
-        if meta.get(b"vtoladapt_format") != str(PARQUET_FORMAT_VERSION).encode():
-            raise ValueError(f"{path}: not a vtoladapt log of format {PARQUET_FORMAT_VERSION}")
         data = np.column_stack([table.column(i).to_numpy() for i in range(table.num_columns)])
-        return cls(tuple(table.column_names), data, json.loads(meta[b"vtoladapt_metadata"]))
+        return cls(tuple(table.column_names), data, meta)
+
+
+def log_file_metadata(path: str | Path) -> dict:
+    """The run metadata of a vtoladapt log file: in the Arrow schema (:meth:`SimulationResult.to_parquet`)
+    or in the Parquet footer (a streamed log, whose metadata is known only when the run ends)."""
+    f = pq.ParquetFile(path)
+    meta = dict(f.schema_arrow.metadata or {})
+    meta.update(f.metadata.metadata or {})
+    if meta.get(b"vtoladapt_format") != str(PARQUET_FORMAT_VERSION).encode():
+        raise ValueError(f"{path}: not a vtoladapt log of format {PARQUET_FORMAT_VERSION}")
+    return json.loads(meta[b"vtoladapt_metadata"])
+
+
+def log_metadata_entries(metadata: dict) -> dict[bytes, bytes]:
+    """The key-value entries a log file carries for ``metadata`` (schema or footer)."""
+    return {b"vtoladapt_format": str(PARQUET_FORMAT_VERSION).encode(),
+            b"vtoladapt_metadata": json.dumps(metadata, default=_jsonable).encode()}
+
+
+class LoggedResult(SimulationResult):
+    """A run whose log stays in its Parquet file (streamed by :func:`vtoladapt.sim.longrun.stream_to_parquet`).
+
+    A column is read from the file the first time it is used and then kept, so memory holds the
+    columns the metrics and figures use (:attr:`loaded_columns`), never the whole log; ``data``
+    reads every column (the whole log in memory: avoid it for long runs).
+    """
+
+    def __init__(self, path: str | Path, columns, metadata: dict, n_rows: int):
+        self.path = Path(path)
+        self.columns = tuple(columns)
+        self.metadata = dict(metadata)
+        self._n = int(n_rows)
+        self._index = {name: i for i, name in enumerate(self.columns)}
+        self._loaded: dict[str, np.ndarray] = {}
+        self._v_tilde = None
+
+    @classmethod
+    def open(cls, path: str | Path) -> "LoggedResult":
+        """The log at ``path`` (a file written by :meth:`SimulationResult.to_parquet` or streamed)."""
+        f = pq.ParquetFile(path)
+        return cls(path, f.schema_arrow.names, log_file_metadata(path), f.metadata.num_rows)
+
+    @property
+    def data(self) -> np.ndarray:
+        """Every column, ``(T, n_columns)``: the whole log in memory."""
+        return np.column_stack([self[c] for c in self.columns]) if self.columns else np.empty((self._n, 0))
+
+    @property
+    def loaded_columns(self) -> tuple[str, ...]:
+        """The columns read so far (what this result holds in memory)."""
+        return tuple(self._loaded)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name not in self._index:
+            raise KeyError(f"no column {name!r}; see .columns")
+        col = self._loaded.get(name)
+        if col is None:
+            col = pq.read_table(self.path, columns=[name]).column(0).to_numpy()
+            self._loaded[name] = col
+        return col
+
+    def columns_like(self, names) -> np.ndarray:
+        """``(T, len(names))`` array of the named columns (each read once)."""
+        return np.column_stack([self[n] for n in names]) if len(names) else np.empty((self._n, 0))
+
+    def __len__(self) -> int:
+        return self._n
 
 
 def _jsonable(obj):

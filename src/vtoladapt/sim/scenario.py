@@ -15,12 +15,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from ..config import (NAME_PATTERN, PATH_PATTERN, ConfigError, Validated, build, read_toml, refuse_internal_keys,
-                     setting)
+from ..config import (NAME_PATTERN, PATH_PATTERN, ApplicableKeys, ConfigError, Validated, build, read_toml,
+                      refuse_internal_keys, setting)
 from ..control.settings import (SCENARIO_DT_DEFAULT_S, SCENARIO_DT_RANGE_S, ControllerConfig,
-                               check_rate_matches_dt, rate_from_dt)
+                                check_rate_matches_dt, rate_from_dt)
 from ..control.registry import controller_ids, theta_adaptive_ids
-from .faults import FaultConfig
+from .faults import MAX_FAULTS, FaultConfig
 from .monitor import EnvelopeConfig
 from .plant import PlantConfig
 from ..sensors import SensorsConfig
@@ -28,6 +28,9 @@ from ..vehicle import Vehicle, load_vehicle
 from ..wind import WindConfig
 
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
+MAX_WAYPOINTS = 100_000
+"""Most rows of ``[reference] waypoints``: one every 36 ms over the longest run (3600 s); checked before
+the rows are, so a file of millions of them is refused at once."""
 
 
 @dataclass(frozen=True)
@@ -60,10 +63,24 @@ class ReferenceConfig(Validated):
                              ge=-360.0, le=360.0)
     waypoints: tuple[tuple[float, ...], ...] = setting(
         "s, m", "rows [t_s, north_m, east_m, down_m] (kind = waypoints); min-jerk between rows",
-        default=(), ge=-1e4, le=1e4)
+        default=(), ge=-1e4, le=1e4, max_items=MAX_WAYPOINTS)
+
+    @staticmethod
+    def keys_for(data) -> "Optional[ApplicableKeys]":
+        """The keys a reference of this ``kind`` uses (:func:`vtoladapt.config.build` refuses the
+        others: waypoints under ``kind = 'hold'`` were read, held in memory and ignored)."""
+        kind = data.get("kind", "hold")
+        if kind == "hold":
+            return ApplicableKeys(("kind", "position_m", "yaw_deg"), "kind = 'hold'")
+        if kind == "waypoints":
+            return ApplicableKeys(("kind", "waypoints", "yaw_deg"), "kind = 'waypoints'")
+        return None
 
     def _check(self, source: str) -> None:
         if self.kind != "waypoints":
+            if self.waypoints:  # made in Python: what a file's keys_for refuses
+                raise ConfigError(f"{source}: [reference] waypoints: {len(self.waypoints)} rows with kind = "
+                                  f"{self.kind!r}, which ignores them; allowed: waypoints with kind = 'waypoints'")
             return
         if len(self.waypoints) < 2:
             raise ConfigError(f"{source}: [reference] waypoints: kind = 'waypoints' needs at least two rows")
@@ -151,7 +168,7 @@ class Scenario(Validated):
                                            default=ExperimentConfig())
     envelope: EnvelopeConfig = setting("-", "where the run stops as diverged", default=EnvelopeConfig())
     faults: tuple[FaultConfig, ...] = setting("-", "injected faults ([[faults]] entries, each with start_s "
-                                              "and end_s)", default=())
+                                              "and end_s)", default=(), max_items=MAX_FAULTS)
     source_path: str = setting("-", "file the scenario was read from", default="")
 
     def _check(self, source: str) -> None:

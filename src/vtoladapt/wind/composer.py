@@ -1,53 +1,55 @@
-"""The composed wind: fan array + constant wind + gusts + Dryden turbulence, one wind model.
+"""The composed wind: the package's parts (fan array, constant wind, gusts, Dryden turbulence) and any
+registered from outside, one wind.
 
 :class:`WindConfig` (a scenario's ``[wind]`` table) holds the parts' settings;
-:meth:`WindConfig.to_kernel` packs them into one parameter array, :data:`WIND_PARAMS`, whose
-blocks are the parts' own layouts; :func:`wind_initial_state` and :func:`wind_step` are the
-compiled model the closed loop calls (the interface is in :mod:`vtoladapt.wind`).
+:meth:`WindConfig.assemble` lays out the run's parts (a :class:`vtoladapt.parts.Assembly`: their
+parameter blocks one after another, the package's first in :data:`WIND_PARAMS`'s order, and the
+table the compiled loop calls them through); :func:`wind_at` is the compiled wind of one tick.
 """
 from __future__ import annotations
 
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from typing import Any, Mapping
 
 import numpy as np
 from numba import njit
 
 from ..config import ConfigError, Validated, build, setting
-from ..layout import BlockLayout, Field
+from ..layout import W_V_W, WIND_SIZE, BlockLayout, Field
+from ..parts import T_D0, T_D1, T_P0, T_P1, T_S0, T_S1, Assembly, draw
 from . import dryden, fan_array, gusts
-from .dryden import TURBULENCE_PARAMS, TURBULENCE_STATE, TurbulenceConfig, pack_turbulence
-from .fan_array import FAN_PARAMS, FanArrayConfig, bearing_unit, pack_fan_array
-from .gusts import GUSTS_PARAMS, MAX_GUSTS, GustConfig, pack_gusts
+from .constant import PARAMS as CONSTANT_PARAMS
+from .dryden import TURBULENCE_PARAMS, TurbulenceConfig
+from .fan_array import FAN_PARAMS, FanArrayConfig, bearing_unit
+from .gusts import GUSTS_PARAMS, MAX_GUSTS, GustConfig
+from .registry import BUILTIN_WIND_PARTS, WIND_KIND, WIND_PARTS, load_wind_step
 
-WIND_PARAMS = BlockLayout("wind parameters", [
-    Field("FAN", FAN_PARAMS.size, "-", "the fan array (vtoladapt.wind.fan_array.FAN_PARAMS)"),
-    Field("CONST", 3, "m/s", "constant wind, NED"),
-    Field("TURBULENCE", TURBULENCE_PARAMS.size, "-", "Dryden (vtoladapt.wind.dryden.TURBULENCE_PARAMS)"),
+WIND_PARAMS = BlockLayout("wind parameters (the package's parts, which lead every run's wind parameters)", [
+    Field("FAN_ARRAY", FAN_PARAMS.size, "-", "the fan array (vtoladapt.wind.fan_array.FAN_PARAMS)"),
+    Field("CONSTANT", CONSTANT_PARAMS.size, "m/s", "constant wind, NED (vtoladapt.wind.constant.PARAMS)"),
     Field("GUSTS", GUSTS_PARAMS.size, "-", "the gusts (vtoladapt.wind.gusts.GUSTS_PARAMS)"),
+    Field("TURBULENCE", TURBULENCE_PARAMS.size, "-", "Dryden (vtoladapt.wind.dryden.TURBULENCE_PARAMS)"),
 ])
-"""The wind's parameter array: one block per part."""
-_FAN, _CONST, _TURB, _GUSTS = WIND_PARAMS.offsets("FAN", "CONST", "TURBULENCE", "GUSTS")
+"""The package's parts' blocks, in the order they are called; a part registered from outside
+follows them."""
+_FAN, _GUSTS = WIND_PARAMS.offsets("FAN_ARRAY", "GUSTS")
 WIND_KERNEL_SIZE = WIND_PARAMS.size
 
-WIND_STATE = BlockLayout("wind state", [
-    Field("TURBULENCE", TURBULENCE_STATE.size, "-", "Dryden filters (vtoladapt.wind.dryden.TURBULENCE_STATE)"),
-])
-"""The wind's state array (only the turbulence has state)."""
-(_S_TURB,) = WIND_STATE.offsets("TURBULENCE")
-WIND_STATE_SIZE = WIND_STATE.size
-
 WIND_DRAWS_PER_STEP = dryden.TURBULENCE_DRAWS_PER_STEP
-"""Standard normals every :func:`wind_step` call draws."""
-WIND_DRAWS_FIRST_STEP = dryden.TURBULENCE_DRAWS_FIRST_STEP + dryden.TURBULENCE_DRAWS_PER_STEP
-"""Standard normals the first :func:`wind_step` call draws."""
+"""Standard normals the package's parts consume per step (all of them the turbulence's)."""
+WIND_DRAWS_INITIAL = dryden.TURBULENCE_DRAWS_INITIAL
+"""Standard normals the package's parts draw for their initial state (the turbulence's)."""
 
 
 @dataclass(frozen=True)
 class WindConfig(Validated):
-    """All the wind of a scenario; the parts add up. Load with :meth:`from_mapping`."""
+    """All the wind of a scenario; the parts add up. Load with :meth:`from_mapping`.
+
+    ``parts`` holds the settings of parts registered from outside the package (``("id", settings)``
+    pairs, in registration order), each from its ``[wind.<id>]`` table.
+    """
 
     config_section = "wind"
 
@@ -56,37 +58,62 @@ class WindConfig(Validated):
     fan_array: FanArrayConfig = setting("-", "fan-array wind", default=FanArrayConfig())
     turbulence: TurbulenceConfig = setting("-", "Dryden turbulence", default=TurbulenceConfig())
     gusts: tuple[GustConfig, ...] = setting("-", "discrete gusts ([[wind.gusts]] entries)",
-                                            default=())
+                                            default=(), max_items=MAX_GUSTS)  # counted before they are built
+    parts: Any = setting("-", "wind parts registered from outside the package, each from its [wind.<id>] table: "
+                         "(id, settings) pairs", default=())
 
     def _check(self, source: str) -> None:
         if len(self.gusts) > MAX_GUSTS:
             raise ConfigError(f"{source}: [wind] gusts: {len(self.gusts)} entries; at most "
                               f"{MAX_GUSTS} are allowed")
+        if not isinstance(self.parts, tuple):
+            raise ConfigError(f"{source}: [wind] parts = {self.parts!r}: must be a tuple of (id, settings) pairs")
+        seen = set()
+        for entry in self.parts:
+            if not (isinstance(entry, tuple) and len(entry) == 2 and isinstance(entry[0], str)):
+                raise ConfigError(f"{source}: [wind] parts: {entry!r}: must be an (id, settings) pair")
+            part_id, settings = entry
+            _check_user_part(part_id, source)
+            cls = WIND_PARTS.module(part_id).Settings
+            if not isinstance(settings, cls):
+                raise ConfigError(f"{source}: [wind.{part_id}] = {settings!r}: must be a {cls.__name__}")
+            if part_id in seen:
+                raise ConfigError(f"{source}: [wind.{part_id}] given twice")
+            seen.add(part_id)
+
+    @classmethod
+    def component_tables(cls, data: Mapping[str, Any], *, source: str, section: str) -> tuple[dict, dict]:
+        """Take the tables of parts registered from outside (``[wind.<id>]``) out of ``data`` and build
+        them (:func:`vtoladapt.config.build`'s hook): ``(the rest, {"parts": ((id, settings), ...)})``."""
+        own = {f.name for f in dataclasses.fields(cls)}
+        if "parts" in data:
+            raise ConfigError(f"{source}: [{section}] parts: not a key; a registered wind part's settings go in its "
+                              f"own table, [{section}.<id>]")
+        rest, parts = {}, []
+        for key, value in data.items():
+            if key in own or not isinstance(key, str) or key not in WIND_PARTS or key in BUILTIN_WIND_PARTS:
+                rest[key] = value
+                continue
+            settings_cls = WIND_PARTS.module(key).Settings
+            if settings_cls is None:
+                raise ConfigError(f"{source}: [{section}.{key}]: this wind part takes no table")
+            parts.append((key, build(settings_cls, value, source=source, section=f"{section}.{key}")))
+        order = list(WIND_PARTS)
+        parts.sort(key=lambda p: order.index(p[0]))
+        return rest, {"parts": tuple(parts)}
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], *, source: str = "<config>",
                      section: str = "wind") -> "WindConfig":
         """Build from a scenario's ``[wind]`` table (with ``[wind.fan_array]``,
-        ``[wind.turbulence]`` and ``[[wind.gusts]]``).
+        ``[wind.turbulence]``, ``[[wind.gusts]]`` and a table per part registered from outside).
 
         Raises
         ------
         ConfigError
             Naming the file, the table (``wind.gusts[2]`` for the third gust) and the key.
         """
-        if not isinstance(data, Mapping):
-            raise ConfigError(f"{source}: [{section}] must be a table, got {data!r}")
-        rest = dict(data)
-        raw_gusts = rest.pop("gusts", [])
-        if not isinstance(raw_gusts, (list, tuple)):
-            raise ConfigError(f"{source}: [{section}] gusts = {raw_gusts!r}: must be a list of "
-                              "tables ([[wind.gusts]])")
-        gusts = tuple(build(GustConfig, g, source=source, section=f"{section}.gusts[{i}]")
-                      for i, g in enumerate(raw_gusts))
-        cfg = build(cls, rest, source=source, section=section)
-        cfg = dataclasses.replace(cfg, gusts=gusts)
-        cfg._check(source)
-        return cfg
+        return build(cls, data, source=source, section=section)
 
     def turbulence_axis_NE(self) -> np.ndarray:
         """Unit (N, E) vector of the turbulence ``u`` axis: the mean wind's horizontal direction.
@@ -107,7 +134,8 @@ class WindConfig(Validated):
         """The same wind with every time stretched by ``scale`` (> 0), for quick looks and tests.
 
         Schedule times, the fan spin-up time constant and the gusts' start and duration are
-        multiplied by ``scale``; speeds and the turbulence are unchanged.
+        multiplied by ``scale``; speeds and the turbulence are unchanged (and so are the parts
+        registered from outside, which the package cannot know how to stretch).
         """
         if not (scale > 0.0 and math.isfinite(scale)):
             raise ValueError(f"scale = {scale!r}: must be a finite number > 0")
@@ -120,8 +148,20 @@ class WindConfig(Validated):
                                           duration_s=g.duration_s * scale) for g in self.gusts)
         return dataclasses.replace(self, fan_array=fan, gusts=gusts)
 
-    def to_kernel(self) -> np.ndarray:
-        """The configuration as the float64 array the wind kernels take (layout :data:`WIND_PARAMS`).
+    def settings_of(self, part_id: str) -> Any:
+        """The settings of part ``part_id`` in this configuration (``None`` for a part it does not use)."""
+        info = WIND_PARTS[part_id]
+        if info.field is not None:
+            return getattr(self, info.field)
+        return dict(self.parts).get(part_id)
+
+    def part_ids(self) -> tuple[str, ...]:
+        """The parts a run of this wind calls, in order: the package's, then the configured others."""
+        used = dict(self.parts)
+        return tuple(i for i in WIND_PARTS if i in BUILTIN_WIND_PARTS or i in used)
+
+    def assemble(self) -> Assembly:
+        """The run's wind parts: parameter blocks, part table (:class:`vtoladapt.parts.Assembly`).
 
         Raises
         ------
@@ -129,20 +169,54 @@ class WindConfig(Validated):
             If the configuration was built without validation and does not fit the kernel (an
             invalid schedule, too many breakpoints or gusts).
         """
-        self.fan_array._check("WindConfig.to_kernel")
-        self._check("WindConfig.to_kernel")
-        return WIND_PARAMS.pack(
-            FAN=pack_fan_array(self.fan_array), CONST=self.constant_mps,
-            TURBULENCE=pack_turbulence(self.turbulence, self.turbulence_axis_NE()),
-            GUSTS=pack_gusts(self.gusts))
+        self.fan_array._check("WindConfig")
+        self._check("WindConfig")
+        ids = self.part_ids()
+        modules = [WIND_PARTS.module(i) for i in ids]
+        blocks = [m.pack(self.settings_of(i), self) for i, m in zip(ids, modules)]
+        assembly = Assembly(WIND_KIND, modules, blocks, ids)
+        lead = assembly.params_layout.fields[:len(WIND_PARAMS.fields)]
+        if [(f.name, f.size) for f in lead] != [(f.name, f.size) for f in WIND_PARAMS.fields]:
+            raise RuntimeError(f"wind parts {ids}: the package's parts must come first, as WIND_PARAMS declares")
+        return assembly
 
+    def to_kernel(self) -> np.ndarray:
+        """The run's wind parameter array (the package's parts first, laid out as :data:`WIND_PARAMS`)."""
+        return self.assemble().params
+
+
+def _check_user_part(part_id: str, source: str) -> None:
+    """A ``ConfigError`` unless ``part_id`` is a wind part registered from outside the package."""
+    try:
+        info = WIND_PARTS[part_id]
+    except KeyError:
+        raise ConfigError(f"{source}: [wind.{part_id}]: not a registered wind part; registered: "
+                          f"{', '.join(WIND_PARTS)}") from None
+    if info.field is not None:
+        raise ConfigError(f"{source}: [wind] parts: {part_id!r} is the package's own; set it in [wind] itself")
 
 
 # --- kernels ------------------------------------------------------------------------------------
 
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
+def wind_at(table, params, state, t, dt, p_W, draws, wind) -> None:
+    """The tick's wind (a :data:`vtoladapt.layout.WIND` array, written) from every part of ``table``.
+
+    ``draws`` holds the parts' random numbers for this step (:func:`vtoladapt.parts.draw`); each part
+    advances its ``state`` block to ``t + dt``.
+    """
+    for i in range(WIND_SIZE):
+        wind[i] = 0.0
+    for j in range(table.shape[0]):
+        step = load_wind_step(table, j)
+        step(params[table[j, T_P0]:table[j, T_P1]], state[table[j, T_S0]:table[j, T_S1]], t, dt, p_W,
+             draws[table[j, T_D0]:table[j, T_D1]], wind)
+
+
 @njit(cache=True)
 def fan_throttle_pct(params: np.ndarray, t: float) -> float:
-    """Commanded fan-array throttle (%) at time ``t`` (s): the schedule, without the spin-up lag."""
+    """Commanded fan-array throttle (%) at time ``t`` (s): the schedule, without the spin-up lag.
+    ``params``: a wind parameter array (:meth:`WindConfig.to_kernel`)."""
     return fan_array.throttle_pct(params, _FAN, t)
 
 
@@ -152,21 +226,9 @@ def fan_mean_wind_speed(params: np.ndarray, t: float) -> float:
 
     ``V = max_speed_mps * y / 100`` where ``y`` is the throttle passed through the first-order
     spin-up lag (solved in closed form over the piecewise-linear schedule, starting settled).
+    ``params``: a wind parameter array (:meth:`WindConfig.to_kernel`).
     """
     return fan_array.mean_speed_mps(params, _FAN, t)
-
-
-@njit(cache=True, inline="always")
-def _mean_wind(params: np.ndarray, t: float) -> tuple:
-    v_fan = fan_array.mean_speed_mps(params, _FAN, t)
-    dN, dE = fan_array.direction_NE(params, _FAN)
-    return v_fan * dN + params[_CONST], v_fan * dE + params[_CONST + 1], params[_CONST + 2]
-
-
-@njit(cache=True)
-def mean_wind_W(params: np.ndarray, t: float, out_v_W: np.ndarray) -> None:
-    """Mean wind (fan array plus constant wind, NED, m/s) at ``t``: no gusts, no turbulence."""
-    out_v_W[0], out_v_W[1], out_v_W[2] = _mean_wind(params, t)
 
 
 @njit(cache=True)
@@ -179,73 +241,36 @@ def gust_wind_W(params: np.ndarray, t: float, out_v_W: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def wind_initial_state(params: np.ndarray) -> np.ndarray:
-    """A fresh wind state (turbulence filters; drawn from their stationary law on the first step)."""
-    state = np.zeros(WIND_STATE_SIZE)
-    dryden.turbulence_initial_state(state, _S_TURB)
-    return state
-
-
-@njit(cache=True, _nrt=False)
-def wind_step(params: np.ndarray, state: np.ndarray, t: float, dt: float, p_W: np.ndarray,
-              rng, out_v_wind_W: np.ndarray) -> None:
-    """Write the total wind at time ``t`` and advance the turbulence to ``t + dt``.
-
-    Parameters
-    ----------
-    params : numpy.ndarray
-        From :meth:`WindConfig.to_kernel`.
-    state : numpy.ndarray
-        From :func:`wind_initial_state`; updated in place.
-    t, dt : float
-        Time of this tick and the step to the next (s). Any ``dt > 0`` is exact.
-    p_W : numpy.ndarray, shape (3,)
-        Vehicle position, NED (m). The parts here are uniform in space and do not use it; it is
-        part of the interface so a spatially varying field can be added without changing callers.
-    rng : numpy.random.Generator
-        Exactly ``WIND_DRAWS_PER_STEP`` standard normals per call (``WIND_DRAWS_FIRST_STEP`` on
-        the first), whatever the configuration.
-    out_v_wind_W : numpy.ndarray, shape (3,)
-        Receives the wind velocity, NED (m/s): mean (fan + constant) + gusts + turbulence.
-    """
-    m0, m1, m2 = _mean_wind(params, t)
-    out_v_wind_W[0] = m0
-    out_v_wind_W[1] = m1
-    out_v_wind_W[2] = m2
-    gusts.add_gusts(params, _GUSTS, t, out_v_wind_W)
-    dryden.turbulence_step(params, _TURB, state, _S_TURB, m0, m1, m2, dt, rng, out_v_wind_W)
-
-
-@njit(cache=True)
-def _run_wind_model(step, params, state, t0, dt, n, p_W, rng, out):
-    v = np.empty(3)
+def _run_wind_model(table, params, state, t0, dt, n, p_W, rng, draws, wind, out):
     for k in range(n):
-        step(params, state, t0 + k * dt, dt, p_W, rng, v)
-        out[k, 0] = v[0]
-        out[k, 1] = v[1]
-        out[k, 2] = v[2]
+        draw(rng, table, draws)
+        wind_at(table, params, state, t0 + k * dt, dt, p_W, draws, wind)
+        for j in range(3):
+            out[k, j] = wind[W_V_W + j]
 
 
-def run_wind_model(step: Callable, params: np.ndarray, state: np.ndarray, n_steps: int, dt_s: float,
-                   rng: np.random.Generator, t0_s: float = 0.0, p_W=(0.0, 0.0, 0.0)) -> np.ndarray:
-    """Drive any wind model (the interface of :mod:`vtoladapt.wind`) at a fixed point.
+def run_wind_model(assembly: Assembly, state: np.ndarray, n_steps: int, dt_s: float, rng: np.random.Generator,
+                   t0_s: float = 0.0, p_W=(0.0, 0.0, 0.0), params=None) -> np.ndarray:
+    """Drive any wind parts (an :class:`~vtoladapt.parts.Assembly`, yours or the package's) at a fixed point.
 
     Parameters
     ----------
-    step : compiled function
-        ``step(params, state, t, dt, p_W, rng, out_v_wind_W)``, e.g. :func:`wind_step`.
-    params, state : numpy.ndarray
-        The model's parameter array and its state (advanced in place).
+    assembly : vtoladapt.parts.Assembly
+        From :meth:`WindConfig.assemble`, or one made of any wind parts.
+    state : numpy.ndarray
+        The parts' state (:meth:`~vtoladapt.parts.Assembly.initial_state`), advanced in place.
     n_steps : int
         Number of ticks.
     dt_s : float
         Tick (s), > 0.
     rng : numpy.random.Generator
-        Source of the model's draws.
+        Source of the parts' draws, drawn as the closed loop draws them.
     t0_s : float
         Time of the first tick (s).
     p_W : sequence of 3 float
         The fixed point, NED (m).
+    params : numpy.ndarray, optional
+        The parts' parameters; default ``assembly.params``.
 
     Returns
     -------
@@ -254,26 +279,26 @@ def run_wind_model(step: Callable, params: np.ndarray, state: np.ndarray, n_step
     """
     if not dt_s > 0.0:
         raise ValueError(f"dt_s = {dt_s!r}: must be > 0")
+    params = assembly.params if params is None else np.ascontiguousarray(params, dtype=float)
     out = np.empty((int(n_steps), 3))
-    _run_wind_model(step, np.asarray(params, dtype=float), state, float(t0_s), float(dt_s), int(n_steps),
-                    np.asarray(p_W, dtype=float), rng, out)
+    _run_wind_model(assembly.table, params, state, float(t0_s), float(dt_s), int(n_steps),
+                    np.asarray(p_W, dtype=float), rng, np.zeros(assembly.draws_size), np.zeros(WIND_SIZE), out)
     return out
 
 
-def wind_series(config: WindConfig | np.ndarray, n_steps: int, dt_s: float,
-                rng: np.random.Generator, t0_s: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def wind_series(config: WindConfig, n_steps: int, dt_s: float, rng: np.random.Generator,
+                t0_s: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Wind at a fixed point over ``n_steps`` ticks, for plots, tests and scenario previews.
 
     Parameters
     ----------
-    config : WindConfig or numpy.ndarray
-        A configuration or its kernel array.
+    config : WindConfig
     n_steps : int
         Number of ticks.
     dt_s : float
         Tick (s), > 0.
     rng : numpy.random.Generator
-        Source of the turbulence draws.
+        Source of the initial turbulence and its draws, in the closed loop's order.
     t0_s : float
         Time of the first tick (s).
 
@@ -285,6 +310,6 @@ def wind_series(config: WindConfig | np.ndarray, n_steps: int, dt_s: float,
     """
     if not dt_s > 0.0:
         raise ValueError(f"dt_s = {dt_s!r}: must be > 0")
-    params = config.to_kernel() if isinstance(config, WindConfig) else np.asarray(config, float)
-    out = run_wind_model(wind_step, params, wind_initial_state(params), n_steps, dt_s, rng, t0_s)
+    assembly = config.assemble()
+    out = run_wind_model(assembly, assembly.initial_state(rng), n_steps, dt_s, rng, t0_s)
     return t0_s + dt_s * np.arange(int(n_steps)), out

@@ -40,16 +40,16 @@ With ``x = V dt / L``:
   ``x``, where these cancel), drawn through its Cholesky factor.
 
 The sampled sequence therefore has exactly the Dryden autocorrelation at multiples of ``dt``; its
-spectrum is the continuous Dryden spectrum folded at the Nyquist frequency. The first call of
-:func:`wind_step` draws the filter states from their stationary distribution, so the turbulence
+spectrum is the continuous Dryden spectrum folded at the Nyquist frequency. :func:`initial_state`
+draws the filter states from their stationary distribution, so the turbulence
 is statistically stationary from t = 0. The step coefficients are kept in the state and
 recomputed only when ``V dt`` changes (while the fan spins up, or when ``dt`` changes).
 
-A part of the composed wind (:mod:`vtoladapt.wind.composer`): :func:`pack_turbulence` lays the
-configuration out as :data:`TURBULENCE_PARAMS`, the filter state is :data:`TURBULENCE_STATE`, and
-:func:`turbulence_step` reads both at base offsets inside the wind's arrays. It draws exactly
-``TURBULENCE_DRAWS_PER_STEP`` standard normals per call (``TURBULENCE_DRAWS_FIRST_STEP`` more on
-the first), whether turbulence is on or not.
+A wind part (:mod:`vtoladapt.wind.registry`, the interface of :mod:`vtoladapt.parts`), after the
+steady ones, whose mean wind it reads: :func:`pack_turbulence` lays the configuration out as
+:data:`TURBULENCE_PARAMS`, the filter state is :data:`TURBULENCE_STATE`, :func:`initial_state` draws
+the stationary start (``TURBULENCE_DRAWS_INITIAL`` standard normals), and :func:`step` consumes
+``TURBULENCE_DRAWS_PER_STEP`` standard normals per step, whether turbulence is on or not.
 """
 from __future__ import annotations
 
@@ -60,17 +60,25 @@ import numpy as np
 from numba import njit
 
 from ..config import ConfigError, Validated, setting
-from ..layout import BlockLayout, Field
+from ..layout import W_MEAN_W, W_V_W, BlockLayout, Field
+from .registry import WIND_STEP_SIGNATURE
 
 FT_M = 0.3048
 """One foot in metres."""
 KNOT_MPS = 1852.0 / 3600.0
 """One knot in m/s."""
 
-TURBULENCE_DRAWS_PER_STEP = 5
-"""Standard normals :func:`turbulence_step` draws on every call."""
-TURBULENCE_DRAWS_FIRST_STEP = 5
-"""Standard normals it draws before those on the first call (the stationary initial state)."""
+TURBULENCE_DRAWS = BlockLayout("Dryden draws per step (standard normals)", [
+    Field("U", 1, "-", "u filter"),
+    Field("V", 2, "-", "v filter, two stages"),
+    Field("W", 2, "-", "w filter, two stages"),
+])
+_D_U, _D_V, _D_W = TURBULENCE_DRAWS.offsets("U", "V", "W")
+TURBULENCE_DRAWS_PER_STEP = TURBULENCE_DRAWS.size
+"""Standard normals every step consumes."""
+TURBULENCE_DRAWS_INITIAL = TURBULENCE_DRAWS.size
+"""Standard normals :func:`initial_state` draws (the stationary initial state: one per filter state,
+as many as a step's)."""
 
 TURBULENCE_PARAMS = BlockLayout("Dryden parameters", [
     Field("ON", 1, "-", "1.0 if turbulence is on"),
@@ -96,7 +104,6 @@ TWO_POLE_COEFFICIENTS = BlockLayout("two-pole filter step coefficients", [
 _TP_X, _TP_DECAY, _TP_L11, _TP_L21, _TP_L22 = TWO_POLE_COEFFICIENTS.offsets("X", "DECAY", "L11", "L21", "L22")
 
 TURBULENCE_STATE = BlockLayout("Dryden state", [
-    Field("INIT", 1, "-", "0.0 until the first step has drawn the stationary initial state"),
     Field("U", 1, "-", "normalised u filter state"),
     Field("V", 2, "-", "normalised v filter states s1, s2"),
     Field("W", 2, "-", "normalised w filter states s1, s2"),
@@ -106,8 +113,8 @@ TURBULENCE_STATE = BlockLayout("Dryden state", [
     Field("COEF_W", TWO_POLE_COEFFICIENTS.size, "-", "w filter step coefficients"),
 ])
 """Dryden's block of the wind state array."""
-_S_INIT, _S_U, _S_V, _S_W, _S_KEY, _S_COEF_U, _S_COEF_V, _S_COEF_W = TURBULENCE_STATE.offsets(
-    "INIT", "U", "V", "W", "KEY", "COEF_U", "COEF_V", "COEF_W")
+_S_U, _S_V, _S_W, _S_KEY, _S_COEF_U, _S_COEF_V, _S_COEF_W = TURBULENCE_STATE.offsets(
+    "U", "V", "W", "KEY", "COEF_U", "COEF_V", "COEF_W")
 
 _C1 = 0.5 * (1.0 - math.sqrt(3.0))
 _C2 = 0.5 * math.sqrt(3.0)
@@ -137,9 +144,9 @@ class TurbulenceConfig(Validated):
         le=1.0, length=3)
     altitude_m: float = setting(
         "m", "height above ground for the low-altitude length scales and W20 intensities",
-        default=2.0, gt=0.0, le=1000.0 * FT_M)
+        default=2.0, ge=1.0, le=1000.0 * FT_M)
     length_scale_m: tuple[float, ...] | None = setting(
-        "m", "length scales L_u, L_v, L_w (overrides the altitude model)", default=None, gt=0.0,
+        "m", "length scales L_u, L_v, L_w (overrides the altitude model)", default=None, ge=1.0,
         le=10000.0, length=3)
     convection_speed_mps: float | None = setting(
         "m/s", "airspeed at which the frozen field is convected (default: |mean wind|)",
@@ -294,39 +301,34 @@ def _two_pole_advance(state: np.ndarray, i: int, c: int, n1: float, n2: float) -
     state[i + 1] = e * s2 + state[c + _TP_L21] * n1 + state[c + _TP_L22] * n2
 
 
-@njit(cache=True, inline="always")
-def turbulence_initial_state(state: np.ndarray, so: int) -> None:
-    """Mark a fresh Dryden block (filters drawn from their stationary law on the first step)."""
-    state[so + _S_KEY] = -1.0
+def initial_state(params: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A Dryden state drawn from the filters' stationary law (``TURBULENCE_DRAWS_INITIAL`` standard
+    normals from ``rng``, on or off): ``s_u ~ N(0, 1)``, ``(s1, s2) ~ N(0, [[1, 1], [1, 2]])`` for v
+    and w; no step coefficients cached yet."""
+    a, b1, b2, c1, c2 = (float(z) for z in rng.standard_normal(TURBULENCE_DRAWS_INITIAL))
+    state = np.zeros(TURBULENCE_STATE.size)
+    state[_S_U] = a
+    state[_S_V] = b1
+    state[_S_V + 1] = b1 + b2
+    state[_S_W] = c1
+    state[_S_W + 1] = c1 + c2
+    state[_S_KEY] = -1.0
+    return state
 
 
 @njit(cache=True, inline="always")
 def turbulence_step(params: np.ndarray, po: int, state: np.ndarray, so: int, m0: float, m1: float,
-                    m2: float, dt: float, rng, out_v_W: np.ndarray) -> None:
+                    m2: float, dt: float, draws: np.ndarray, out_v_W: np.ndarray) -> None:
     """Add the turbulence at this tick to ``out_v_W`` (NED, m/s) and advance the filters by ``dt``.
 
     ``(m0, m1, m2)`` is the mean wind (NED, m/s) that scales fractional intensities and convects
-    the frozen field. Draws ``TURBULENCE_DRAWS_PER_STEP`` standard normals (after
-    ``TURBULENCE_DRAWS_FIRST_STEP`` for the stationary start on the first call), on or off.
+    the frozen field; ``draws`` holds ``TURBULENCE_DRAWS_PER_STEP`` standard normals for this step.
     """
-    if state[so + _S_INIT] == 0.0:
-        # stationary start: s_u ~ N(0, 1); (s1, s2) ~ N(0, [[1, 1], [1, 2]])
-        a = rng.standard_normal()
-        b1 = rng.standard_normal()
-        b2 = rng.standard_normal()
-        c1 = rng.standard_normal()
-        c2 = rng.standard_normal()
-        state[so + _S_U] = a
-        state[so + _S_V] = b1
-        state[so + _S_V + 1] = b1 + b2
-        state[so + _S_W] = c1
-        state[so + _S_W + 1] = c1 + c2
-        state[so + _S_INIT] = 1.0
-    n_u = rng.standard_normal()
-    n_v1 = rng.standard_normal()
-    n_v2 = rng.standard_normal()
-    n_w1 = rng.standard_normal()
-    n_w2 = rng.standard_normal()
+    n_u = draws[_D_U]
+    n_v1 = draws[_D_V]
+    n_v2 = draws[_D_V + 1]
+    n_w1 = draws[_D_W]
+    n_w2 = draws[_D_W + 1]
     if params[po + _ON] == 0.0:
         return
 
@@ -361,3 +363,24 @@ def turbulence_step(params: np.ndarray, po: int, state: np.ndarray, so: int, m0:
     state[so + _S_U] = state[so + _S_COEF_U] * state[so + _S_U] + state[so + _S_COEF_U + 1] * n_u
     _two_pole_advance(state, so + _S_V, so + _S_COEF_V, n_v1, n_v2)
     _two_pole_advance(state, so + _S_W, so + _S_COEF_W, n_w1, n_w2)
+
+
+# --- the part (vtoladapt.parts) -----------------------------------------------------------------
+Settings = TurbulenceConfig
+PARAMS = TURBULENCE_PARAMS
+STATE = TURBULENCE_STATE
+NORMALS_PER_STEP = TURBULENCE_DRAWS_PER_STEP
+UNIFORMS_PER_STEP = 0
+
+
+def pack(settings: TurbulenceConfig, wind) -> np.ndarray:
+    """The part's parameter block, its ``u`` axis along the mean wind of ``wind`` (the whole
+    :class:`~vtoladapt.wind.WindConfig`; :meth:`~vtoladapt.wind.WindConfig.turbulence_axis_NE`)."""
+    return pack_turbulence(settings, wind.turbulence_axis_NE())
+
+
+@njit(WIND_STEP_SIGNATURE, cache=True, nogil=True, _nrt=False)
+def step(params, state, t, dt, p_W, draws, wind):
+    """Add the turbulence to the tick's wind, convected by and scaled with the parts' mean wind before it."""
+    turbulence_step(params, 0, state, 0, wind[W_MEAN_W], wind[W_MEAN_W + 1], wind[W_MEAN_W + 2], dt, draws,
+                    wind[W_V_W:W_V_W + 3])

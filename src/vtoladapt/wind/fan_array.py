@@ -7,9 +7,9 @@ vehicle; by default the array is north of the vehicle, so ``v_w = (-V, 0, 0)``. 
 first-order spin-up lag of the fans is solved in closed form, so the mean wind is a pure function
 of time.
 
-A part of the composed wind (:mod:`vtoladapt.wind.composer`): :func:`pack_fan_array` lays the
-configuration out as :data:`FAN_PARAMS`, and the kernels read it at a base offset ``o`` inside
-the wind parameter array.
+A wind part (:mod:`vtoladapt.wind.registry`, the interface of :mod:`vtoladapt.parts`), a steady one:
+:func:`pack_fan_array` lays the configuration out as :data:`FAN_PARAMS`; :func:`step` adds the mean
+wind to the tick's wind and to its mean. The helper kernels read the block at a base offset ``o``.
 """
 from __future__ import annotations
 
@@ -21,7 +21,8 @@ import numpy as np
 from numba import njit
 
 from ..config import ConfigError, Validated, setting
-from ..layout import BlockLayout, Field
+from ..layout import W_MEAN_W, W_V_W, BlockLayout, Field
+from .registry import WIND_STEP_SIGNATURE
 
 FAN_MAX_SPEED_MPS = 12.9
 """Wind speed of the CAST fan array at 100 % throttle (Shi et al. 2020, Sec. Experiments)."""
@@ -61,7 +62,7 @@ class FanArrayConfig(Validated):
 
     schedule: tuple[tuple[float, ...], ...] = setting(
         "[s, %]", "breakpoints [t_s, throttle_pct]; times non-decreasing, throttle 0-100",
-        default=())
+        default=(), max_items=MAX_BREAKPOINTS)
     profile: str | None = setting(
         "-", "the paper's profile instead of a schedule: 'convergence' (still air 10 s, then 30, "
         "50, 70 % for 20 s each) or 'comparison' (off 5 s; 30 % 10 s; 40, 50, 60 % 5 s each; "
@@ -333,3 +334,32 @@ def mean_speed_mps(params: np.ndarray, o: int, t: float) -> float:
 def direction_NE(params: np.ndarray, o: int) -> tuple:
     """Unit (N, E) vector the fan wind blows toward."""
     return params[o + _DIR], params[o + _DIR + 1]
+
+
+# --- the part (vtoladapt.parts) -----------------------------------------------------------------
+Settings = FanArrayConfig
+PARAMS = FAN_PARAMS
+STATE = BlockLayout("fan-array state", [])
+NORMALS_PER_STEP = 0
+UNIFORMS_PER_STEP = 0
+
+
+def pack(settings: FanArrayConfig, wind) -> np.ndarray:
+    """The part's parameter block: :func:`pack_fan_array`."""
+    return pack_fan_array(settings)
+
+
+def initial_state(params: np.ndarray, rng) -> np.ndarray:
+    """No state: the spin-up lag is solved in closed form."""
+    return np.zeros(0)
+
+
+@njit(WIND_STEP_SIGNATURE, cache=True, nogil=True, _nrt=False)
+def step(params, state, t, dt, p_W, draws, wind):
+    """Add the fan array's mean wind at ``t`` to the wind and to the mean wind (NED, m/s)."""
+    v = mean_speed_mps(params, 0, t)
+    dN, dE = direction_NE(params, 0)
+    wind[W_V_W] += v * dN
+    wind[W_V_W + 1] += v * dE
+    wind[W_MEAN_W] += v * dN
+    wind[W_MEAN_W + 1] += v * dE

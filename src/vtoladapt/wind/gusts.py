@@ -4,9 +4,10 @@
 to ``A`` at mid-gust and returns to zero, the CS-25 / FAR-25 discrete-gust shape. ``"step"``:
 ``A`` for ``t0 <= t < t0 + T``. ``A`` is a wind vector (NED, m/s); the gusts of a scenario add up.
 
-A part of the composed wind (:mod:`vtoladapt.wind.composer`): :func:`pack_gusts` lays the gusts
-out as :data:`GUSTS_PARAMS` (each entry :data:`GUST_PARAMS`), :func:`add_gusts` reads them at a
-base offset ``o`` inside the wind parameter array.
+A wind part (:mod:`vtoladapt.wind.registry`, the interface of :mod:`vtoladapt.parts`), not a steady
+one (the turbulence does not scale with a gust): :func:`pack_gusts` lays the gusts out as
+:data:`GUSTS_PARAMS` (each entry :data:`GUST_PARAMS`), :func:`add_gusts` reads them at a base offset
+``o``, and :func:`step` adds them to the tick's wind.
 """
 from __future__ import annotations
 
@@ -17,7 +18,8 @@ import numpy as np
 from numba import njit
 
 from ..config import Validated, setting
-from ..layout import BlockLayout, Field
+from ..layout import W_V_W, BlockLayout, Field
+from .registry import WIND_STEP_SIGNATURE
 
 GUST_SHAPES = ("one_minus_cosine", "step")
 MAX_GUSTS = 16
@@ -85,3 +87,27 @@ def add_gusts(params: np.ndarray, o: int, t: float, out_v_W: np.ndarray) -> None
             s = 0.0
         for j in range(3):
             out_v_W[j] += s * params[k + _AMPLITUDE + j]
+
+
+# --- the part (vtoladapt.parts) -----------------------------------------------------------------
+Settings = GustConfig
+PARAMS = GUSTS_PARAMS
+STATE = BlockLayout("gusts state", [])
+NORMALS_PER_STEP = 0
+UNIFORMS_PER_STEP = 0
+
+
+def pack(settings: Sequence[GustConfig], wind) -> np.ndarray:
+    """The part's parameter block: :func:`pack_gusts` of ``[[wind.gusts]]``."""
+    return pack_gusts(settings)
+
+
+def initial_state(params: np.ndarray, rng) -> np.ndarray:
+    """No state: a gust is a function of time."""
+    return np.zeros(0)
+
+
+@njit(WIND_STEP_SIGNATURE, cache=True, nogil=True, _nrt=False)
+def step(params, state, t, dt, p_W, draws, wind):
+    """Add the gusts' wind at ``t`` to the tick's wind (NED, m/s)."""
+    add_gusts(params, 0, t, wind[W_V_W:W_V_W + 3])
