@@ -29,7 +29,8 @@ from .. import forces
 from ..config import ConfigError, Validated, setting
 from ..layout import BlockLayout, Field
 from . import IN_FLOW, IN_OMEGA_B, IN_Q_WB, IN_U, IN_V_I_B, IN_V_I_VALID, BasisSpec, extended, regressor_kernel
-from .netfile import N_FEATURES, NetFile, read_net
+from .netfile import (FT_AIRSPEED, FT_COS_ALPHA, FT_G_B, FT_OMEGA_B, FT_SIGMA, FT_SIN_ALPHA, FT_U, FT_V_I_B, FT_VALID,
+                      N_FEATURES, NetFile, read_net)
 
 TRAINED_DIR = Path(__file__).with_name("trained")
 """The shipped basis files, one per vehicle family (``<vehicle name>.npz``)."""
@@ -50,8 +51,10 @@ HEADER = BlockLayout("learned basis header", [
 ])
 """Fixed header after the extended basis's constants: the network's sizes and where its arrays are
 (those offsets come from :func:`weights_layout`, a BlockLayout sized by the file)."""
-(H_N_PHYS, H_H, H_H1, H_H2, H_MEAN, H_STD, H_W1, H_B1, H_W2, H_B2, H_W3, H_B3) = (
-    extended.BLOCK.size + o for o in HEADER.offsets(*(f.name for f in HEADER.fields)))
+HEADER_AT = extended.BLOCK.size
+"""The header follows the extended basis's constants in the block."""
+(H_N_PHYS, H_H, H_H1, H_H2, H_MEAN, H_STD, H_W1, H_B1, H_W2, H_B2, H_W3, H_B3) = tuple(
+    HEADER_AT + o for o in HEADER.offsets(*(f.name for f in HEADER.fields)))
 
 
 def weights_layout(net: NetFile) -> BlockLayout:
@@ -164,23 +167,23 @@ def parameter_names(block) -> tuple[str, ...]:
 
 @njit(cache=True, inline="always")
 def features_into(x, work) -> None:
-    """The 16 features of :data:`.netfile.FEATURES` into ``work[0:16]`` (twin of :func:`.netfile.features_rows`)."""
+    """The features (:data:`.netfile.FEATURE_LAYOUT`) into ``work[0:N_FEATURES]`` (twin of
+    :func:`.netfile.features_rows`)."""
     f = IN_FLOW
     for i in range(3):
-        work[i] = x[IN_V_I_B + i]
-    work[3] = x[f + forces.F_V]
-    work[4] = x[IN_V_I_VALID]
-    work[5] = x[IN_U]
-    work[6] = x[IN_U + 1]
-    work[7] = x[f + forces.F_SIN_ALPHA]
-    work[8] = x[f + forces.F_COS_ALPHA]
-    work[9] = x[f + forces.F_SIGMA]
+        work[FT_V_I_B + i] = x[IN_V_I_B + i]
+        work[FT_OMEGA_B + i] = x[IN_OMEGA_B + i]
+    work[FT_AIRSPEED] = x[f + forces.F_V]
+    work[FT_VALID] = x[IN_V_I_VALID]
+    work[FT_U] = x[IN_U]
+    work[FT_U + 1] = x[IN_U + 1]
+    work[FT_SIN_ALPHA] = x[f + forces.F_SIN_ALPHA]
+    work[FT_COS_ALPHA] = x[f + forces.F_COS_ALPHA]
+    work[FT_SIGMA] = x[f + forces.F_SIGMA]
     w, qx, qy, qz = x[IN_Q_WB], x[IN_Q_WB + 1], x[IN_Q_WB + 2], x[IN_Q_WB + 3]
-    work[10] = 2.0 * (qx * qz - w * qy)
-    work[11] = 2.0 * (qy * qz + w * qx)
-    work[12] = w * w - qx * qx - qy * qy + qz * qz
-    for i in range(3):
-        work[13 + i] = x[IN_OMEGA_B + i]
+    work[FT_G_B] = 2.0 * (qx * qz - w * qy)
+    work[FT_G_B + 1] = 2.0 * (qy * qz + w * qx)
+    work[FT_G_B + 2] = w * w - qx * qx - qy * qy + qz * qz
 
 
 @njit(cache=True, inline="always")

@@ -27,19 +27,32 @@ from typing import Any
 import numpy as np
 
 from ..config import ConfigError
+from ..layout import BlockLayout, Field
 
 FORMAT = "vtoladapt-learned-basis-1"
 """The file format this module reads and writes."""
 
-FEATURES = ("v_i_x_mps", "v_i_y_mps", "v_i_z_mps", "airspeed_mps", "probe_valid", "u_x_frac", "u_z_frac",
-            "sin_alpha", "cos_alpha", "stall_weight", "g_x_B", "g_y_B", "g_z_B", "omega_x_radps",
-            "omega_y_radps", "omega_z_radps")
+FEATURE_LAYOUT = BlockLayout("learned basis features", [
+    Field("V_I_B", 3, "m/s", "incident velocity the controller uses, body FRD", ("v_i_x_mps", "v_i_y_mps", "v_i_z_mps")),
+    Field("AIRSPEED", 1, "m/s", "its norm", ("airspeed_mps",)),
+    Field("VALID", 1, "-", "1 if the probe gave it", ("probe_valid",)),
+    Field("U", 2, "-", "throttles through the nominal motor lag", ("u_x_frac", "u_z_frac")),
+    Field("SIN_ALPHA", 1, "-", "sine of the flow's angle of attack", ("sin_alpha",)),
+    Field("COS_ALPHA", 1, "-", "its cosine", ("cos_alpha",)),
+    Field("SIGMA", 1, "-", "the model's stall weight", ("stall_weight",)),
+    Field("G_B", 3, "-", "gravity direction in body axes (third row of R_WB)", ("g_x_B", "g_y_B", "g_z_B")),
+    Field("OMEGA_B", 3, "rad/s", "body rate, FRD", ("omega_x_radps", "omega_y_radps", "omega_z_radps")),
+])
 """The network's inputs, all from the basis input block (:data:`vtoladapt.bases.INPUT`): the incident
 flow the controller uses (body) and its airspeed, whether the probe gave it, the throttles, the
 flow's angle of attack (sine, cosine) and the model's stall weight, the gravity direction in body
 axes (from the attitude: the heading is left out, it says nothing about the force) and the body
 rates. Never the accelerometer."""
-N_FEATURES = len(FEATURES)
+FEATURES = tuple(c for f in FEATURE_LAYOUT.fields for c in f.column_names)
+"""The features' names, in order (a basis file states them; another list is refused)."""
+N_FEATURES = FEATURE_LAYOUT.size
+(FT_V_I_B, FT_AIRSPEED, FT_VALID, FT_U, FT_SIN_ALPHA, FT_COS_ALPHA, FT_SIGMA, FT_G_B, FT_OMEGA_B) = \
+    FEATURE_LAYOUT.offsets(*(f.name for f in FEATURE_LAYOUT.fields))
 ARRAYS = ("x_mean", "x_std", "W1", "b1", "W2", "b2", "W3", "b3", "theta_mean", "theta_std")
 
 
@@ -154,11 +167,20 @@ def features_rows(x: np.ndarray) -> np.ndarray:
     x = np.atleast_2d(x)
     q = x[:, IN_Q_WB:IN_Q_WB + 4]
     w, qx, qy, qz = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    z = np.empty((x.shape[0], N_FEATURES))
+    z[:, FT_V_I_B:FT_V_I_B + 3] = x[:, IN_V_I_B:IN_V_I_B + 3]
+    z[:, FT_AIRSPEED] = x[:, IN_FLOW + F_V]
+    z[:, FT_VALID] = x[:, IN_V_I_VALID]
+    z[:, FT_U:FT_U + 2] = x[:, IN_U:IN_U + 2]
+    z[:, FT_SIN_ALPHA] = x[:, IN_FLOW + F_SIN_ALPHA]
+    z[:, FT_COS_ALPHA] = x[:, IN_FLOW + F_COS_ALPHA]
+    z[:, FT_SIGMA] = x[:, IN_FLOW + F_SIGMA]
     # third row of R_WB (world down in body axes): the gravity direction the accelerometer does not see
-    g = np.stack([2.0 * (qx * qz - w * qy), 2.0 * (qy * qz + w * qx), w * w - qx * qx - qy * qy + qz * qz], axis=1)
-    return np.column_stack([x[:, IN_V_I_B:IN_V_I_B + 3], x[:, IN_FLOW + F_V], x[:, IN_V_I_VALID],
-                            x[:, IN_U:IN_U + 2], x[:, IN_FLOW + F_SIN_ALPHA], x[:, IN_FLOW + F_COS_ALPHA],
-                            x[:, IN_FLOW + F_SIGMA], g, x[:, IN_OMEGA_B:IN_OMEGA_B + 3]])
+    z[:, FT_G_B] = 2.0 * (qx * qz - w * qy)
+    z[:, FT_G_B + 1] = 2.0 * (qy * qz + w * qx)
+    z[:, FT_G_B + 2] = w * w - qx * qx - qy * qy + qz * qz
+    z[:, FT_OMEGA_B:FT_OMEGA_B + 3] = x[:, IN_OMEGA_B:IN_OMEGA_B + 3]
+    return z
 
 
 def forward(net_arrays: dict[str, Any], z: np.ndarray) -> tuple[np.ndarray, tuple]:

@@ -563,6 +563,10 @@ def build_report(title: str, metrics: dict, figures: Iterable[FigureRef], notes:
         sections.append(Section("The paper's claims, checked in simulation (single seed)",
                                 tables=(claims_table(metrics["claims"]),)))
     sections.extend(distribution_sections(metrics))
+    if metrics.get("bases"):
+        from ..learn.report import bases_section
+
+        sections.append(bases_section(metrics["bases"]))
     return Report(title, tuple(paragraph(n) for n in notes), tuple(sections), tuple(figures))
 
 

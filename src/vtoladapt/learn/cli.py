@@ -103,5 +103,5 @@ def cmd_learn_basis(args: argparse.Namespace) -> int:
     save(net, args.out, force=args.force)
     print(f"learn-basis: {args.out}: {summary['flights']} flights, {summary['samples']} samples, "
           f"loss {summary['loss_physics_only']:.4g} (physics columns alone) -> {summary['loss_final']:.4g} "
-          f"(with {args.h} learned columns) in {summary['train_seconds']:.0f} s")
+          f"(with {args.h} learned columns) in {summary['train_seconds']:.0f} s", file=sys.stderr)
     return 0

@@ -107,7 +107,7 @@ def ceiling_fit(result, vehicle, spec) -> dict:
         sel = (airspeed >= AIRSPEED_BINS_MPS[i]) & (airspeed < AIRSPEED_BINS_MPS[i + 1])
         bins[lab] = float(np.percentile(e[sel], 95)) if sel.any() else None
     ok = all(v < 0.05 for v in bins.values() if v is not None)
-    return {"p95_g": bins, "pass": ok}
+    return {"p95_g": bins, "pass": ok, "rms_g": float(np.sqrt(np.mean(e * e)))}
 
 
 def run_ceilings(specs, bases_specs: dict, workers: int = 2) -> list[dict]:
@@ -147,9 +147,12 @@ def compare(out: Path, rows: dict[str, Path], ceilings: list[dict]) -> dict:
                  "by_airspeed": {b: v["pred_err_every_bin"] for b, v in s["by_airspeed"].items()},
                  "groups": {f"{g}: {lab}": {k: v[k] for k in ("pred_err_every_bin", "beats_pid_pd")}
                             for g, labs in s["groups"].items() for lab, v in labs.items()},
-                 "controllers": {c: {k: v.get(k) for k in ("beats_pid_pd",)} for c, v in s["controllers"].items()},
+                 "controllers": {c: {k: v.get(k) for k in ("beats_pid_pd", "vel_err_rms_mps",
+                                                          "pred_err_p95_g_worst_bin")}
+                                 for c, v in s["controllers"].items()},
                  "campaign": s["campaign"]}
         table["rows"][name] = entry
+    table["paired"] = paired(rows)
     for basis in (ceilings[0].keys() - {"run"} if ceilings else ()):
         if basis.startswith("group."):
             continue
@@ -162,11 +165,55 @@ def compare(out: Path, rows: dict[str, Path], ceilings: list[dict]) -> dict:
     return table
 
 
+def worst_bin(folder: Path) -> dict[int, float]:
+    """Per draw: the composite's worst-bin p95 prediction error (g) and whether every bin is below 0.05 g."""
+    import pyarrow.parquet as pq
+
+    t = pq.read_table(folder / "campaign.parquet").to_pydict()
+    bins = [k for k in t if k.startswith("pred_err_p95_g[")]
+    out = {}
+    for i, c in enumerate(t["controller"]):
+        if c == "composite":
+            vals = [t[b][i] for b in bins if t[b][i] is not None and np.isfinite(t[b][i])]
+            out[int(t["run"][i])] = max(vals) if vals else float("nan")
+    return out
+
+
+def paired(rows: dict[str, Path]) -> dict:
+    """Each row against the paper's basis, draw by draw: the composite's worst-bin p95 difference (Hodges-Lehmann
+    estimate and 95 % interval of the signed-rank test, :func:`vtoladapt.experiments.pairs.paired_difference`) and
+    the draws that pass only with one of the two."""
+    from ..experiments.pairs import paired_difference
+
+    if "paper" not in rows:
+        return {}
+    base = worst_bin(rows["paper"])
+    out = {}
+    for name, folder in rows.items():
+        if name == "paper":
+            continue
+        other = worst_bin(folder)
+        runs = sorted(set(base) & set(other))
+        a = np.array([other[r] for r in runs])
+        b = np.array([base[r] for r in runs])
+        out[name] = {"worst_bin_p95_g_minus_paper": paired_difference(a, b),
+                     "pass_only_here": int(np.sum((a < 0.05) & ~(b < 0.05))),
+                     "pass_only_with_paper": int(np.sum(~(a < 0.05) & (b < 0.05))), "draws": len(runs)}
+    return out
+
+
 def _cell(d: dict | None) -> str:
     if not d or not d.get("n"):
         return "–"
     lo, hi = d["ci95"]
     return f"{d['fraction']:.2f} ({d['successes']}/{d['n']}) [{lo:.2f}, {hi:.2f}]"
+
+
+def _mi(d: dict | None) -> str:
+    if not d or d.get("median") is None:
+        return "–"
+    lo, hi = d["iqr"]
+    return f"{d['median']:.3g} [{lo:.3g}, {hi:.3g}]"
 
 
 def markdown(table: dict) -> str:
@@ -192,6 +239,21 @@ def markdown(table: dict) -> str:
         tag = " (held out of training)" if held else ""
         lines.append(f"| p95 every bin, {g}{tag} | " + " | ".join(
             _cell(rows[n]["groups"].get(g, {}).get("pred_err_every_bin")) for n in names) + " |")
+    lines.append("| composite worst-bin p95 [g], median [IQR] | " + " | ".join(
+        _mi(rows[n]["controllers"].get("composite", {}).get("pred_err_p95_g_worst_bin")) for n in names) + " |")
+    for cid in any_row["controllers"]:
+        lines.append(f"| RMS ‖ṽ‖ [m/s] of {cid}, median [IQR] | " + " | ".join(
+            _mi(rows[n]["controllers"].get(cid, {}).get("vel_err_rms_mps")) for n in names) + " |")
+    if table.get("paired"):
+        lines += ["", "Paired with the paper's basis, draw by draw (composite law): the difference of the worst-bin "
+                      "p95 prediction error (Hodges-Lehmann estimate [95 % interval], signed-rank test) and the draws "
+                      "that meet the target with only one of the two:", "",
+                  "| basis | worst-bin p95 minus the paper's [g] | pass only with it | pass only with the paper |",
+                  "|---|---|---|---|"]
+        for n, d in table["paired"].items():
+            e = d["worst_bin_p95_g_minus_paper"]
+            est = "–" if e["estimate"] is None else f"{e['estimate']:+.4f} [{e['ci95'][0]:+.4f}, {e['ci95'][1]:+.4f}]"
+            lines.append(f"| {n} | {est} | {d['pass_only_here']}/{d['draws']} | {d['pass_only_with_paper']}/{d['draws']} |")
     if table["ceiling"]:
         bases = list(table["ceiling"])
         lines += ["", "Constant-weights ceiling (least squares on the true specific force with the true flow, "
@@ -217,6 +279,7 @@ def main(argv=None) -> int:
     p.add_argument("--no-ceiling", action="store_true")
     p.add_argument("--controllers", default="", help="comma-separated subset (default: the file's)")
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--keep", action="store_true", help="reuse a row whose summary.json exists in --out")
     args = p.parse_args(argv)
     cf, specs = plan_campaign_file(args.campaign, runs=args.runs, seed=args.seed)
     controllers = [c for c in args.controllers.split(",") if c] or None
@@ -229,13 +292,17 @@ def main(argv=None) -> int:
         plan.append(("learned (other airframe's network)", "learned", cross_vehicle_files(args.out / "vehicles")))
     for name, basis, vfiles in plan:
         folder = args.out / name.split(" ")[0] if vfiles is None else args.out / "learned_cross"
+        rows[name] = folder
+        if args.keep and (folder / "summary.json").is_file():
+            continue
         t0 = time.perf_counter()
         run_campaign(specs_for(specs, basis, vfiles, controllers), folder, scheduler="none", n_workers=args.workers,
                      show_progress=False, campaign=dict(info, basis=basis, cross=vfiles is not None))
         print(f"{name}: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
-        rows[name] = folder
     ceilings = []
-    if not args.no_ceiling:
+    if args.keep and (args.out / "ceilings.json").is_file():
+        ceilings = json.loads((args.out / "ceilings.json").read_text())
+    elif not args.no_ceiling:
         t0 = time.perf_counter()
         by = {b: {v: describe_basis(load_vehicle(v), b) for v in FAMILIES} for b in args.bases.split(",")}
         ceilings = run_ceilings(specs, by, args.workers)
