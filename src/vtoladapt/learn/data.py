@@ -52,16 +52,16 @@ class Flight:
 
 def lagged_throttles(u_cmd: np.ndarray, dt: float, tau_x: float, tau_z: float) -> np.ndarray:
     """The throttles that produced each tick's measured force: the command held over the previous
-    tick through a first-order lag (the controller's ``basis_input``; the first two ticks: the
-    previous command itself)."""
+    tick through a first-order lag (the controller's ``basis_input``; the first two ticks and after
+    a non-finite command: the previous command itself)."""
     u_prev = np.vstack([u_cmd[:1], u_cmd[:-1]])
     a = np.array([np.exp(-dt / tau_x), np.exp(-dt / tau_z)])
     out = np.empty_like(u_prev)
     est = u_prev[0].copy()
     for t in range(len(u_prev)):
-        if t >= 2:
+        if t >= 2 and np.all(np.isfinite(est)):
             est = u_prev[t] + (est - u_prev[t]) * a
-        else:
+        else:  # the start, or after a gap in the log (NaN): the lag restarts from the command
             est = u_prev[t].copy()
         out[t] = est
     return out
