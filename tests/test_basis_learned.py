@@ -217,25 +217,28 @@ def test_shipped_basis_files_say_how_they_were_made(name):
 
 
 def test_the_shipped_basis_beats_the_physics_alone_on_flights_it_never_saw():
-    """The learned basis's constant-weights fit error on evaluation draws (the envelope campaign's seed, not the
-    training's) is below the extended physics basis's: what the network adds generalises."""
-    pytest.importorskip("pyarrow")
-    from vtoladapt.learn.evaluate import CAMPAIGN, ceiling_fit, true_inputs  # noqa: F401
+    """On evaluation draws (the envelope campaign's seed 1111, not the training's 2222), with the inputs the
+    controller has (the probe's reading or its fallback, the lagged throttles: what the network was trained
+    on), the learned basis's best constant fit leaves a smaller residual than the extended physics alone on
+    every draw: what the network learned generalises to flights it never saw."""
+    from vtoladapt.bases import evaluate as ev
     from vtoladapt.campaign.runner import plan_campaign_file
+    from vtoladapt.learn.data import flight_from_result
+    from vtoladapt.learn.evaluate import CAMPAIGN
     from vtoladapt.sim.driver import simulate
     from vtoladapt.sim.scenario import scenario_from_mapping
-    from vtoladapt.bases import evaluate as ev
 
     _, specs = plan_campaign_file(CAMPAIGN, runs=4, seed=1111)
     rms = {"extended": [], "learned": []}
     for s in [s for s in specs if s.controller == "composite"]:
         sc = scenario_from_mapping(s.mapping, s.source, source_path=s.source)
-        res = simulate(sc)
         veh = sc.load_vehicle()
-        x, f = true_inputs(res, veh)
+        flight = flight_from_result(simulate(sc), veh, stride=5)
         for b in rms:
             spec = describe_basis(veh, b)
-            A = ev(spec, x).reshape(-1, spec.n)
-            theta, *_ = np.linalg.lstsq(A, f.reshape(-1), rcond=None)
-            rms[b].append(math.sqrt(np.mean((f.reshape(-1) - A @ theta) ** 2)))
-    assert np.mean(rms["learned"]) < 0.9 * np.mean(rms["extended"]), rms
+            A = ev(spec, flight.x).reshape(-1, spec.n)
+            y = flight.f.reshape(-1)
+            theta, *_ = np.linalg.lstsq(A, y, rcond=None)
+            rms[b].append(math.sqrt(np.mean((y - A @ theta) ** 2)))
+    assert all(a < b for a, b in zip(rms["learned"], rms["extended"])), rms
+    assert np.mean(rms["learned"]) < 0.8 * np.mean(rms["extended"]), rms

@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 
 from vtoladapt import simulate
-from vtoladapt.experiments.report import Report, render_markdown
+from vtoladapt.experiments.report import Report, bases_section, render_markdown
 from vtoladapt.learn import report as basis_report
 from vtoladapt.sim.scenario import scenario_from_mapping
 
@@ -31,6 +31,6 @@ def test_ceiling_per_basis_is_nested_and_the_section_renders(tmp_path, monkeypat
     rms = [m["ceiling"][b]["rms_g"] for b in ("paper", "extended", "learned")]
     assert rms[0] >= rms[1] >= rms[2] > 0.0, rms
     assert rms[1] < 0.9 * rms[0]        # side wind: the side force the paper's basis lacks
-    text = render_markdown(Report("t", (), (basis_report.bases_section(m),), ()))
+    text = render_markdown(Report("t", (), (bases_section(m),), ()))
     assert "Force-model bases compared" in text and "0.50 (1/2) [0.10, 0.90]" in text
     assert "python -m vtoladapt.learn.evaluate --runs 3" in text

@@ -135,6 +135,7 @@ def pack_block(physics_block: np.ndarray, net: NetFile) -> np.ndarray:
 
 
 def net_names(h: int) -> tuple[str, ...]:
+    """The learned weights' parameter names, ``net0 .. net{h-1}`` (the log's ``theta_hat_net<j>`` columns)."""
     return tuple(f"net{j}" for j in range(h))
 
 

@@ -84,13 +84,16 @@ class NetFile:
 
     @property
     def vehicle(self) -> str:
+        """The vehicle family the network was trained on."""
         return str(self.meta.get("vehicle", ""))
 
     @property
     def physics(self) -> str:
+        """The physics basis whose columns come before the network's."""
         return str(self.meta.get("physics", ""))
 
     def arrays(self) -> dict[str, np.ndarray]:
+        """The arrays by name (:data:`ARRAYS`), as the file stores them."""
         return {k: getattr(self, k) for k in ARRAYS}
 
 

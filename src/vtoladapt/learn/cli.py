@@ -60,6 +60,7 @@ def _check(args) -> None:
 
 
 def cmd_learn_basis(args: argparse.Namespace) -> int:
+    """Read (or fly) the flights, train, write the basis file; one summary line on stderr."""
     from ..vehicle import load_vehicle
     from .basis import learn_basis, save
     from .data import log_files, read_flight

@@ -12,7 +12,7 @@ table: per basis, the fraction of draws where each target holds with its 95 % Wi
 per airspeed bin, on the conditions held out of training (the fan schedule and bearing sector the
 shipped bases never saw), and the constant-weights ceiling.
 
-**The ceiling** (:func:`ceiling_fit`): for each draw, the best *constant* weights of a basis for the
+**The ceiling** (:func:`.ceiling.ceiling_fit`): for each draw, the best *constant* weights of a basis for the
 whole run, by least squares on the aircraft's true specific force with the true incident flow,
 the throttles the rotors actually had (the lift collective as the RMS of the four rotors: the
 same total thrust) and the true attitude and rates, judged by the same target (p95 < 0.05 g in
@@ -33,9 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..frames import GRAVITY_MPS2
-from ..sim.run_metrics import AIRSPEED_BINS_MPS, PRED_ERR_SKIP_S, airspeed_bin_labels
 from ..stats import fraction_holding
+from .ceiling import ceiling_fit, true_inputs  # noqa: F401  (true_inputs: part of this module's interface)
 
 CAMPAIGN = Path(__file__).resolve().parents[3] / "scenarios" / "envelope.toml"
 BASES = ("paper", "extended", "learned")
@@ -73,41 +72,6 @@ def specs_for(specs, basis: str, vehicle_files: dict | None = None, controllers=
             m["vehicle"] = vehicle_files.get(m["vehicle"], m["vehicle"])
         out.append(dataclasses.replace(s, mapping=m))
     return out
-
-
-def true_inputs(result, vehicle) -> tuple[np.ndarray, np.ndarray]:
-    """Basis input rows from the log's *true* state (flow, rotor throttles, attitude, rates) and the true force."""
-    from ..bases import input_rows
-
-    v_i = result.columns_like(("v_i_x_mps", "v_i_y_mps", "v_i_z_mps"))
-    lift = result.columns_like(tuple(f"motor{i}_frac" for i in range(1, 5)))
-    u_z = np.sqrt(np.mean(lift * lift, axis=1))
-    x = input_rows(v_i, result["pusher_frac"], u_z, vehicle.model_kernel,
-                   q_WB=result.columns_like(("q_w", "q_x", "q_y", "q_z")),
-                   omega_B=result.columns_like(("omega_x_radps", "omega_y_radps", "omega_z_radps")),
-                   v_W=result.columns_like(("v_N_mps", "v_E_mps", "v_D_mps")))
-    return x, result.columns_like(("f_B_x_mps2", "f_B_y_mps2", "f_B_z_mps2"))
-
-
-def ceiling_fit(result, vehicle, spec) -> dict:
-    """The constant-weights ceiling of ``spec`` on one log: p95 error (g) per airspeed bin and whether all pass."""
-    from ..bases import evaluate
-
-    x, f = true_inputs(result, vehicle)
-    t = result.time_s
-    late = (t >= t[0] + PRED_ERR_SKIP_S) & np.all(np.isfinite(x), axis=1) & np.all(np.isfinite(f), axis=1)
-    Phi = evaluate(spec, x[late])
-    A = Phi.reshape(-1, spec.n)
-    y = f[late].reshape(-1)
-    theta, *_ = np.linalg.lstsq(A, y, rcond=None)
-    e = np.linalg.norm((y - A @ theta).reshape(-1, 3), axis=1) / GRAVITY_MPS2
-    airspeed = result["airspeed_mps"][late]
-    bins = {}
-    for i, lab in enumerate(airspeed_bin_labels()):
-        sel = (airspeed >= AIRSPEED_BINS_MPS[i]) & (airspeed < AIRSPEED_BINS_MPS[i + 1])
-        bins[lab] = float(np.percentile(e[sel], 95)) if sel.any() else None
-    ok = all(v < 0.05 for v in bins.values() if v is not None)
-    return {"p95_g": bins, "pass": ok, "rms_g": float(np.sqrt(np.mean(e * e)))}
 
 
 def run_ceilings(specs, bases_specs: dict, workers: int = 2) -> list[dict]:
@@ -265,6 +229,7 @@ def markdown(table: dict) -> str:
 
 
 def main(argv=None) -> int:
+    """``python -m vtoladapt.learn.evaluate``: every row's campaign, the ceilings, comparison.json/.md."""
     from ..bases import describe_basis
     from ..campaign.runner import plan_campaign_file, run_campaign
     from ..vehicle import load_vehicle

@@ -30,6 +30,7 @@ class HoldOut:
     bearing_sectors: tuple[tuple[float, float], ...] = ()
 
     def excludes(self, drawn: dict) -> bool:
+        """Whether a draw (its ``drawn`` values) falls in a held-out condition."""
         if drawn.get("choice.fan_schedule") in self.schedules:
             return True
         b = drawn.get(BEARING_KEY)
@@ -42,6 +43,7 @@ class HoldOut:
         return False
 
     def describe(self) -> dict:
+        """The held-out conditions as the basis file records them."""
         return {"fan_schedules": list(self.schedules), "bearing_sectors_deg": [list(s) for s in self.bearing_sectors]}
 
 

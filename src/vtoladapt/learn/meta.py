@@ -86,10 +86,12 @@ ORDER = ("W1", "b1", "W2", "b2", "W3", "b3")
 
 
 def flatten(arrays: dict) -> np.ndarray:
+    """The network's arrays as one vector (the optimiser's), in :data:`ORDER`."""
     return np.concatenate([arrays[k].ravel() for k in ORDER])
 
 
 def unflatten(w: np.ndarray, like: dict) -> dict:
+    """The inverse of :func:`flatten`, shaped like ``like``."""
     out, i = {}, 0
     for k in ORDER:
         n = like[k].size
