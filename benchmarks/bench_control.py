@@ -26,6 +26,7 @@ from vtoladapt import layout as L
 from vtoladapt.control import Controller, ControllerConfig, Measurement, Reference
 from vtoladapt.control.step import (controller_functions, controller_initial_state, controller_params, controller_step,
                                     diagnostics_size)
+from vtoladapt.sim.allocation import ALLOC_WORK_SIZE, allocate, allocator_params
 
 
 def _operating_point(veh, consistent: bool = True):
@@ -57,6 +58,15 @@ def _loop(fns, params, state, meas, ref, dt, cmd, diag, n) -> float:
         acc += cmd[1]
     meas[L.MEAS_ACCEL_B] = a0
     return acc
+
+
+@njit(_nrt=False)
+def _fc_loop(fns, params, state, meas, ref, dt, cmd, diag, alloc_p, act, work, n) -> float:
+    """The flight computer's tick without the plant: the controller step, then the allocator."""
+    for _ in range(n):
+        controller_step(fns, params, state, meas, ref, dt, cmd, diag)
+        allocate(cmd, meas, alloc_p, act, work, 0)
+    return cmd[0]
 
 
 def _median_per_call(fn, n_inner: int, repeats: int, clock=time.perf_counter) -> float:
@@ -121,6 +131,22 @@ def run() -> list[tuple[str, float, str]]:
         rows.append((f"composite_{basis}_basis_step_njit_loop_median", 1e6 * _median_per_call(loop, 20000, 15), "us"))
         rows.append((f"composite_{basis}_basis_step_njit_loop_median_cpu",
                      1e6 * _median_per_call(loop, 20000, 15, time.process_time), "us"))
+
+    # the flight computer's step: the controller and the allocator that realises its moment, at 9 m/s,
+    # surfaces on against off (the controller's law is the same; only the allocation differs)
+    fns, params, state, cmd, diag = _settled_state(veh, "composite", meas, ref)
+    act = np.zeros(L.N_ACTUATORS)
+    work = np.zeros(ALLOC_WORK_SIZE)
+    per = {}
+    for surfaces in (True, False):
+        ap = allocator_params(veh, surfaces=surfaces)
+        _fc_loop(fns, params, state, m, r, 0.004, cmd, diag, ap, act, work, 10)
+        per[surfaces] = 1e6 * _median_per_call(
+            lambda n, ap=ap: _fc_loop(fns, params, state, m, r, 0.004, cmd, diag, ap, act, work, n), 20000, 15,
+            time.process_time)
+        rows.append((f"composite_step_plus_allocation_surfaces_{'on' if surfaces else 'off'}_median_cpu",
+                     per[surfaces], "us"))
+    rows.append(("step_plus_allocation_surfaces_on_over_off", per[True] / per[False], "ratio"))
 
     bad, _ = _operating_point(veh, consistent=False)
     fns, params, state, cmd, diag = _settled_state(veh, "composite", bad, ref, n=5000)

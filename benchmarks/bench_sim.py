@@ -5,7 +5,9 @@
   after a warm-up run (no start-up, no compilation): wall time and the
   real-time factor, with the plant at 1 kHz (the default) and at 250 Hz (one RK4 step per tick),
   best of five; and the same by process CPU time, which other jobs on a shared machine inflate
-  far less than the wall time;
+  far less than the wall time; at 1 kHz also with the control surfaces off (``[allocation] surfaces
+  = false``: the rotors make every moment, the surfaces stay neutral), interleaved with the runs with
+  them on, and the ratio on/off (a ratio is what a shared machine reports fairly);
 * runs side by side (:func:`vtoladapt.sim.driver.simulate_many`, one thread per core): simulated
   seconds per wall-clock second over 8 runs;
 * the loop's parts in compiled loops (per controller tick);
@@ -41,6 +43,19 @@ def _loop_rows() -> list[tuple[str, float, str]]:
 
     scenario = scenario_from_mapping(SCENARIO, "bench_sim")
     rows = []
+    # surfaces on and off, interleaved (the same load on both): best of five each
+    on_off = {True: [], False: []}
+    for surfaces in (True, False):
+        simulate(replace(scenario, duration_s=1.0, allocation=replace(scenario.allocation, surfaces=surfaces)))
+    for _ in range(5):
+        for surfaces in (True, False):
+            sc = replace(scenario, allocation=replace(scenario.allocation, surfaces=surfaces))
+            c0 = time.process_time()
+            simulate(sc)
+            on_off[surfaces].append(time.process_time() - c0)
+    rows.append(("60 s closed loop, 1 kHz plant, surfaces off, process CPU time", min(on_off[False]) * 1e3, "ms"))
+    rows.append(("closed loop CPU time, surfaces on / off (best of five each, interleaved)",
+                 min(on_off[True]) / min(on_off[False]), "ratio"))
     for substeps, label in ((4, "1 kHz plant"), (1, "250 Hz plant")):
         sc = replace(scenario, plant_substeps=substeps)
         simulate(replace(sc, duration_s=1.0))  # warm-up: load or compile the kernels
@@ -113,7 +128,8 @@ def _part_rows() -> list[tuple[str, float, str]]:
     from vtoladapt.parts import draw
     from vtoladapt.sensors import sensors_at
     from vtoladapt.sim.driver import prepare
-    from vtoladapt.sim.plant import RK4_WORK_SIZE, plant_advance, plant_first_stage
+    from vtoladapt.sim.allocation import ALLOC_WORK_SIZE, allocate
+    from vtoladapt.sim.plant import RK4_WORK_SIZE, plant_advance, plant_first_stage, plant_input
     from vtoladapt.sim.scenario import scenario_from_mapping
     from vtoladapt.wind import wind_at
 
@@ -123,7 +139,7 @@ def _part_rows() -> list[tuple[str, float, str]]:
     def plant_tick(x, m, w, p, n):
         f = np.empty(3)
         v_i = np.empty(3)
-        work = np.empty(RK4_WORK_SIZE)
+        work = np.zeros(RK4_WORK_SIZE)
         for _ in range(n):
             plant_first_stage(x, w, p, f, v_i, work)
             plant_advance(x, m, w, p, 0.001, 4, True, work)
@@ -147,8 +163,13 @@ def _part_rows() -> list[tuple[str, float, str]]:
             draw(rng, table, draws)
             wind_at(table, p, s, k * 0.004, 0.004, pos, draws, out)
 
+    @njit(_nrt=False)
+    def alloc(cmd, meas, p, act, w, n):
+        for _ in range(n):
+            allocate(cmd, meas, p, act, w, 0)
+
     x = run.x0.copy()
-    motors = np.array([0.58, 0.58, 0.58, 0.58, 0.2])
+    motors = plant_input([0.58, 0.58, 0.58, 0.58, 0.2, 0.05, -0.03, 0.02, 0.0])
     v_wind = np.array([-9.0, 0.0, 0.0])
     meas = np.zeros(layout.MEAS_SIZE)
     meas[layout.MEAS_Q_WB] = 1.0
@@ -177,6 +198,12 @@ def _part_rows() -> list[tuple[str, float, str]]:
         ("controller_step (composite, compiled)", per_call(ctrl, controller_functions(run.controller_params),
                                                            run.controller_params, run.controller_state,
                                                            meas, run.reference_table[0], cmd, diag), "us/tick"),
+        ("allocator, a demand it meets (9 m/s flow, surfaces on)",
+         per_call(alloc, np.array([0.2, 0.6, 0.05, -0.08, 0.01]), meas, run.mixer_params, np.zeros(layout.N_ACTUATORS),
+                  np.zeros(ALLOC_WORK_SIZE)), "us/tick"),
+        ("allocator, a demand it cannot meet (three stages)",
+         per_call(alloc, np.array([0.2, 0.95, 3.0, -2.0, 1.0]), meas, run.mixer_params, np.zeros(layout.N_ACTUATORS),
+                  np.zeros(ALLOC_WORK_SIZE)), "us/tick"),
         ("sensors: four channels (all on, pressure probe), draws included",
          per_call(sens, sensor_table, sp, run.sensor_state, sd, x, truth, rng, meas), "us/tick"),
         ("wind: four parts (fan + Dryden), draws included",

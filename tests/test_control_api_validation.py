@@ -230,13 +230,16 @@ def test_controller_refuses_a_vehicle_of_the_wrong_type():
 
 # --- the mixer's checked entry points ----------------------------------------------------------------
 
+from vtoladapt.sim.allocation import ALLOC_WORK_SIZE, allocate  # noqa: E402
+
+
 def test_motor_commands_match_the_compiled_mixer(caltech, ctrl):
     ctrl.reset()
     cmd = ctrl.step(0.0, _hover(), Reference.hold((0, 0, -1.5)))
     cmd.tau_B = (0.05, -0.1, 0.02)
     p = mixer.mixer_params(caltech)
-    out = np.zeros(L.N_MOTORS)
-    sat = mixer.mix(cmd.array, p, out)
+    out = np.zeros(L.N_ACTUATORS)
+    sat = allocate(cmd.array, np.zeros(L.MEAS_SIZE), p, out, np.zeros(ALLOC_WORK_SIZE), 0)
     for given_mixer in (caltech, p):
         motors, saturated = mixer.motor_commands(cmd, given_mixer)
         np.testing.assert_array_equal(motors, out)
@@ -245,6 +248,7 @@ def test_motor_commands_match_the_compiled_mixer(caltech, ctrl):
     # sqrt(mean u_i^2) by hand
     assert mixer.lift_collective(out) == pytest.approx(math.sqrt(np.mean(out[:4] ** 2)), rel=1e-15)
     assert mixer.lift_collective(list(out[:4])) == mixer.lift_collective(out)
+    assert mixer.lift_collective(out[:L.N_MOTORS]) == mixer.lift_collective(out)
 
 
 @pytest.mark.parametrize("call, err", [

@@ -58,6 +58,8 @@ def _run(name, kind, wind_mps, duration_s, plant=None):
     data = {"name": name, "vehicle": VEHICLE, "duration_s": duration_s, "seed": 1,
             "wind": {"fan_array": {"schedule": [[0.0, thr], [duration_s, thr]]}},
             "plant": dict(UNMODELLED_OFF, **(plant or {})), "sensors": IDEAL_SENSORS,
+            # the control surfaces stay neutral: their own force is not in the model (issue #24)
+            "allocation": {"surfaces": False},
             "controller": {"kind": kind}}
     return simulate(scenario_from_mapping(data, f"tests/test_control_indi.py::{name}"))
 

@@ -139,7 +139,7 @@ def test_metrics_json_has_the_distributions(reproduced):
     bins = m["comparison"]["controllers"]["composite"]["pred_err_p95_g_by_airspeed"]
     assert list(bins) == list(airspeed_bin_labels())
     assert set(m["ablation"]) == {"all_on", "stall_off", "side_force_off", "pusher_advance_ratio_loss_off",
-                                  "motor_lag_off"}
+                                  "motor_lag_off", "surfaces_off"}
     assert set(m["wind_table"]["conditions"]) == {"still", "fan30", "fan70", "fan100", "gusty"}
     md = (reproduced / "report.md").read_text()
     assert "over seeded variants" in md and "(not a claim of the paper)" in md and "Method × wind" in md

@@ -284,7 +284,7 @@ def test_gravity_is_ned_down():
 def test_state_pack_unpack_round_trip(rng):
     parts = {"p_W": rng.normal(size=3), "v_W": rng.normal(size=3),
              "q_WB": unit_quat(rng.normal(size=4)), "omega_B": rng.normal(size=3),
-             "motor_frac": rng.uniform(size=layout.N_MOTORS)}
+             "motor_frac": rng.uniform(size=layout.N_MOTORS), "surface_rad": rng.uniform(-0.4, 0.4, layout.N_SURFACES)}
     x = layout.pack_state(**parts)
     assert x.shape == (layout.X_SIZE,)
     back = layout.unpack_state(x)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from vtoladapt import layout, sensors
-from vtoladapt.sim import mixer, plant
+from vtoladapt.sim import allocation, mixer, plant
 from vtoladapt.layout import BlockLayout
 from vtoladapt.probe import ProbeTip, SDP33Sensor, estimation, sensor, tip
 from vtoladapt.wind import WindConfig, dryden, fan_array, gusts
@@ -41,7 +41,8 @@ def test_every_field_has_a_unit_and_a_meaning(name, lay):
 def test_shared_arrays_keep_their_log_columns():
     # the log columns are part of the Parquet format: these names are what readers use
     assert layout.STATE_COLUMNS[:3] == ("p_N_m", "p_E_m", "p_D_m")
-    assert layout.STATE_COLUMNS[-1] == "pusher_frac" and len(layout.STATE_COLUMNS) == layout.X_SIZE == 18
+    assert layout.STATE_COLUMNS[layout.X_MOTOR + layout.N_MOTORS - 1] == "pusher_frac"
+    assert layout.STATE_COLUMNS[-1] == "surface4_rad" and len(layout.STATE_COLUMNS) == layout.X_SIZE == 22
     assert layout.MEASUREMENT_COLUMNS[layout.MEAS_V_I_VALID] == "meas_v_i_valid"
     assert layout.MEAS_SIZE == 20 and layout.REF_SIZE == 11 and layout.CMD_SIZE == 5
     assert layout.COMMAND_COLUMNS[layout.CMD_TAU_B] == "cmd_tau_x_Nm"
@@ -64,7 +65,16 @@ def test_plant_parameters_land_in_their_fields(caltech):
     np.testing.assert_array_equal(L.view(p, "ROTOR_X"), xy[:, 0])
     np.testing.assert_array_equal(L.view(p, "ROTOR_Y"), xy[:, 1])
     np.testing.assert_array_equal(L.view(p, "THETA"), cfg.theta_true_scaled(caltech))
-    assert plant.RK4_WORK_SIZE == 5 * plant.N_BODY + 2 * layout.N_MOTORS + plant.ROTOR_TERMS_SIZE
+    assert plant.RK4_WORK_SIZE == (5 * plant.N_BODY + 2 * layout.N_ACTUATORS + plant.ROTOR_TERMS_SIZE
+                                   + 2 * layout.N_SURFACES)
+    # the surfaces: derivatives times S (and b, c), their limits and servos
+    S, b = caltech.geometry.wing_area_m2, caltech.geometry.wingspan_m
+    for j, sf in enumerate(caltech.surfaces):
+        np.testing.assert_allclose(L.view(p, "SURF_M")[3 * j:3 * j + 3],
+                                   S * np.array(sf.derivatives_per_rad[3:]) * [b, S / b, b], rtol=1e-12)
+        assert L.view(p, "SURF_LIMIT")[j] == pytest.approx(math.radians(sf.limit_deg))
+        assert L.view(p, "SURF_TAU")[j] == sf.time_constant_s
+    assert L.view(p, "N_SURF")[0] == len(caltech.surfaces) and L.view(p, "SURF_LIMIT")[-1] == 0.0
 
 
 def test_wind_parameters_land_in_the_parts_blocks():
@@ -123,7 +133,7 @@ def test_probe_and_mixer_arrays_follow_their_declarations(caltech):
     assert estimation.TB_KIND == estimation.SK_KIND == estimation.CAL_KIND
     m = mixer.mixer_params(caltech)
     assert m.size == mixer.MX_SIZE
-    assert m[mixer.MX_TOTAL_UNIT] == pytest.approx(4.0 * m[mixer.MX_T_UNIT])
+    assert m[allocation.AL_TOTAL_UNIT] == pytest.approx(4.0 * m[allocation.AL_T_UNIT])
 
 
 def _prefix(module, lay, prefix, rename=None, base=0):
@@ -147,7 +157,8 @@ def test_bound_offsets_are_their_fields():
         pairs.update(_prefix(channel, channel.STATE, "_S_"))
         pairs.update(_prefix(channel, channel.DRAWS, "_D_"))
     pairs.update({f"{k} (wind)": v for k, v in _prefix(dryden, dryden.TURBULENCE_STATE, "_S_").items()})
-    pairs.update(_prefix(mixer, mixer.MIXER_PARAMS, "MX_"))
+    pairs.update(_prefix(allocation, allocation.ALLOC_PARAMS, "AL_"))
+    pairs.update(_prefix(layout, layout.PLANT_INPUT, "IN_"))
     wrong = {name: v for name, v in pairs.items() if v[0] != v[1]}
     assert wrong == {}
     assert len(pairs) > 100

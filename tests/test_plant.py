@@ -10,7 +10,6 @@ from vtoladapt import layout
 from vtoladapt.sim import plant
 from vtoladapt.config import ConfigError
 from vtoladapt.frames import GRAVITY_MPS2, quat_from_euler, quat_to_rotmat
-from vtoladapt.sim.mixer import mix, mixer_params
 
 
 @pytest.fixture(scope="module")
@@ -33,8 +32,9 @@ def vacuum(p):
 
 def integrate(x, motor, wind, p, h, n):
     f = np.empty(3)
+    u = plant.plant_input(motor)
     for _ in range(n):
-        plant.rk4_step(x, motor, wind, p, h, f)
+        plant.rk4_step(x, u, wind, p, h, f)
     return x
 
 
@@ -175,7 +175,8 @@ def test_motor_lag_is_integrated_exactly(veh):
     integrate(x, cmd, np.zeros(3), p, 0.004, 25)  # 0.1 s in steps as long as the lift motors' lag
     tau = np.array([veh.actuators.lift_motor_time_constant_s] * 4 + [veh.actuators.pusher_motor_time_constant_s])
     c = np.clip(cmd, 0.0, 1.0)
-    np.testing.assert_allclose(x[layout.X_MOTOR:], c + (u0 - c) * np.exp(-0.1 / tau), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(x[layout.X_MOTOR:layout.X_MOTOR + layout.N_MOTORS], c + (u0 - c) * np.exp(-0.1 / tau),
+                               rtol=0, atol=1e-14)
 
 
 def test_first_stage_reuse_is_exact(veh):
@@ -183,10 +184,10 @@ def test_first_stage_reuse_is_exact(veh):
     p = kernel(veh)
     x0 = layout.pack_state([0, 0, -5], [2.0, 0.5, -0.3], quat_from_euler(0.2, 0.1, -0.05),
                            [0.1, -0.2, 0.05], [0.55, 0.6, 0.58, 0.52, 0.3])
-    motor = np.array([0.6, 0.55, 0.62, 0.57, 0.4])
+    motor = plant.plant_input([0.6, 0.55, 0.62, 0.57, 0.4, 0.1, -0.05, 0.2, 0.0])
     wind = np.array([-7.0, 0.5, 0.2])
     a, b = x0.copy(), x0.copy()
-    work_a, work_b = np.empty(plant.RK4_WORK_SIZE), np.empty(plant.RK4_WORK_SIZE)
+    work_a, work_b = np.zeros(plant.RK4_WORK_SIZE), np.zeros(plant.RK4_WORK_SIZE)
     f_B, v_i = np.empty(3), np.empty(3)
     plant.plant_first_stage(a, wind, p, f_B, v_i, work_a)
     plant.plant_advance(a, motor, wind, p, 0.001, 4, True, work_a)
@@ -229,75 +230,3 @@ def test_plant_config_rejects_bad_values():
     with pytest.raises(ConfigError, match=r"coefficients\] CL1"):
         plant.plant_config_from_mapping({"coefficients": {"CL1": -2.0}}, "scen.toml")
 
-
-def test_mixer_round_trip_and_saturation(veh):
-    mp = mixer_params(veh)
-    g = veh.geometry
-    km = veh.actuators.yaw_torque_per_thrust_m
-    t_unit = veh.mass.mass_kg * veh.theta_scaled[1] / 4
-    cmd = np.array([0.2, 0.6, 0.05, -0.08, 0.01])
-    motor = np.empty(5)
-    assert not mix(cmd, mp, motor)
-    T = t_unit * motor[:4] ** 2
-    x = np.array([pos[0] for pos in g.lift_rotor_positions_m])
-    y = np.array([pos[1] for pos in g.lift_rotor_positions_m])
-    s = np.array(g.lift_rotor_spin)
-    np.testing.assert_allclose(T.sum(), 4 * t_unit * 0.36, rtol=1e-12)
-    np.testing.assert_allclose([-(y * T).sum(), (x * T).sum(), -(s * km * T).sum()], cmd[2:], atol=1e-12)
-    assert motor[4] == 0.2
-    # a yaw demand far beyond authority: yaw is given up first, roll/pitch kept
-    cmd = np.array([0.0, 0.6, 0.05, -0.08, 5.0])
-    assert mix(cmd, mp, motor)
-    T = t_unit * motor[:4] ** 2
-    np.testing.assert_allclose([-(y * T).sum(), (x * T).sum()], [0.05, -0.08], atol=1e-9)
-    assert np.all((motor >= 0) & (motor <= 1))
-    # a yaw demand just beyond authority at low collective is reduced to the largest feasible one,
-    # with the commanded sign, not dropped (T0 + s d >= 0 for every rotor)
-    cmd = np.array([0.0, 0.2932, 0.0, 0.0, -0.051])
-    assert mix(cmd, mp, motor)
-    T = t_unit * motor[:4] ** 2
-    yaw = -(s * km * T).sum()
-    T_each = t_unit * 0.2932**2  # each rotor's share; yaw moves two up and two down by the same amount
-    assert yaw == pytest.approx(-4 * km * T_each, rel=1e-9)  # the slowed pair reaches zero thrust
-    assert T.min() == pytest.approx(0.0, abs=1e-12)
-    # NaN never reaches the motors
-    assert np.all(np.isfinite(motor)) and not np.isnan(motor).any()
-    mix(np.full(5, np.nan), mp, motor)
-    assert np.all(np.isfinite(motor))
-
-
-@settings(max_examples=examples(200), deadline=None)
-@given(u_z=st.floats(0.05, 0.95), tau=st.tuples(*[st.floats(-2.0, 2.0)] * 3), u_x=st.floats(0.0, 1.0))
-def test_applied_collective_is_the_commanded_one_unless_the_mixer_saturated(veh, u_z, tau, u_x):
-    """The mixer keeps sum T_i = T_total while it can (its allocation's first row is all ones), so the
-    collective the rotor commands amount to is the commanded one; once it saturates, it is the total
-    thrust the rotors were actually sent, which is what the controller is told (report_mixed)."""
-    from vtoladapt.sim.loop import report_mixed
-    from vtoladapt.control.api import Controller
-    from vtoladapt.control.step import controller_initial_state, state_last_command
-    from vtoladapt.sim.mixer import applied_collective
-
-    mp = mixer_params(veh)
-    t_unit = veh.mass.mass_kg * veh.theta_scaled[1] / 4
-    cmd = np.array([u_x, u_z, *tau])
-    motor = np.empty(5)
-    saturated = mix(cmd, mp, motor)
-    u_eff = applied_collective(motor)
-    assert 4 * t_unit * u_eff**2 == pytest.approx(t_unit * (motor[:4] ** 2).sum(), rel=1e-12)
-    if not saturated:
-        assert u_eff == pytest.approx(u_z, rel=1e-12)
-    state = controller_initial_state(Controller(veh).params)
-    before = state_last_command(state).copy()
-    report_mixed(state, motor, saturated)
-    expected = [motor[4], u_eff] if saturated else before
-    np.testing.assert_array_equal(state_last_command(state), expected)
-
-
-def test_a_collective_shift_is_reported_to_the_controller(veh):
-    """A roll demand at high collective: the mixer lowers the collective to keep roll (PX4's order)."""
-    from vtoladapt.sim.mixer import applied_collective
-
-    motor = np.empty(5)
-    assert mix(np.array([0.3, 0.97, 1.5, 0.0, 0.0]), mixer_params(veh), motor)
-    assert motor[:4].max() == pytest.approx(1.0)
-    assert applied_collective(motor) < 0.97 - 0.01

@@ -268,6 +268,8 @@ def format_vehicle(name_or_path) -> str:
         sub = getattr(veh, f.name)
         if dataclasses.is_dataclass(sub):
             lines += ["", f"[{f.name}]  # {f.metadata.get('doc', '')}"] + block(sub)
+    for sf in veh.surfaces:   # [[surfaces]]: one table per control surface, in the file's order
+        lines += ["", "[[surfaces]]"] + block(sf)
     for basis_id, _ in veh.basis_settings:   # a basis's own settings, as the file gave them
         table = veh.basis_table(basis_id)
         lines += ["", f"[basis_settings.{basis_id}]"] + [f"{k} = {value(v)}" for k, v in table.items()]

@@ -146,17 +146,39 @@ class BlockLayout:
         return f"BlockLayout({self.title!r}, {len(self.fields)} fields, size {self.size})"
 
 # --- plant state x ---------------------------------------------------------------------------
+N_SURFACES = 4
+"""Control-surface slots of the airframe (ailerons, elevator, rudder, ruddervators, elevons: the vehicle
+file's ``[[surfaces]]`` fill them in order; an unused slot has no effect and is never commanded)."""
+
 ACTUATORS = BlockLayout("actuator commands", [
     Field("LIFT", 4, "-", "the four lift rotors' throttles, fractions (rotor order of the vehicle file)",
           columns=("motor1_cmd_frac", "motor2_cmd_frac", "motor3_cmd_frac", "motor4_cmd_frac")),
     Field("PUSHER", 1, "-", "the pusher's throttle, fraction", columns=("pusher_cmd_frac",)),
+    Field("SURFACE", N_SURFACES, "rad", "control-surface deflection commands (surface order of the vehicle file)",
+          columns=tuple(f"surface{i + 1}_cmd_rad" for i in range(N_SURFACES))),
 ])
-"""What the mixer writes and the plant's motors follow (after the actuator faults): the actuator
-command vector. The plant state's ``MOTOR`` block holds the same actuators' outputs after their lags.
-An actuator added to the airframe (a control surface) is a field here and one in the state."""
+"""What the allocator writes and the plant's actuators follow (after the actuator faults): the actuator
+command vector. The plant state's ``MOTOR`` and ``SERVO`` blocks hold the same actuators' outputs after
+their lags."""
 N_LIFT = ACTUATORS.field("LIFT").size
-N_MOTORS = ACTUATORS.size
-(MOTOR_PUSHER,) = ACTUATORS.offsets("PUSHER")
+N_MOTORS = N_LIFT + ACTUATORS.field("PUSHER").size
+"""The rotors (lift and pusher): the first ``N_MOTORS`` actuators."""
+N_ACTUATORS = ACTUATORS.size
+MOTOR_PUSHER, ACT_SURFACE = ACTUATORS.offsets("PUSHER", "SURFACE")
+
+PLANT_INPUT = BlockLayout("plant input", [
+    Field("ACT", N_ACTUATORS, "-", "the actuator commands (ACTUATORS)"),
+    Field("SURFACE_LOSS", N_SURFACES, "-", "share of each surface's effectiveness lost: 0 healthy, 1 gone (a "
+          "surface_lost fault)"),
+    Field("SERVO_SLOWDOWN", N_SURFACES, "-", "each servo's time constant over the plant's, minus 1 (its rate "
+          "limit is divided by the same factor): 0 healthy, more for a servo_slow fault"),
+])
+"""What reaches the plant every tick: the allocator's actuator commands and the actuators' condition, which
+only faults change (:func:`vtoladapt.sim.faults.apply_actuator_faults` writes it whole each tick). Zero
+beyond the commands is a healthy airframe, so a zeroed scratch array is one."""
+IN_ACT, IN_SURFACE_LOSS, IN_SERVO_SLOWDOWN = PLANT_INPUT.offsets("ACT", "SURFACE_LOSS", "SERVO_SLOWDOWN")
+PLANT_INPUT_SIZE = PLANT_INPUT.size
+
 
 STATE = BlockLayout("plant state", [
     Field("P_W", 3, "m", "position, NED", columns=("p_N_m", "p_E_m", "p_D_m")),
@@ -166,8 +188,11 @@ STATE = BlockLayout("plant state", [
           columns=("omega_x_radps", "omega_y_radps", "omega_z_radps")),
     Field("MOTOR", N_MOTORS, "-", "motor outputs after lag, fraction of full throttle: 4 lift rotors "
           "then pusher", columns=("motor1_frac", "motor2_frac", "motor3_frac", "motor4_frac", "pusher_frac")),
+    Field("SERVO", N_SURFACES, "rad", "control-surface deflections after their servos (right after MOTOR: "
+          "the actuator outputs are one block, ordered as ACTUATORS)",
+          columns=tuple(f"surface{i + 1}_rad" for i in range(N_SURFACES))),
 ])
-X_P_W, X_V_W, X_Q_WB, X_OMEGA_B, X_MOTOR = STATE.offsets("P_W", "V_W", "Q_WB", "OMEGA_B", "MOTOR")
+X_P_W, X_V_W, X_Q_WB, X_OMEGA_B, X_MOTOR, X_SERVO = STATE.offsets("P_W", "V_W", "Q_WB", "OMEGA_B", "MOTOR", "SERVO")
 X_SIZE = STATE.size
 STATE_COLUMNS = STATE.columns
 
@@ -241,14 +266,15 @@ TRUTH_V_WIND_W, TRUTH_MEAN_WIND_W = TRUTH.nested("WIND", WIND, "V_W", "MEAN_W")
 TRUTH_SIZE = TRUTH.size
 
 
-def pack_state(p_W, v_W, q_WB, omega_B, motor_frac) -> np.ndarray:
-    """Plant state vector from named parts."""
+def pack_state(p_W, v_W, q_WB, omega_B, motor_frac, surface_rad=(0.0,) * N_SURFACES) -> np.ndarray:
+    """Plant state vector from named parts (surfaces neutral unless given)."""
     x = np.zeros(X_SIZE)
     x[X_P_W:X_P_W + 3] = p_W
     x[X_V_W:X_V_W + 3] = v_W
     x[X_Q_WB:X_Q_WB + 4] = q_WB
     x[X_OMEGA_B:X_OMEGA_B + 3] = omega_B
     x[X_MOTOR:X_MOTOR + N_MOTORS] = motor_frac
+    x[X_SERVO:X_SERVO + N_SURFACES] = surface_rad
     return x
 
 
@@ -256,7 +282,7 @@ def unpack_state(x: np.ndarray) -> dict[str, np.ndarray]:
     """Named views of a plant state vector (or of a ``(T, X_SIZE)`` history)."""
     return {"p_W": x[..., X_P_W:X_P_W + 3], "v_W": x[..., X_V_W:X_V_W + 3],
             "q_WB": x[..., X_Q_WB:X_Q_WB + 4], "omega_B": x[..., X_OMEGA_B:X_OMEGA_B + 3],
-            "motor_frac": x[..., X_MOTOR:X_MOTOR + N_MOTORS]}
+            "motor_frac": x[..., X_MOTOR:X_MOTOR + N_MOTORS], "surface_rad": x[..., X_SERVO:X_SERVO + N_SURFACES]}
 
 
 def pack_reference(p_W, v_W=(0.0, 0.0, 0.0), a_W=(0.0, 0.0, 0.0), yaw_rad=0.0,

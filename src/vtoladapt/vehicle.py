@@ -186,6 +186,57 @@ class Actuators(Validated):
         "m", "lift-rotor reaction torque per unit thrust (Nm/N)", ge=0.001, le=1.0)
 
 
+SURFACE_DERIVATIVE_NAMES = ("CX", "CY", "CZ", "Cl", "Cm", "Cn")
+"""The six derivatives of a control surface, per radian of deflection: body FRD force coefficients
+(``F = q S C``) and moment coefficients (roll and yaw ``M = q S b C``, pitch ``M = q S c C``, ``c = S / b``)."""
+
+
+@dataclass(frozen=True)
+class Surface(Validated):
+    """One control surface (a ``[[surfaces]]`` entry): what a radian of it does and how its servo moves.
+
+    Its force and moment are ``q S C delta`` (moments times ``b`` or ``c``) with ``q = rho V^2 / 2`` of the
+    incident flow: linear in deflection and in dynamic pressure (:mod:`vtoladapt.sim.surfaces`).
+    Positive deflection is the servo's positive direction; the derivatives' signs say what it does.
+    """
+
+    config_section = "surfaces"
+
+    name: str = setting("-", "what the surface is (aileron, elevator, rudder, ruddervator_left, ...)",
+                        pattern=r"[A-Za-z][A-Za-z0-9_]{0,31}")
+    derivatives_per_rad: tuple[float, ...] = setting(
+        "1/rad", "CX, CY, CZ, Cl, Cm, Cn per radian (body FRD; moments about the centre of mass)",
+        ge=-20.0, le=20.0, length=6)
+    limit_deg: float = setting("deg", "deflection limit either way", gt=0.0, le=60.0)
+    time_constant_s: float = setting("s", "servo first-order lag", ge=0.001, le=1.0)
+    rate_limit_degps: float = setting("deg/s", "servo slew-rate limit", gt=0.0, le=5000.0)
+
+    @property
+    def derivatives(self) -> dict[str, float]:
+        """The derivatives by name (:data:`SURFACE_DERIVATIVE_NAMES`)."""
+        return dict(zip(SURFACE_DERIVATIVE_NAMES, self.derivatives_per_rad))
+
+
+@dataclass(frozen=True)
+class Uncertainty(Validated):
+    """How well the vehicle file knows what Table I does not give: the spread a plant draw uses
+    (:func:`vtoladapt.sim.truth.draw_physical_parameters`). Each is one standard deviation; the
+    controller always keeps the file's own values. A file without the table states no spread (every
+    std 0): its drawn plant is the file's."""
+
+    config_section = "uncertainty"
+
+    stall_angle_deg: float = setting("deg", "std of the stall angle", default=0.0, ge=0.0, le=10.0)
+    lift_motor_time_constant_frac: float = setting("-", "relative std of the lift motors' lag", default=0.0, ge=0.0, le=0.5)
+    pusher_motor_time_constant_frac: float = setting("-", "relative std of the pusher's lag", default=0.0, ge=0.0, le=0.5)
+    servo_time_constant_frac: float = setting("-", "relative std of the servos' lag", default=0.0, ge=0.0, le=0.5)
+    mass_frac: float = setting("-", "relative std of the mass", default=0.0, ge=0.0, le=0.3)
+    inertia_frac: float = setting("-", "relative std of each principal inertia", default=0.0, ge=0.0, le=0.5)
+    air_density_frac: float = setting("-", "relative std of the air density", default=0.0, ge=0.0, le=0.3)
+    surface_effectiveness_frac: float = setting("-", "relative std of each surface's effectiveness", default=0.0, ge=0.0,
+                                                le=0.5)
+
+
 @dataclass(frozen=True)
 class Envelope(Validated):
     """Flight-envelope limits the controller respects."""
@@ -234,6 +285,11 @@ class Vehicle(Validated):
     adaptation: Adaptation = setting("-", "adaptation prior (Table III)")
     actuators: Actuators = setting("-", "actuators")
     envelope: Envelope = setting("-", "flight envelope")
+    uncertainty: Uncertainty = setting("-", "spread of the physical parameters a plant draw uses",
+                                       default=Uncertainty())
+    surfaces: tuple[Surface, ...] = setting(
+        "-", "control surfaces ([[surfaces]] entries, at most vtoladapt.layout.N_SURFACES)", default=(),
+        max_items=4)
     basis: str = setting("-", "the force-model basis the controller adapts (an id of vtoladapt.bases: 'paper' is the "
                          "paper's eight parameters; a scenario's [controller] basis may name another)",
                          default="paper", pattern=r"[A-Za-z_][A-Za-z0-9_]{0,63}")
@@ -273,7 +329,12 @@ class Vehicle(Validated):
             if key == basis_id:
                 return _thawed(table)
         return None
+
     def _check(self, source: str) -> None:
+        names = [sf.name for sf in self.surfaces]
+        for i, n in enumerate(names):
+            if n in names[:i]:
+                raise ConfigError(f"{source}: [[surfaces]][{i}] name = {n!r}: used twice; allowed: one entry per surface")
         # the mixer inverts this matrix every tick; a layout it cannot invert is the file's mistake
         cond = np.linalg.cond(lift_allocation_matrix(self.geometry, self.actuators.yaw_torque_per_thrust_m))
         if not cond < LIFT_ALLOCATION_COND_MAX:
@@ -282,6 +343,11 @@ class Vehicle(Validated):
                 f"{source}: [geometry] lift_rotor_positions_m = {positions}, lift_rotor_spin = {list(self.geometry.lift_rotor_spin)}: the four lift rotors cannot produce "
                 f"independent thrust, roll, pitch and yaw moments (allocation condition number {cond:.3g}); "
                 "allowed: rotors on both sides of both body axes, two spinning each way")
+
+    @cached_property
+    def wing_chord_m(self) -> float:
+        """Mean aerodynamic chord ``S / b`` (m): the pitch moment's reference length."""
+        return self.geometry.wing_area_m2 / self.geometry.wingspan_m
 
     def replace(self, **changes) -> "Vehicle":
         """A copy with some top-level sections replaced (validated sections, not dicts)."""

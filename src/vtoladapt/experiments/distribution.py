@@ -35,12 +35,21 @@ VARIANT_STREAM = 0xD157
 experiment's run seeds, which are spawned from the scenario seed alone)."""
 
 ABLATION_EFFECTS: dict[str, tuple[str, str]] = {
-    "stall": ("stall", "stall and post-stall"),
-    "side_force": ("side_force", "side force C_Y(β)"),
-    "pusher_advance_ratio_loss": ("pusher_advance_ratio_loss", "pusher C_T(J)"),
-    "motor_lag": ("motor_lag", "motor lag"),
+    "stall": ("plant.stall", "stall and post-stall"),
+    "side_force": ("plant.side_force", "side force C_Y(β)"),
+    "pusher_advance_ratio_loss": ("plant.pusher_advance_ratio_loss", "pusher C_T(J)"),
+    "motor_lag": ("plant.motor_lag", "motor lag"),
+    "surfaces": ("allocation.surfaces", "surfaces"),
 }
-"""Unmodelled effects the ablation switches off one at a time: key -> (PlantConfig field, label)."""
+"""Effects the ablation switches off one at a time: key -> (``section.field`` of the scenario, a boolean,
+label). The plant's unmodelled effects, and the control surfaces (the allocator leaves them neutral: the
+lift rotors make every moment, the airframe before issue #24)."""
+
+
+def _switched_off(scenario: Scenario, dotted: str) -> Scenario:
+    """``scenario`` with the boolean ``section.field`` set to False."""
+    section, field = dotted.split(".")
+    return replace(scenario, **{section: replace(getattr(scenario, section), **{field: False})})
 
 WIND_CONDITIONS: dict[str, str] = {
     "still": "still air", "fan30": "fan 30 %", "fan70": "fan 70 %", "fan100": "fan 100 %",
@@ -231,7 +240,7 @@ def ablation(scenario: Scenario, n: int, progress: Progress = None, all_on: Opti
     else:
         out["all_on"] = {"variants": n, "claims": summarize_claims(fly_variants(base, n, progress))}
     for key, (field, _label) in ABLATION_EFFECTS.items():
-        variants = fly_variants(replace(base, plant=replace(base.plant, **{field: False})), n, progress)
+        variants = fly_variants(_switched_off(base, field), n, progress)
         out[f"{key}_off"] = {"variants": n, "claims": summarize_claims(variants)}
     return out
 

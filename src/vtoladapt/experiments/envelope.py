@@ -124,7 +124,7 @@ def envelope_run_metrics(result, scenario) -> dict:
     nonfinite = int(data.size - np.count_nonzero(np.isfinite(data)))
     row: dict = {
         "alpha_protect_deg": vehicle.envelope.stall_angle_deg - vehicle.envelope.stall_margin_deg,
-        "alpha_stall_true_deg": scenario.plant.stall_angle_deg,
+        "alpha_stall_true_deg": scenario.plant.resolved(vehicle, scenario.seed).true_stall_angle_deg(vehicle),
         "wing_airspeed_min_mps": vehicle.envelope.hover_blend_airspeed_mps[0],
         "finite": float(nonfinite == 0), "nonfinite_values": float(nonfinite),
         "diverged": float(result.diverged),
@@ -132,7 +132,7 @@ def envelope_run_metrics(result, scenario) -> dict:
         "wall_time_s": float(result.metadata["wall_time_s"]),
     }
     scalar_keys = ("vel_err_rms_mps", "vel_err_max_mps", "pos_err_rms_m", "pred_err_p95_g",
-                   "mixer_saturated_fraction", "airspeed_max_mps")
+                   "mixer_saturated_fraction", "lift_attitude_unmet_fraction", "airspeed_max_mps")
     for k in scalar_keys:
         row[k] = nan
     for lab in labels:

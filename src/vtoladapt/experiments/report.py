@@ -300,10 +300,10 @@ def fault_table_table(rows: list) -> Table:
                     Cell(f"{r['pos_err_final_m']:.2f}", numeric=True),
                     Cell("–" if sat is None else f"{100 * sat:.0f}", numeric=True),
                     Cell("yes" if r["recovered"] else ("diverged: " + r["diverged"] if r["diverged"] else "no"))))
-    return Table("One fault each, in a 40 % fan hold with turbulence (scenarios/faults/): worst position "
-                 "error before and from the fault on, over the last 2 s, and the share of the fault "
-                 "window with the mixer saturated (the limit physics hit). Recovered: final error below "
-                 "0.3 m.", ("fault", "window (s)", "before (m)", "worst (m)", "final (m)",
+    return Table("One fault each, in a 40 % fan hold with turbulence (the control-surface faults at 80 %, where "
+                 "the surfaces carry moments; scenarios/faults/): worst position error before and from the "
+                 "fault on, over the last 2 s, and the share of the fault window with the allocator "
+                 "saturated (the limit physics hit). Recovered: final error below 0.3 m.", ("fault", "window (s)", "before (m)", "worst (m)", "final (m)",
                             "mixer saturated (%)", "recovered"), tuple(out))
 
 

@@ -30,11 +30,11 @@ from numba import typed
 
 from ..control.blocks import P_TAU_MAX, P_U_MAX
 from ..control.trajectory import trajectory_from_reference
-from ..layout import CMD_SIZE, MEAS_SIZE, N_MOTORS, REF_P_W, TRUTH_SIZE, X_P_W, X_SIZE, BlockLayout, Field
+from ..layout import CMD_SIZE, MEAS_SIZE, PLANT_INPUT_SIZE, REF_P_W, TRUTH_SIZE, X_P_W, X_SIZE, BlockLayout, Field
 from ..sensors import mocap
 from ..sim.driver import PreparedRun, chunk_ticks, prepare
 from ..sim.loop import diagnostics_columns
-from ..sim.plant import RK4_WORK_SIZE
+from ..sim.loop import TICK_WORK_SIZE
 from ..sim.scenario import Scenario
 from .batch_kernel import (B_FAULT_S, B_SENS_S, BOUNDS, MODE_DIRECT, MODE_RESIDUAL, OP_BEGIN, OP_SKIP, OP_STEP,
                            ROW_BLOCKS, SET_PREFETCH_END, SET_PREFETCH_RESUME, SET_PREFETCH_STOP, SETTINGS,
@@ -62,7 +62,7 @@ def row_layouts(template: PreparedRun) -> tuple[BlockLayout, BlockLayout]:
     """The layouts of an environment's row (:data:`~vtoladapt.gym.batch_kernel.ROW_BLOCKS`) and of a
     shared table row (:data:`~vtoladapt.gym.batch_kernel.SHARED_BLOCKS`), sized for ``template``'s scenario."""
     sizes = {"X": X_SIZE, "TRUTH": TRUTH_SIZE, "MEAS": MEAS_SIZE, "CMD": CMD_SIZE, "BASE": CMD_SIZE,
-             "DIAG": len(diagnostics_columns(template.controller_params)), "MOTOR": N_MOTORS, "WORK": RK4_WORK_SIZE,
+             "DIAG": len(diagnostics_columns(template.controller_params)), "MOTOR": PLANT_INPUT_SIZE, "WORK": TICK_WORK_SIZE,
              "WIND_DRAWS": template.wind_parts.draws_size, "SENSOR_DRAWS": template.sensor_parts.draws_size}
     sizes.update({name: getattr(template, name.lower()).size for name in _PER_RUN})
     shared = {f.name: _shared_value(template, f.name).size for f in SHARED_BLOCKS}

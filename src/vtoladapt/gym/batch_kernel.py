@@ -64,7 +64,7 @@ ROW_BLOCKS: tuple[Field, ...] = (
     Field("BASE", 0, "-", "the command the action modifies (residual: the controller's; direct: the last)"),
     Field("DIAG", 0, "-", "the controller's diagnostics"),
     Field("MOTOR", 0, "-", "motor commands"),
-    Field("WORK", 0, "-", "the plant's RK4 work array"),
+    Field("WORK", 0, "-", "the tick's work array (vtoladapt.sim.loop.TICK_WORK)"),
     Field("WIND_DRAWS", 0, "-", "the wind parts' random numbers of the tick"),
     Field("SENSOR_DRAWS", 0, "-", "the sensor channels' random numbers of the tick"),
     Field("PLANT_PARAMS", 0, "-", "the plant's parameters"),

@@ -80,12 +80,11 @@ class PreparedRun:
     def scratch(self) -> tuple:
         """Fresh scratch of a tick: ``(truth, meas, cmd, diag, motor_cmd, work)``, zeros (the loop's
         ``scratch`` argument; a new one per chunk of ticks)."""
-        from .loop import diagnostics_columns
-        from .plant import RK4_WORK_SIZE
+        from .loop import TICK_WORK_SIZE, diagnostics_columns
 
         return (np.zeros(layout.TRUTH_SIZE), np.zeros(layout.MEAS_SIZE), np.zeros(layout.CMD_SIZE),
-                np.zeros(len(diagnostics_columns(self.controller_params))), np.zeros(layout.N_MOTORS),
-                np.zeros(RK4_WORK_SIZE))
+                np.zeros(len(diagnostics_columns(self.controller_params))), np.zeros(layout.PLANT_INPUT_SIZE),
+                np.zeros(TICK_WORK_SIZE))
 
     def wind(self) -> tuple:
         """The loop's ``wind`` argument: ``(table, params, state, draws)`` (fresh draws scratch)."""
@@ -106,7 +105,7 @@ def prepare(scenario: Scenario) -> PreparedRun:
     from ..control.api import controller_arrays
     from ..control.trajectory import trajectory_from_reference
     from ..sensors import SensorContext
-    from .faults import faults_to_kernel
+    from .faults import SURFACE_KINDS, faults_to_kernel
     from .loop import diagnostics_columns, log_layout
     from ..bases import truth_of
     from ..control.step import controller_functions, function_table
@@ -133,7 +132,7 @@ def prepare(scenario: Scenario) -> PreparedRun:
     motors = hover_trim_motor(vehicle, plant) if ic.trimmed_motors else np.zeros(layout.N_MOTORS)
     q0 = quat_from_euler(np.radians(ic.yaw_deg), np.radians(ic.pitch_deg), np.radians(ic.roll_deg))
     x0 = layout.pack_state(ic.position_m, ic.velocity_mps, q0, (0.0, 0.0, 0.0), motors)
-    plant_density = scenario.plant.air_density_kgpm3 or vehicle.envelope.air_density_kgpm3
+    plant_density = plant.air_density_kgpm3 or vehicle.envelope.air_density_kgpm3  # the resolved truth (a draw)
     sensor_parts = scenario.sensors.assemble(SensorContext(plant_density, vehicle.envelope.air_density_kgpm3,
                                                            scenario.base_dir))
     wind_parts = scenario.wind.assemble()
@@ -141,6 +140,10 @@ def prepare(scenario: Scenario) -> PreparedRun:
     reference = trajectory_from_reference(scenario.reference).reference_table(times)
     sensor_state = sensor_parts.initial_state(rng)
     wind_state = wind_parts.initial_state(rng)
+    for i, f in enumerate(scenario.faults):
+        if f.kind in SURFACE_KINDS and f.surface > len(vehicle.surfaces):
+            raise ConfigError(f"{where}: [faults][{i}] {f.kind}: surface = {f.surface}: {vehicle.name} has "
+                              f"{len(vehicle.surfaces)} control surfaces; allowed: 1 to {len(vehicle.surfaces)}")
     fault_schedule, fault_state = faults_to_kernel(scenario.faults, scenario.dt_control_s)
     # the plant's truth in the controller's basis, for the logged Lyapunov function only (empty where the
     # basis has none: the function's parameter term is then left out)
@@ -148,7 +151,7 @@ def prepare(scenario: Scenario) -> PreparedRun:
     return PreparedRun(
         scenario=scenario, vehicle=vehicle, x0=x0, fault_schedule=fault_schedule, fault_state=fault_state,
         envelope=scenario.envelope.to_kernel(),
-        plant_params=plant.to_kernel(vehicle), mixer_params=mixer_params(ctrl_vehicle),
+        plant_params=plant.to_kernel(vehicle), mixer_params=mixer_params(ctrl_vehicle, scenario.allocation.surfaces),
         controller_params=ctrl_params, controller_state=ctrl_state,
         controller_fns=function_table(controller_functions(ctrl_params)),
         wind_parts=wind_parts, wind_params=wind_parts.params, wind_state=wind_state,
@@ -350,7 +353,7 @@ def _plant_wind_sensors_compiled(run: PreparedRun) -> None:
     run_wind_model(run.wind_parts, run.wind_state.copy(), 1, 0.004, np.random.default_rng(0))
     plant_first_stage(x, v_wind, run.plant_params, truth[layout.TRUTH_F_B:layout.TRUTH_F_B + 3],
                       truth[layout.TRUTH_V_I_B:layout.TRUTH_V_I_B + 3], work)
-    plant_advance(x, np.zeros(layout.N_MOTORS), v_wind, run.plant_params, 0.001, 1, True, work)
+    plant_advance(x, np.zeros(layout.PLANT_INPUT_SIZE), v_wind, run.plant_params, 0.001, 1, True, work)
     run_sensor_model(run.sensor_parts, run.sensor_state.copy(), 0.004, x[None, :], np.zeros((1, 3)),
                      np.zeros((1, 3)), np.random.default_rng(0))
 

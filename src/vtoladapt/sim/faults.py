@@ -6,8 +6,10 @@ them every tick (:mod:`vtoladapt.sim.loop`):
 
 * :func:`apply_measurement_faults`, between the sensors and the controller, on the measurement
   array (the controller sees the faulty reading; the log's ``meas_*`` columns record it);
-* :func:`apply_actuator_faults`, between the mixer and the plant, on the five motor commands
-  (the log's ``motor*_cmd_frac`` columns record what reached the motors).
+* :func:`apply_actuator_faults`, between the allocator and the plant, on the plant input: the
+  actuator commands (the log's ``motor*_cmd_frac`` and ``surface*_cmd_rad`` columns record what reached
+  the actuators) and the actuators' condition (a surface's loss, a servo's slowdown), which it writes
+  whole every tick (healthy unless a fault says otherwise).
 
 Kinds (:data:`FAULT_KINDS`):
 
@@ -30,6 +32,16 @@ Kinds (:data:`FAULT_KINDS`):
                        command (thrust ~ u^2, so its command is scaled by sqrt(1 - loss)).
 ``pusher_saturated``   the pusher runs at full throttle (the throttle limit) whatever is commanded.
 ``stuck_throttle``     motor ``motor`` (1-4 lift, 5 pusher) holds the command it had at the start.
+``surface_stuck``      control surface ``surface`` (1-4, the vehicle file's order) jams: its servo holds
+                       the deflection commanded when the fault began, whatever is commanded after.
+``surface_lost``       control surface ``surface`` is gone (its servo still moves; the surface makes no
+                       force or moment).
+``servo_slow``         the servo of surface ``surface`` is ``time_constant_factor`` times slower than the
+                       plant's (time constant times it, rate limit divided by it): slower than the
+                       flight computer believes.
+
+The flight computer is not told of any actuator fault: the allocator keeps its model (a real one would
+have to detect it first).
 
 Every entry is validated like every other table (one-line errors naming the file, the entry and
 the key).
@@ -43,23 +55,29 @@ import numpy as np
 from numba import njit
 
 from ..config import ApplicableKeys, ConfigError, Validated, setting
-from ..layout import (MEAS_ACCEL_B, MEAS_OMEGA_B, MEAS_P_W, MEAS_V_I_B, MEAS_V_I_VALID, MEAS_V_W, MOTOR_PUSHER,
-                     N_MOTORS, BlockLayout, Field)
+from ..layout import (ACT_SURFACE, IN_SERVO_SLOWDOWN, IN_SURFACE_LOSS, MEAS_ACCEL_B, MEAS_OMEGA_B, MEAS_P_W,
+                     MEAS_V_I_B, MEAS_V_I_VALID, MEAS_V_W, MOTOR_PUSHER, N_MOTORS, N_SURFACES, BlockLayout, Field)
 
 FAULT_KINDS: tuple[str, ...] = (
     "probe_dropout", "probe_stuck", "probe_nan", "probe_blocked_port", "imu_spike", "imu_nan",
-    "mocap_dropout", "mocap_latency", "lift_motor_loss", "pusher_saturated", "stuck_throttle")
+    "mocap_dropout", "mocap_latency", "lift_motor_loss", "pusher_saturated", "stuck_throttle", "surface_stuck",
+    "surface_lost", "servo_slow")
 (K_PROBE_DROPOUT, K_PROBE_STUCK, K_PROBE_NAN, K_PROBE_BLOCKED, K_IMU_SPIKE, K_IMU_NAN, K_MOCAP_DROPOUT,
- K_MOCAP_LATENCY, K_LIFT_LOSS, K_PUSHER_SAT, K_STUCK_THROTTLE) = (FAULT_KINDS.index(k) for k in (
+ K_MOCAP_LATENCY, K_LIFT_LOSS, K_PUSHER_SAT, K_STUCK_THROTTLE, K_SURFACE_STUCK, K_SURFACE_LOST,
+ K_SERVO_SLOW) = (FAULT_KINDS.index(k) for k in (
     "probe_dropout", "probe_stuck", "probe_nan", "probe_blocked_port", "imu_spike", "imu_nan", "mocap_dropout",
-    "mocap_latency", "lift_motor_loss", "pusher_saturated", "stuck_throttle"))
+    "mocap_latency", "lift_motor_loss", "pusher_saturated", "stuck_throttle", "surface_stuck", "surface_lost",
+    "servo_slow"))
 """The kinds' codes in a schedule row (what :meth:`FaultConfig.to_row` packs); the actuator kinds come
 last, from ``K_LIFT_LOSS`` on."""
-ACTUATOR_KINDS = ("lift_motor_loss", "pusher_saturated", "stuck_throttle")
+ACTUATOR_KINDS = ("lift_motor_loss", "pusher_saturated", "stuck_throttle", "surface_stuck", "surface_lost",
+                  "servo_slow")
+SURFACE_KINDS = ("surface_stuck", "surface_lost", "servo_slow")
 _KIND_KEYS: dict[str, tuple[str, ...]] = {
     "probe_blocked_port": ("port",), "imu_spike": ("spike_gyro_radps", "spike_accel_mps2"),
     "mocap_latency": ("extra_latency_s",), "lift_motor_loss": ("motor", "thrust_loss_fraction"),
-    "stuck_throttle": ("motor",)}
+    "stuck_throttle": ("motor",), "surface_stuck": ("surface",), "surface_lost": ("surface",),
+    "servo_slow": ("surface", "time_constant_factor")}
 """The keys beyond ``kind``, ``start_s``, ``end_s`` that each kind uses (the others use none)."""
 MAX_FAULTS = 30
 """Entries in one schedule at most (the log's ``faults_active`` column is a bit mask of them)."""
@@ -75,9 +93,11 @@ FAULT_ROW = BlockLayout("fault schedule row", [
     Field("SPIKE_ACCEL", 1, "m/s^2", "accelerometer spike"),
     Field("EXTRA_DELAY", 1, "s", "added motion-capture latency"),
     Field("PORT", 1, "-", "0: alpha port pair, 1: beta"),
+    Field("SURFACE", 1, "-", "control-surface index, 0-based"),
+    Field("TAU_FACTOR", 1, "-", "servo time-constant factor (servo_slow)"),
 ])
 (_F_KIND, _F_START, _F_END, _F_MOTOR, _F_LOSS, _F_SPIKE_GYRO, _F_SPIKE_ACCEL, _F_EXTRA_DELAY,
- _F_PORT) = FAULT_ROW.offsets(*(f.name for f in FAULT_ROW.fields))
+ _F_PORT, _F_SURFACE, _F_TAU_FACTOR) = FAULT_ROW.offsets(*(f.name for f in FAULT_ROW.fields))
 FAULT_ROW_SIZE = FAULT_ROW.size
 
 RING_ENTRY = BlockLayout("fault latency ring entry", [
@@ -129,6 +149,10 @@ class FaultConfig(Validated):
     extra_latency_s: float = setting("s", "added motion-capture delay (mocap_latency), whole ticks",
                                      default=0.1, ge=0.0, le=0.5)
     port: str = setting("-", "blocked port pair (probe_blocked_port)", default="alpha", choices=("alpha", "beta"))
+    surface: int = setting("-", "control surface (surface_stuck, surface_lost, servo_slow): 1 to 4, the vehicle "
+                           "file's [[surfaces]] order", default=1, ge=1, le=N_SURFACES)
+    time_constant_factor: float = setting("-", "how many times slower the servo is (servo_slow)", default=3.0,
+                                          ge=1.0, le=100.0)
 
     @staticmethod
     def keys_for(data) -> "Optional[ApplicableKeys]":
@@ -158,7 +182,8 @@ class FaultConfig(Validated):
                               MOTOR=self.motor - 1, LOSS=self.thrust_loss_fraction,
                               SPIKE_GYRO=self.spike_gyro_radps, SPIKE_ACCEL=self.spike_accel_mps2,
                               EXTRA_DELAY=round(self.extra_latency_s / dt_s) * dt_s,
-                              PORT=0.0 if self.port == "alpha" else 1.0)
+                              PORT=0.0 if self.port == "alpha" else 1.0, SURFACE=self.surface - 1,
+                              TAU_FACTOR=self.time_constant_factor)
 
 
 def faults_to_kernel(faults: tuple[FaultConfig, ...], dt_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -253,8 +278,12 @@ def apply_measurement_faults(faults, fstate, t, dt, meas) -> None:
 
 
 @njit(cache=True, nogil=True, _nrt=False)
-def apply_actuator_faults(faults, fstate, t, u_max, motor_cmd) -> None:
-    """Apply the active actuator faults to the five motor commands in place (mixer -> plant)."""
+def apply_actuator_faults(faults, fstate, t, u_max, u_in) -> None:
+    """Apply the active actuator faults to the plant input ``u_in`` in place (allocator -> plant): the
+    actuator commands, and the actuators' condition, reset to healthy first (:data:`vtoladapt.layout.PLANT_INPUT`)."""
+    for j in range(N_SURFACES):
+        u_in[IN_SURFACE_LOSS + j] = 0.0
+        u_in[IN_SERVO_SLOWDOWN + j] = 0.0
     for i in range(min(faults.shape[0], MAX_FAULTS)):
         kind = int(faults[i, _F_KIND])
         if kind < K_LIFT_LOSS:
@@ -265,17 +294,30 @@ def apply_actuator_faults(faults, fstate, t, u_max, motor_cmd) -> None:
         fstate[h + _H_ACTIVE] = 1.0 if on else 0.0
         if not on:
             continue
+        if kind >= K_SURFACE_STUCK:
+            sf = int(faults[i, _F_SURFACE])
+            if sf < 0 or sf >= N_SURFACES:  # a schedule not made by faults_to_kernel: never write outside
+                continue
+            if kind == K_SURFACE_STUCK:
+                if began:
+                    fstate[h + _H_HELD] = u_in[ACT_SURFACE + sf]
+                u_in[ACT_SURFACE + sf] = fstate[h + _H_HELD]
+            elif kind == K_SURFACE_LOST:
+                u_in[IN_SURFACE_LOSS + sf] = 1.0
+            elif kind == K_SERVO_SLOW:
+                u_in[IN_SERVO_SLOWDOWN + sf] = faults[i, _F_TAU_FACTOR] - 1.0
+            continue
         m = int(faults[i, _F_MOTOR])
         if m < 0 or m >= N_MOTORS:  # a schedule not made by faults_to_kernel: never write outside the commands
             continue
         if kind == K_LIFT_LOSS:
-            motor_cmd[m] *= np.sqrt(1.0 - faults[i, _F_LOSS])
+            u_in[m] *= np.sqrt(1.0 - faults[i, _F_LOSS])
         elif kind == K_PUSHER_SAT:
-            motor_cmd[MOTOR_PUSHER] = u_max
+            u_in[MOTOR_PUSHER] = u_max
         elif kind == K_STUCK_THROTTLE:
             if began:
-                fstate[h + _H_HELD] = motor_cmd[m]
-            motor_cmd[m] = fstate[h + _H_HELD]
+                fstate[h + _H_HELD] = u_in[m]
+            u_in[m] = fstate[h + _H_HELD]
 
 
 RECOVERED_POSITION_ERROR_M = 0.3

@@ -12,8 +12,10 @@ Per controller tick ``k`` (time ``t = k dt``), in this order:
    faults alter the measurement (:mod:`vtoladapt.sim.faults`);
 4. the controller computes its command from the measurement and the reference (its output is
    held until the next tick, as on a flight computer);
-5. the mixer turns the command into five motor commands (if it saturated, the controller is told the
-   collective it actually sent), and the active actuator faults alter them;
+5. the mixer's control allocator (:mod:`vtoladapt.sim.allocation`) turns the command into actuator
+   commands -- four lift rotors, the pusher, the control surfaces -- (if it saturated, the controller is
+   told the collective it actually sent), and the active actuator faults alter them and set the
+   actuators' condition (a surface lost, a servo slowed);
 6. one log row is written (if the caller keeps a log);
 7. the plant advances by ``dt`` with ``n_sub`` fixed RK4 substeps (default 1 kHz).
 
@@ -56,7 +58,7 @@ from ..layout import (
     MEASUREMENT_COLUMNS,
     ACTUATORS,
     MOTOR_PUSHER,
-    N_MOTORS,
+    N_ACTUATORS,
     REF_SIZE,
     REFERENCE_COLUMNS,
     STATE_COLUMNS,
@@ -76,9 +78,21 @@ from ..parts import draw
 from ..sensors.suite import sensors_at
 from ..wind.composer import wind_at
 from .faults import active_mask, apply_actuator_faults, apply_measurement_faults
-from .mixer import MX_U_MAX, applied_collective, mix
+from .allocation import ALLOC_REPORT, ALLOC_WORK, ALLOC_WORK_SIZE, allocate
+from .mixer import MX_U_MAX, applied_collective
 from .monitor import REASON_OK, check_envelope
-from .plant import plant_advance, plant_first_stage
+from .plant import RK4_WORK_SIZE, plant_advance, plant_first_stage
+
+TICK_WORK = BlockLayout("tick work", [
+    Field("RK4", RK4_WORK_SIZE, "-", "the plant's RK4 work (vtoladapt.sim.plant.RK4_WORK); first, so the plant's "
+          "kernels index it from 0"),
+    Field("ALLOC", ALLOC_WORK_SIZE, "-", "the allocator's work (vtoladapt.sim.allocation.ALLOC_WORK)"),
+])
+"""The ``work`` array the two halves of a tick share (one per run, reused every tick)."""
+(_TW_ALLOC,) = TICK_WORK.offsets("ALLOC")
+TICK_WORK_SIZE = TICK_WORK.size
+(_TW_REPORT,) = TICK_WORK.nested("ALLOC", ALLOC_WORK, "REPORT")
+_N_ALLOC_REPORT = ALLOC_REPORT.size
 
 # --- the log row -----------------------------------------------------------------------------------
 LOG_HEAD = BlockLayout("log row, before the controller's diagnostics", [
@@ -93,15 +107,19 @@ LOG_HEAD = BlockLayout("log row, before the controller's diagnostics", [
           columns=MEASUREMENT_COLUMNS),
     Field("REF", REF_SIZE, "-", "the reference (vtoladapt.layout.REFERENCE)", columns=REFERENCE_COLUMNS),
     Field("CMD", CMD_SIZE, "-", "the controller's command (vtoladapt.layout.COMMAND)", columns=COMMAND_COLUMNS),
-    Field("MOTOR_CMD", N_MOTORS, "-", "actuator commands after the mixer and the actuator faults (ACTUATORS)",
+    Field("MOTOR_CMD", N_ACTUATORS, "-", "actuator commands after the mixer and the actuator faults (ACTUATORS)",
           columns=ACTUATORS.columns),
-    Field("SATURATED", 1, "-", "1.0 if the mixer hit a limit", columns=("mixer_saturated",)),
+    Field("SATURATED", 1, "-", "1.0 if the allocator could not meet the asked lift and moment",
+          columns=("mixer_saturated",)),
+    Field("ALLOC", ALLOC_REPORT.size, "N, N m, Pa", "the allocator's report: asked and achieved lift and moment, "
+          "the dynamic pressure it scheduled with (vtoladapt.sim.allocation.ALLOC_REPORT)",
+          columns=ALLOC_REPORT.columns),
 ])
 LOG_TAIL = BlockLayout("log row, after the controller's diagnostics", [
     Field("LYAPUNOV", 1, "-", "the theorem's Lyapunov function at the plant's true theta", columns=("lyapunov_V",)),
     Field("FAULTS", 1, "-", "bit i set while entry i of the fault schedule is active", columns=("faults_active",)),
 ])
-(_L_T, _L_STATE, _L_WIND, _L_FLOW, _L_F_B, _L_MEAS, _L_REF, _L_CMD, _L_MOTOR, _L_SAT) = LOG_HEAD.offsets(
+(_L_T, _L_STATE, _L_WIND, _L_FLOW, _L_F_B, _L_MEAS, _L_REF, _L_CMD, _L_MOTOR, _L_SAT, _L_ALLOC) = LOG_HEAD.offsets(
     *(f.name for f in LOG_HEAD.fields))
 _L_DIAG = LOG_HEAD.size
 _LT_LYAP, _LT_FAULTS = LOG_TAIL.offsets("LYAPUNOV", "FAULTS")
@@ -186,26 +204,29 @@ def report_mixed(ctrl_state, motor_cmd, saturated) -> None:
 @njit(cache=True, nogil=True, _nrt=False)
 def tick_actuate(x, truth, meas, work, plant_p, mixer_p, faults, controller, ref, cmd, diag, motor_cmd, t, dt,
                  n_sub, log) -> None:
-    """Second half of the tick at time ``t``: steps 5-7 (mix ``cmd``, actuator faults, log, advance the
+    """Second half of the tick at time ``t``: steps 5-7 (allocate ``cmd``, actuator faults, log, advance the
     plant by ``dt``).
+
+    ``motor_cmd`` is the plant input (:data:`vtoladapt.layout.PLANT_INPUT`): the allocator writes its
+    actuator commands, the actuator faults the rest.
 
     ``log`` is ``(row, theta_true, gamma)``: the tick's log row (:func:`log_layout`) or an empty
     array to keep none, the plant's true theta and the Lyapunov function's attitude weight.
-    ``work`` must hold the first RK4 stage :func:`tick_sense` evaluated at this ``x``.
+    ``work`` (:data:`TICK_WORK`) must hold the first RK4 stage :func:`tick_sense` evaluated at this ``x``.
     """
-    saturated = mix(cmd, mixer_p, motor_cmd)
+    saturated = allocate(cmd, meas, mixer_p, motor_cmd, work, _TW_ALLOC)
     report_mixed(controller[2], motor_cmd, saturated)
     apply_actuator_faults(faults[0], faults[1], t, mixer_p[MX_U_MAX], motor_cmd)
     row = log[0]
     if row.shape[0] > 0:
         write_log_row(row, x, truth, meas, ref, cmd, diag, motor_cmd, saturated, active_mask(faults[0], t),
-                      controller, log[1], log[2], t)
+                      controller, log[1], log[2], t, work)
     plant_advance(x, motor_cmd, truth[TRUTH_V_WIND_W:TRUTH_V_WIND_W + 3], plant_p, dt / n_sub, n_sub, True, work)
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
 def write_log_row(row, x, truth, meas, ref, cmd, diag, motor_cmd, saturated, faults_active, controller, theta_true,
-                  gamma, t) -> None:
+                  gamma, t, work) -> None:
     """One log row (:func:`log_layout` with ``diag.shape[0]`` diagnostics)."""
     row[_L_T] = t
     for i in range(X_SIZE):
@@ -224,9 +245,11 @@ def write_log_row(row, x, truth, meas, ref, cmd, diag, motor_cmd, saturated, fau
         row[_L_REF + i] = ref[i]
     for i in range(CMD_SIZE):
         row[_L_CMD + i] = cmd[i]
-    for i in range(N_MOTORS):
+    for i in range(N_ACTUATORS):
         row[_L_MOTOR + i] = motor_cmd[i]
     row[_L_SAT] = 1.0 if saturated else 0.0
+    for i in range(_N_ALLOC_REPORT):
+        row[_L_ALLOC + i] = work[_TW_REPORT + i]
     n_diag = diag.shape[0]
     for i in range(n_diag):
         row[_L_DIAG + i] = diag[i]

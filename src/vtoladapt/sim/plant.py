@@ -17,7 +17,14 @@ lacks, each switchable:
 * **motor lag and saturation**: first-order lag per motor, commands clipped to [0, 1];
 * **the pusher's reaction torque** about body x (the lift rotors' about body z are always on: they
   are the aircraft's yaw control);
-* **aerodynamic rate damping** (roll, pitch, yaw) proportional to airspeed.
+* **aerodynamic rate damping** (roll, pitch, yaw) proportional to airspeed;
+* **control surfaces** (the vehicle file's ``[[surfaces]]``): force and moment linear in deflection and
+  in the free stream's dynamic pressure, each moved by a servo with a first-order lag and a slew-rate
+  limit (:mod:`vtoladapt.sim.surfaces`, where the slipstream question is answered: none counts).
+
+The physical parameters the vehicle file gives (stall angle, motor and servo lags, mass, inertia, air
+density, surface effectiveness) are the plant's unless the scenario's ``[plant]`` sets them or draws
+them (``physical_from = "draw"``, :mod:`vtoladapt.sim.truth`); the controller keeps the file's values.
 
 Rotor/wing interaction (slipstream over the wing) is not modelled: the lift rotors sit outboard
 of the wing root on booms and the paper gives nothing to calibrate it against.
@@ -41,10 +48,12 @@ from numba import njit
 from .. import forces
 from ..config import ConfigError, Validated, build, setting
 from ..frames import GRAVITY_MPS2
-from ..layout import (MOTOR_PUSHER, N_LIFT, N_MOTORS, X_MOTOR, X_OMEGA_B, X_P_W, X_Q_WB, X_SIZE, X_V_W,
-                     BlockLayout, Field)
+from ..layout import (ACT_SURFACE, IN_SERVO_SLOWDOWN, IN_SURFACE_LOSS, MOTOR_PUSHER, N_ACTUATORS, N_LIFT,
+                     N_MOTORS, N_SURFACES, PLANT_INPUT_SIZE, X_MOTOR, X_OMEGA_B, X_P_W, X_Q_WB, X_SERVO, X_SIZE,
+                     X_V_W, BlockLayout, Field)
 from ..scaling import theta_to_scaled
 from ..vehicle import PARAMETER_NAMES, Vehicle
+from .surfaces import servo_response, surface_kernel_fields
 
 #: UIUC magf 7x4 static thrust coefficient (mean of the 16 static points, 3069-7203 RPM).
 UIUC_7X4_STATIC_CT = 0.08188
@@ -91,8 +100,9 @@ class PlantConfig(Validated):
         "kg m^2", "true principal inertia (default: vehicle's)", default=None, ge=1e-5, le=500.0, length=3)
     air_density_kgpm3: Optional[float] = setting("kg/m^3", "true air density", default=None, ge=0.3, le=2.0)
     stall: bool = setting("-", "blend to flat-plate aerodynamics past stall", default=True)
-    stall_angle_deg: float = setting("deg", "angle of attack where the blend is half way", default=16.0,
-                                     gt=0.0, lt=60.0)
+    stall_angle_deg: Optional[float] = setting(
+        "deg", "angle of attack where the blend is half way (default: the vehicle's [envelope] stall_angle_deg)",
+        default=None, gt=0.0, lt=60.0)
     stall_blend_rate_per_rad: float = setting("1/rad", "sharpness M of the stall blend (Beard & McLain: 50)", default=50.0, gt=0.0, le=1000.0)
     side_force: bool = setting("-", "aerodynamic side force C_Y(beta)", default=True)
     CY_beta_per_rad: float = setting("1/rad", "side-force slope (fuselage and V-tail)", default=-0.3, ge=-10.0, le=0.0)
@@ -108,6 +118,20 @@ class PlantConfig(Validated):
                                                           default=None, ge=0.001, le=1.0)
     pusher_motor_time_constant_s: Optional[float] = setting("s", "true pusher lag (default: vehicle's)",
                                                             default=None, ge=0.001, le=1.0)
+    servo_lag: bool = setting("-", "control-surface servos lag and slew-limit (else surfaces follow commands "
+                              "instantly)", default=True)
+    servo_time_constant_factors: Optional[tuple[float, ...]] = setting(
+        "-", "each servo's true time constant over the vehicle file's, surface order (default: all 1)",
+        default=None, gt=0.0, le=10.0, length=N_SURFACES)
+    surface_effectiveness: Optional[tuple[float, ...]] = setting(
+        "-", "each surface's true effectiveness over the vehicle file's derivatives, surface order (default: "
+        "all 1)", default=None, ge=0.0, le=3.0, length=N_SURFACES)
+    physical_from: str = setting(
+        "-", "where the physical parameters not set here come from (stall angle, motor and servo lags, mass, "
+        "inertia, air density, surface effectiveness): 'vehicle' (the file's values, the controller's "
+        "belief) or 'draw' (one draw from the file's [uncertainty], seeded by the run seed on its own "
+        "stream; see vtoladapt.sim.truth.draw_physical_parameters)",
+        default="vehicle", choices=("vehicle", "draw"))
     rotor_reaction_torque: bool = setting(
         "-", "the pusher's drag torque rolls the airframe (unmodelled by the controller); the lift "
         "rotors' yaw torques are always on: they are how the aircraft yaws", default=True)
@@ -119,13 +143,25 @@ class PlantConfig(Validated):
     def resolved(self, vehicle: Vehicle, seed: int) -> "PlantConfig":
         """This config with a ``table_i_draw`` made concrete: the drawn coefficients written into
         ``coefficients`` (explicit overrides kept) and ``coefficients_from = 'table_i_means'``.
-        A config without a draw comes back unchanged."""
-        if self.coefficients_from != "table_i_draw":
-            return self
+        Likewise ``physical_from = 'draw'``: the drawn physical parameters written into the fields left
+        unset, and ``physical_from = 'vehicle'``. A config without a draw comes back unchanged."""
+        out = self
+        if out.physical_from == "draw":
+            from .truth import draw_physical_parameters
+
+            drawn = draw_physical_parameters(vehicle, seed)
+            out = replace(out, physical_from="vehicle",
+                          **{k: v for k, v in drawn.items() if getattr(out, k) is None})
+        if out.coefficients_from != "table_i_draw":
+            return out
         drawn = draw_table_i_coefficients(vehicle, seed)
-        given = {n: getattr(self.coefficients, n) for n in drawn}
+        given = {n: getattr(out.coefficients, n) for n in drawn}
         merged = {n: (given[n] if given[n] is not None else drawn[n]) for n in drawn}
-        return replace(self, coefficients=PlantCoefficients(**merged), coefficients_from="table_i_means")
+        return replace(out, coefficients=PlantCoefficients(**merged), coefficients_from="table_i_means")
+
+    def true_stall_angle_deg(self, vehicle: Vehicle) -> float:
+        """The plant's stall angle (deg): this config's, else the vehicle's."""
+        return self.stall_angle_deg if self.stall_angle_deg is not None else vehicle.envelope.stall_angle_deg
 
     def true_coefficients(self, vehicle: Vehicle) -> dict[str, float]:
         """The plant's coefficients in Table I units: vehicle's means with this config's overrides."""
@@ -157,7 +193,7 @@ class PlantConfig(Validated):
         n_max = math.sqrt(theta[0] * vehicle.mass.mass_kg / (self.pusher_static_CT * rho * D**4))
         tau_lift = self.lift_motor_time_constant_s or vehicle.actuators.lift_motor_time_constant_s
         tau_push = self.pusher_motor_time_constant_s or vehicle.actuators.pusher_motor_time_constant_s
-        alpha_stall = math.radians(self.stall_angle_deg)
+        alpha_stall = math.radians(self.true_stall_angle_deg(vehicle))
         a1, a2 = self.pusher_CT_ratio_coeffs
         rotors = vehicle.geometry.lift_rotor_positions_m
         return PLANT_PARAMS.pack(
@@ -172,7 +208,9 @@ class PlantConfig(Validated):
             ROTOR_SPIN=vehicle.geometry.lift_rotor_spin[:N_LIFT],
             KM=vehicle.actuators.yaw_torque_per_thrust_m,
             KM_PUSHER=vehicle.actuators.yaw_torque_per_thrust_m if self.rotor_reaction_torque else 0.0,
-            DAMP_ON=float(self.aero_rate_damping), CLP=self.Clp, CMQ=self.Cmq, CNR=self.Cnr)
+            DAMP_ON=float(self.aero_rate_damping), CLP=self.Clp, CMQ=self.Cmq, CNR=self.Cnr,
+            **surface_kernel_fields(vehicle, self.surface_effectiveness or (1.0,) * N_SURFACES,
+                                    self.servo_time_constant_factors or (1.0,) * N_SURFACES, self.servo_lag))
 
 
 PLANT_DRAW_STREAM = 0x7AB1E1
@@ -247,20 +285,30 @@ PLANT_PARAMS = BlockLayout("plant parameters", [
     Field("CLP", 1, "-", "roll damping derivative"),
     Field("CMQ", 1, "-", "pitch damping derivative"),
     Field("CNR", 1, "-", "yaw damping derivative"),
+    Field("SURF_F", 3 * N_SURFACES, "N/(Pa rad)", "each surface's body force per dynamic pressure and radian "
+          "(S [CX, CY, CZ] times its true effectiveness), surface-major"),
+    Field("SURF_M", 3 * N_SURFACES, "N m/(Pa rad)", "each surface's body moment per dynamic pressure and radian "
+          "(S [b Cl, c Cm, b Cn] times its true effectiveness), surface-major"),
+    Field("SURF_LIMIT", N_SURFACES, "rad", "deflection limit either way (0: no surface in the slot)"),
+    Field("SURF_TAU", N_SURFACES, "s", "true servo time constant"),
+    Field("SURF_RATE", N_SURFACES, "rad/s", "servo slew-rate limit"),
+    Field("SERVO_LAG_ON", 1, "-", "1.0: servos lag and slew-limit"),
+    Field("N_SURF", 1, "-", "surfaces the vehicle has (the first slots)"),
 ])
 """The plant's kernel parameter array, built by :meth:`PlantConfig.to_kernel`."""
 (P_MASS, P_FORCE_MASS, P_J, P_JINV, P_THETA, P_K1, P_K2, P_RHO, P_S, P_SPAN, P_CHORD, P_STALL_ON,
  P_ALPHA_STALL, P_STALL_M, P_STALL_EXP, P_CY_BETA, P_PUSH_J_ON, P_CT_A1, P_CT_A2, P_PUSH_NMAX, P_PUSH_D,
  P_LAG_ON, P_TAU_LIFT, P_TAU_PUSH, P_ROTOR_X, P_ROTOR_Y, P_ROTOR_SPIN, P_KM, P_KM_PUSHER, P_DAMP_ON,
- P_CLP, P_CMQ, P_CNR) = PLANT_PARAMS.offsets(
+ P_CLP, P_CMQ, P_CNR, P_SURF_F, P_SURF_M, P_SURF_LIMIT, P_SURF_TAU, P_SURF_RATE, P_SERVO_LAG_ON,
+ P_N_SURF) = PLANT_PARAMS.offsets(
     "MASS", "FORCE_MASS", "J", "JINV", "THETA", "K1", "K2", "RHO", "S", "SPAN", "CHORD", "STALL_ON",
     "ALPHA_STALL", "STALL_M", "STALL_EXP", "CY_BETA", "PUSH_J_ON", "CT_A1", "CT_A2", "PUSH_NMAX", "PUSH_D",
     "LAG_ON", "TAU_LIFT", "TAU_PUSH", "ROTOR_X", "ROTOR_Y", "ROTOR_SPIN", "KM", "KM_PUSHER", "DAMP_ON",
-    "CLP", "CMQ", "CNR")
+    "CLP", "CMQ", "CNR", "SURF_F", "SURF_M", "SURF_LIMIT", "SURF_TAU", "SURF_RATE", "SERVO_LAG_ON", "N_SURF")
 P_SIZE = PLANT_PARAMS.size
 PUSHER_J_MAX = 0.8  # edge of the UIUC data; the quadratic is not extrapolated beyond
-N_BODY = X_MOTOR    # the rigid-body part of the state: p, v, q, omega (the motors follow)
-ROTOR_TERMS_SIZE = 7
+N_BODY = X_MOTOR    # the rigid-body part of the state: p, v, q, omega (the motors and servos follow)
+ROTOR_TERMS_SIZE = 13
 
 
 @njit(cache=True, inline="always")
@@ -315,14 +363,18 @@ def pusher_thrust_ratio(v_axial_mps: float, n_revps: float, p: np.ndarray) -> fl
 
 
 @njit(cache=True, inline="always")
-def rotor_terms(motor, off, p) -> tuple:
-    """What the five rotors contribute that depends on their speeds only, at ``motor[off:off+5]``.
+def rotor_terms(motor, off, p, loss, loss_off) -> tuple:
+    """What the actuators contribute that depends on their outputs only: the five rotors at
+    ``motor[off:off+5]`` and the surfaces' deflections right after them (the state's MOTOR and SERVO
+    blocks are one block, as ACTUATORS orders them), each surface's effectiveness reduced by its loss
+    ``loss[loss_off + j]`` (0 healthy, 1 gone).
 
-    Returns ``(T_lift_N, roll_Nm, pitch_Nm, yaw_Nm, sum_i u_i^k1, T_pusher_static_N,
-    n_pusher_revps)``: total lift-rotor thrust, the lift rotors' moments (differential thrust and
-    reaction torque), the sum that scales the rotor side force, and the pusher's static thrust
-    and speed (its advance-ratio loss needs the airflow, see :func:`true_forces_moments`).
-    Evaluated once per distinct motor state (RK4 stages 2 and 3 share one).
+    Returns ``(T_lift_N, roll_Nm, pitch_Nm, yaw_Nm, sum_i u_i^k1, T_pusher_static_N, n_pusher_revps,
+    sFx, sFy, sFz, sMx, sMy, sMz)``: total lift-rotor thrust, the lift rotors' moments (differential
+    thrust and reaction torque), the sum that scales the rotor side force, the pusher's static thrust
+    and speed (its advance-ratio loss needs the airflow, see :func:`true_forces_moments`), and the
+    surfaces' force (N) and moment (N m) per pascal of dynamic pressure. Evaluated once per distinct
+    actuator state (RK4 stages 2 and 3 share one).
     """
     m_ref = p[P_FORCE_MASS]  # coefficients are per unit of the vehicle's mass: newtons = m_ref * coeff
     T_unit = m_ref * p[P_THETA + forces.I_CTZ] / N_LIFT  # N at full throttle, per rotor
@@ -342,8 +394,22 @@ def rotor_terms(motor, off, p) -> tuple:
         if w > 0.0:
             u_k1_sum += w**k1
     wp = motor[off + MOTOR_PUSHER]
+    sfx = 0.0
+    sfy = 0.0
+    sfz = 0.0
+    smx = 0.0
+    smy = 0.0
+    smz = 0.0
+    for j in range(int(p[P_N_SURF])):
+        d = motor[off + ACT_SURFACE + j] * (1.0 - loss[loss_off + j])
+        sfx += p[P_SURF_F + 3 * j] * d
+        sfy += p[P_SURF_F + 3 * j + 1] * d
+        sfz += p[P_SURF_F + 3 * j + 2] * d
+        smx += p[P_SURF_M + 3 * j] * d
+        smy += p[P_SURF_M + 3 * j + 1] * d
+        smz += p[P_SURF_M + 3 * j + 2] * d
     return (T_total, tx, ty, tz, u_k1_sum, m_ref * p[P_THETA + forces.I_CTX] * wp * wp,
-            p[P_PUSH_NMAX] * wp)
+            p[P_PUSH_NMAX] * wp, sfx, sfy, sfz, smx, smy, smz)
 
 
 @njit(cache=True, inline="always")
@@ -358,7 +424,7 @@ def true_forces_moments(vx, vy, vz, wx, wy, wz, rotors, p) -> tuple:
     V = np.sqrt(V2)
     mass = p[P_MASS]
     m_ref = p[P_FORCE_MASS]
-    T_total, tx, ty, tz, u_k1_sum, Tp_static, n_pusher = rotors
+    T_total, tx, ty, tz, u_k1_sum, Tp_static, n_pusher, sfx, sfy, sfz, smx, smy, smz = rotors
     # rotor side force: each rotor's share of G is (u_i^k1 / 4) times G at full throttle
     h = np.sqrt(vx * vx + vy * vy)
     side = 0.0
@@ -380,9 +446,13 @@ def true_forces_moments(vx, vy, vz, wx, wy, wz, rotors, p) -> tuple:
     qS = 0.5 * p[P_RHO] * V2 * p[P_S]
     beta = np.arcsin(min(1.0, max(-1.0, vy / V))) if V > 0.0 else 0.0
     CY = p[P_CY_BETA] * beta
-    fx = (Tp - side * cb + qS * (CL * sa - CD * ca)) / mass
-    fy = (-side * sb + qS * CY) / mass
-    fz = (-T_total + qS * (-CL * ca - CD * sa)) / mass
+    q = 0.5 * p[P_RHO] * V2  # the surfaces' force and moment scale with the free stream's dynamic pressure
+    fx = (Tp - side * cb + qS * (CL * sa - CD * ca) + q * sfx) / mass
+    fy = (-side * sb + qS * CY + q * sfy) / mass
+    fz = (-T_total + qS * (-CL * ca - CD * sa) + q * sfz) / mass
+    tx += q * smx
+    ty += q * smy
+    tz += q * smz
     if p[P_DAMP_ON] > 0.0:
         # L = q S b Clp (p b / 2V) = 1/4 rho V S b^2 Clp p: smooth at V = 0
         k = 0.25 * p[P_RHO] * V * p[P_S]
@@ -452,23 +522,31 @@ def motor_time_constant(i, p) -> float:
 
 
 @njit(cache=True)
-def plant_derivative(x, motor_cmd, v_wind_W, p, xdot, f_B) -> None:
-    """Time derivative of the whole plant state (eq:pos_dyn, eq:att_dyn, motor lag) into ``xdot``.
+def plant_derivative(x, u_in, v_wind_W, p, xdot, f_B) -> None:
+    """Time derivative of the whole plant state (eq:pos_dyn, eq:att_dyn, motor lag, servos) into ``xdot``.
 
-    ``f_B`` receives the true specific force (what an accelerometer measures). This is the
-    right-hand side the ``solve_ivp`` reference integrates; the fixed-step path
-    (:func:`plant_advance`) integrates the motors exactly instead.
+    ``u_in``: the plant input (:data:`vtoladapt.layout.PLANT_INPUT`). ``f_B`` receives the true specific
+    force (what an accelerometer measures). This is the right-hand side the ``solve_ivp`` reference
+    integrates; the fixed-step path (:func:`plant_advance`) solves the motors and servos exactly instead.
     """
-    f = rigid_body_derivative(x, 0, rotor_terms(x, X_MOTOR, p), v_wind_W, p, xdot, 0)
+    f = rigid_body_derivative(x, 0, rotor_terms(x, X_MOTOR, p, u_in, IN_SURFACE_LOSS), v_wind_W, p, xdot, 0)
     for i in range(3):
         f_B[i] = f[i]
     lag = p[P_LAG_ON] > 0.0
     for i in range(N_MOTORS):
         if lag:
-            cmd = min(max(motor_cmd[i], 0.0), 1.0)
+            cmd = min(max(u_in[i], 0.0), 1.0)
             xdot[X_MOTOR + i] = (cmd - x[X_MOTOR + i]) / motor_time_constant(i, p)
         else:
             xdot[X_MOTOR + i] = 0.0
+    for j in range(N_SURFACES):
+        xdot[X_SERVO + j] = 0.0
+        if p[P_SERVO_LAG_ON] > 0.0 and j < p[P_N_SURF]:
+            slow = 1.0 + u_in[IN_SERVO_SLOWDOWN + j]
+            lim = p[P_SURF_LIMIT + j]
+            c = min(max(u_in[ACT_SURFACE + j], -lim), lim)
+            r = p[P_SURF_RATE + j] / slow
+            xdot[X_SERVO + j] = min(max((c - x[X_SERVO + j]) / (p[P_SURF_TAU + j] * slow), -r), r)
 
 
 # --- fixed-step integration -------------------------------------------------------------------
@@ -478,13 +556,16 @@ RK4_WORK = BlockLayout("RK4 work array", [
     Field("K3", N_BODY, "per s", "stage 3"),
     Field("K4", N_BODY, "per s", "stage 4"),
     Field("XT", N_BODY, "state", "trial rigid-body state of the stage being evaluated"),
-    Field("M_MID", N_MOTORS, "-", "motor outputs at mid-step"),
-    Field("M_END", N_MOTORS, "-", "motor outputs at the end of the step"),
+    Field("M_MID", N_ACTUATORS, "-", "actuator outputs (motors, then surfaces) at mid-step"),
+    Field("M_END", N_ACTUATORS, "-", "actuator outputs at the end of the step"),
     Field("ROTORS", ROTOR_TERMS_SIZE, "mixed", "rotor_terms at the start of the next step"),
+    Field("SURF_LOSS", N_SURFACES, "-", "the surfaces' loss of the last plant input (0 healthy): what the "
+          "first stage of the next tick, evaluated before its input exists, flies with"),
+    Field("SERVO_DECAY", N_SURFACES, "-", "exp(-h / (2 tau)) of each servo for the call's step h"),
 ])
 """Scratch of :func:`plant_first_stage` and :func:`plant_advance` (one per run, reused every tick)."""
-_W_K1, _W_K2, _W_K3, _W_K4, _W_XT, _W_M_MID, _W_M_END, _W_ROTORS = RK4_WORK.offsets(
-    "K1", "K2", "K3", "K4", "XT", "M_MID", "M_END", "ROTORS")
+_W_K1, _W_K2, _W_K3, _W_K4, _W_XT, _W_M_MID, _W_M_END, _W_ROTORS, _W_SURF_LOSS, _W_SERVO_DECAY = RK4_WORK.offsets(
+    "K1", "K2", "K3", "K4", "XT", "M_MID", "M_END", "ROTORS", "SURF_LOSS", "SERVO_DECAY")
 RK4_WORK_SIZE = RK4_WORK.size
 
 
@@ -498,7 +579,8 @@ def _store_rotor_terms(rotors, work) -> None:
 def _load_rotor_terms(work) -> tuple:
     w = work
     o = _W_ROTORS
-    return (w[o], w[o + 1], w[o + 2], w[o + 3], w[o + 4], w[o + 5], w[o + 6])
+    return (w[o], w[o + 1], w[o + 2], w[o + 3], w[o + 4], w[o + 5], w[o + 6], w[o + 7], w[o + 8], w[o + 9],
+            w[o + 10], w[o + 11], w[o + 12])
 
 
 @njit(cache=True, _nrt=False)
@@ -513,7 +595,7 @@ def plant_first_stage(x, v_wind_W, p, f_B, v_i_B, work) -> None:
     so :func:`plant_advance` called with ``first_stage_done=True`` (and ``x`` and the wind
     unchanged) reuses it instead of evaluating it again.
     """
-    rotors = rotor_terms(x, X_MOTOR, p)
+    rotors = rotor_terms(x, X_MOTOR, p, work, _W_SURF_LOSS)
     f = rigid_body_derivative(x, 0, rotors, v_wind_W, p, work, _W_K1)
     _store_rotor_terms(rotors, work)
     for i in range(3):
@@ -522,21 +604,25 @@ def plant_first_stage(x, v_wind_W, p, f_B, v_i_B, work) -> None:
 
 
 @njit(cache=True, _nrt=False)
-def plant_advance(x, motor_cmd, v_wind_W, p, h, n_steps, first_stage_done, work) -> None:
+def plant_advance(x, u_in, v_wind_W, p, h, n_steps, first_stage_done, work) -> None:
     """Advance ``x`` in place by ``n_steps`` fixed steps of ``h`` seconds, inputs held.
 
-    The rigid body takes classical RK4 steps (quaternion renormalised after each). The motors'
-    first-order lag toward the held, saturated command is solved exactly,
-    ``u(t + s) = c + (u(t) - c) e^{-s/tau}``, and RK4's stages see the motors at their stage
-    times: the non-autonomous RK4 stays fourth order, the motors are exact, and stages 2 and 3
-    (both at mid-step) share one set of rotor terms. With the lag off the motors jump to the
+    ``u_in``: the plant input (:data:`vtoladapt.layout.PLANT_INPUT`: actuator commands, then the
+    surfaces' loss and the servos' slowdown). The rigid body takes classical RK4 steps (quaternion
+    renormalised after each). The motors' first-order lag toward the held, saturated command is solved
+    exactly, ``u(t + s) = c + (u(t) - c) e^{-s/tau}``, and so are the servos (lag and slew limit,
+    :func:`vtoladapt.sim.surfaces.servo_response`); RK4's stages see the actuators at their stage
+    times: the non-autonomous RK4 stays fourth order, the actuators are exact, and stages 2 and 3
+    (both at mid-step) share one set of rotor terms. With the lag off the motors (servos) jump to the
     command at the start.
 
     ``first_stage_done``: :func:`plant_first_stage` has already evaluated stage 1 of the first
-    step at this ``x`` and wind (it is recomputed anyway when the lag is off, since the motors
-    jump to the new command).
+    step at this ``x`` and wind (it is recomputed anyway when a lag is off, since the actuators
+    jump to the new command, or when a surface's loss changed with this input).
     """
     lag = p[P_LAG_ON] > 0.0
+    servo_lag = p[P_SERVO_LAG_ON] > 0.0
+    n_surf = int(p[P_N_SURF])
     if lag:
         decay_lift = np.exp(-0.5 * h / p[P_TAU_LIFT])
         decay_push = np.exp(-0.5 * h / p[P_TAU_PUSH])
@@ -544,20 +630,52 @@ def plant_advance(x, motor_cmd, v_wind_W, p, h, n_steps, first_stage_done, work)
         decay_lift = 0.0
         decay_push = 0.0
         for i in range(N_MOTORS):
-            x[X_MOTOR + i] = min(max(motor_cmd[i], 0.0), 1.0)
-    reuse_first_stage = first_stage_done and lag
-    rotors = _load_rotor_terms(work) if reuse_first_stage else rotor_terms(x, X_MOTOR, p)
+            x[X_MOTOR + i] = min(max(u_in[i], 0.0), 1.0)
+    same_loss = True
+    for j in range(N_SURFACES):
+        if work[_W_SURF_LOSS + j] != u_in[IN_SURFACE_LOSS + j]:
+            same_loss = False
+        work[_W_SURF_LOSS + j] = u_in[IN_SURFACE_LOSS + j]
+        if j < n_surf:
+            lim = p[P_SURF_LIMIT + j]
+            if not servo_lag:
+                x[X_SERVO + j] = min(max(u_in[ACT_SURFACE + j], -lim), lim)
+            else:
+                work[_W_SERVO_DECAY + j] = np.exp(-0.5 * h / (p[P_SURF_TAU + j] * (1.0 + u_in[IN_SERVO_SLOWDOWN + j])))
+        else:
+            x[X_SERVO + j] = 0.0
+    reuse_first_stage = first_stage_done and lag and servo_lag and same_loss
+    rotors = _load_rotor_terms(work) if reuse_first_stage else rotor_terms(x, X_MOTOR, p, work, _W_SURF_LOSS)
     for step in range(n_steps):
         if step > 0 or not reuse_first_stage:
             rigid_body_derivative(x, 0, rotors, v_wind_W, p, work, _W_K1)
         for i in range(N_MOTORS):
-            c = min(max(motor_cmd[i], 0.0), 1.0)
+            c = min(max(u_in[i], 0.0), 1.0)
             d = decay_push if i == MOTOR_PUSHER else decay_lift
             gap = (x[X_MOTOR + i] - c) * d
             work[_W_M_MID + i] = c + gap
             work[_W_M_END + i] = c + gap * d
-        rotors_mid = rotor_terms(work, _W_M_MID, p)
-        rotors_end = rotor_terms(work, _W_M_END, p)
+        for j in range(N_SURFACES):
+            d0 = x[X_SERVO + j]
+            if j < n_surf and servo_lag:
+                lim = p[P_SURF_LIMIT + j]
+                c = min(max(u_in[ACT_SURFACE + j], -lim), lim)
+                slow = 1.0 + u_in[IN_SERVO_SLOWDOWN + j]
+                tau = p[P_SURF_TAU + j] * slow
+                rate = p[P_SURF_RATE + j] / slow
+                gap = d0 - c
+                if abs(gap) <= rate * tau:  # below the slew limit all step long: the lag alone, exp precomputed
+                    dec = work[_W_SERVO_DECAY + j]
+                    work[_W_M_MID + ACT_SURFACE + j] = c + gap * dec
+                    work[_W_M_END + ACT_SURFACE + j] = c + gap * dec * dec
+                else:
+                    work[_W_M_MID + ACT_SURFACE + j] = servo_response(d0, c, 0.5 * h, tau, rate)
+                    work[_W_M_END + ACT_SURFACE + j] = servo_response(d0, c, h, tau, rate)
+            else:
+                work[_W_M_MID + ACT_SURFACE + j] = d0
+                work[_W_M_END + ACT_SURFACE + j] = d0
+        rotors_mid = rotor_terms(work, _W_M_MID, p, work, _W_SURF_LOSS)
+        rotors_end = rotor_terms(work, _W_M_END, p, work, _W_SURF_LOSS)
         for i in range(N_BODY):
             work[_W_XT + i] = x[i] + 0.5 * h * work[_W_K1 + i]
         rigid_body_derivative(work, _W_XT, rotors_mid, v_wind_W, p, work, _W_K2)
@@ -569,7 +687,7 @@ def plant_advance(x, motor_cmd, v_wind_W, p, h, n_steps, first_stage_done, work)
         rigid_body_derivative(work, _W_XT, rotors_end, v_wind_W, p, work, _W_K4)
         for i in range(N_BODY):
             x[i] += h / 6.0 * (work[_W_K1 + i] + 2.0 * work[_W_K2 + i] + 2.0 * work[_W_K3 + i] + work[_W_K4 + i])
-        for i in range(N_MOTORS):
+        for i in range(N_ACTUATORS):
             x[X_MOTOR + i] = work[_W_M_END + i]
         n = np.sqrt(x[X_Q_WB] ** 2 + x[X_Q_WB + 1] ** 2 + x[X_Q_WB + 2] ** 2 + x[X_Q_WB + 3] ** 2)
         for i in range(4):
@@ -577,21 +695,35 @@ def plant_advance(x, motor_cmd, v_wind_W, p, h, n_steps, first_stage_done, work)
         rotors = rotors_end
 
 
+def plant_input(motor_cmd) -> np.ndarray:
+    """A healthy plant input (:data:`vtoladapt.layout.PLANT_INPUT`) from actuator commands: the five motor
+    commands, optionally followed by the surfaces' (neutral when not given)."""
+    cmd = np.asarray(motor_cmd, dtype=float).ravel()
+    if cmd.size not in (N_MOTORS, N_ACTUATORS, PLANT_INPUT_SIZE):
+        raise ValueError(f"motor_cmd: {cmd.size} entries; allowed: {N_MOTORS} (motors), {N_ACTUATORS} (motors "
+                         f"and surfaces) or {PLANT_INPUT_SIZE} (a whole plant input)")
+    u = np.zeros(PLANT_INPUT_SIZE)
+    u[:cmd.size] = cmd
+    return u
+
+
 @njit(cache=True)
-def rk4_step(x, motor_cmd, v_wind_W, p, h, f_B) -> None:
+def rk4_step(x, u_in, v_wind_W, p, h, f_B) -> None:
     """Advance ``x`` in place by one fixed step of ``h`` seconds (see :func:`plant_advance`).
 
-    Inputs (motor commands, wind) are held over the step, as the controller holds its command.
+    Inputs (the plant input ``u_in``, wind) are held over the step, as the controller holds its command.
     ``f_B`` receives the specific force at the start of the step.
     """
-    work = np.empty(RK4_WORK_SIZE)
+    work = np.zeros(RK4_WORK_SIZE)
+    for j in range(N_SURFACES):
+        work[_W_SURF_LOSS + j] = u_in[IN_SURFACE_LOSS + j]
     v_i_B = np.empty(3)
     lag = p[P_LAG_ON] > 0.0
     if not lag:
         for i in range(N_MOTORS):
-            x[X_MOTOR + i] = min(max(motor_cmd[i], 0.0), 1.0)
+            x[X_MOTOR + i] = min(max(u_in[i], 0.0), 1.0)
     plant_first_stage(x, v_wind_W, p, f_B, v_i_B, work)
-    plant_advance(x, motor_cmd, v_wind_W, p, h, 1, lag, work)
+    plant_advance(x, u_in, v_wind_W, p, h, 1, lag, work)
 
 
 def hover_trim_motor(vehicle: Vehicle, plant: PlantConfig) -> np.ndarray:
@@ -614,21 +746,26 @@ def integrate_reference(x0: np.ndarray, motor_cmd: np.ndarray, v_wind_W: np.ndar
                         t_end_s: float, rtol: float = 1e-12, atol: float = 1e-12) -> np.ndarray:
     """Plant state at ``t_end_s`` by ``scipy.integrate.solve_ivp`` (DOP853), inputs held constant.
 
+    ``motor_cmd``: the actuator commands (five motors, optionally the surfaces) or a whole plant input.
+
     The independent reference the fixed-step RK4 path is tested against; far too slow for
     closed-loop use. The quaternion is renormalised at the end only.
     """
     from scipy.integrate import solve_ivp
 
-    motor_cmd = np.asarray(motor_cmd, dtype=float)
+    u_in = plant_input(motor_cmd)
     v_wind_W = np.asarray(v_wind_W, dtype=float)
     x_start = np.asarray(x0, dtype=float).copy()
     if params[P_LAG_ON] <= 0.0:
-        x_start[X_MOTOR:X_MOTOR + N_MOTORS] = np.clip(motor_cmd, 0.0, 1.0)
+        x_start[X_MOTOR:X_MOTOR + N_MOTORS] = np.clip(u_in[:N_MOTORS], 0.0, 1.0)
+    if params[P_SERVO_LAG_ON] <= 0.0:
+        lim = params[P_SURF_LIMIT:P_SURF_LIMIT + N_SURFACES]
+        x_start[X_SERVO:X_SERVO + N_SURFACES] = np.clip(u_in[ACT_SURFACE:ACT_SURFACE + N_SURFACES], -lim, lim)
     f_B = np.empty(3)
 
     def rhs(_t, x):
         xd = np.empty(X_SIZE)
-        plant_derivative(x, motor_cmd, v_wind_W, params, xd, f_B)
+        plant_derivative(x, u_in, v_wind_W, params, xd, f_B)
         return xd
 
     sol = solve_ivp(rhs, (0.0, t_end_s), x_start, method="DOP853", rtol=rtol, atol=atol)

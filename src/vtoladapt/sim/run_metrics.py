@@ -30,7 +30,9 @@ METRIC_INFO: dict[str, tuple[str, str]] = {
     "pred_err_rms_g": (f"RMS prediction error (after {PRED_ERR_SKIP_S:g} s)", "g"),
     "pred_err_p95_g": (f"95th-percentile prediction error (after {PRED_ERR_SKIP_S:g} s)", "g"),
     "pred_err_p95_g_by_airspeed": ("95th-percentile prediction error per true-airspeed bin (m/s)", "g"),
-    "mixer_saturated_fraction": ("share of time with a saturated motor", "%"),
+    "mixer_saturated_fraction": ("share of time the allocator could not meet the asked lift and moment", "%"),
+    "lift_attitude_unmet_fraction": ("share of time even lift, roll and pitch could not all be met (not only yaw)",
+                                     "%"),
     "airspeed_max_mps": ("peak airspeed", "m/s"),
     "fan_off_time_s": ("time the fan stops", "s"),
     "wall_time_s": ("wall time of the run", "s"),
@@ -92,6 +94,8 @@ def run_metrics(result: SimulationResult, fan_pct: np.ndarray) -> dict:
         "vel_err_rms_high_wind_mps": _rms(v_err[high]) if high.any() else float("nan"),
         "mixer_saturated_fraction": float(result["mixer_saturated"].mean()),
     }
+    if "alloc_unmet_lift_attitude" in result:
+        out["lift_attitude_unmet_fraction"] = float(result["alloc_unmet_lift_attitude"].mean())
     if t_off is not None:
         window = (t >= t_off) & (t <= t_off + OVERSHOOT_WINDOW_S)
         out["overshoot_after_fan_off_mps"] = float(v_err[window].max())

@@ -144,6 +144,25 @@ class ExperimentConfig(Validated):
 
 
 @dataclass(frozen=True)
+class AllocationConfig(Validated):
+    """How the flight computer realises the controller's lift and moment (:mod:`vtoladapt.sim.allocation`)."""
+
+    config_section = "allocation"
+
+    surfaces: bool = setting("-", "the allocator uses the vehicle's control surfaces (false: they stay neutral "
+                             "and the lift rotors make every moment, the airframe before issue #24)", default=True)
+    effectiveness: str = setting("-", "the airframe's effectiveness (a member of the 'effectiveness' kind)",
+                                 default="lift_rotors_surfaces")
+
+    def _check(self, source: str) -> None:
+        from .allocation import EFFECTIVENESS  # looked up at use: a user's airframe may be registered late
+
+        if self.effectiveness not in EFFECTIVENESS:
+            raise ConfigError(f"{source}: [allocation] effectiveness = {self.effectiveness!r}: unknown; allowed: "
+                              + ", ".join(repr(i) for i in EFFECTIVENESS.ids()))
+
+
+@dataclass(frozen=True)
 class Scenario(Validated):
     """A validated scenario (see the module docstring)."""
 
@@ -167,6 +186,7 @@ class Scenario(Validated):
     experiment: ExperimentConfig = setting("-", "single run or one of the paper's experiments",
                                            default=ExperimentConfig())
     envelope: EnvelopeConfig = setting("-", "where the run stops as diverged", default=EnvelopeConfig())
+    allocation: AllocationConfig = setting("-", "the control allocator", default=AllocationConfig())
     faults: tuple[FaultConfig, ...] = setting("-", "injected faults ([[faults]] entries, each with start_s "
                                               "and end_s)", default=(), max_items=MAX_FAULTS)
     source_path: str = setting("-", "file the scenario was read from", default="")

@@ -5,6 +5,24 @@ PX4's Gazebo ``standard_vtol`` (the reference SITL VTOL) models its lift and pus
 ``F = -c_rd omega v_perp`` on each lift rotor, and each wing half with Gazebo's lift-drag plugin
 ``CL = cla (alpha + a0)``, ``CD = cda |alpha + a0|`` below stall. We map throttle ``u`` (percent)
 to rotor speed linearly, ``omega = omega_max u / 100``, as the paper does for its motors.
+
+Its control surfaces (:func:`px4_standard_vtol_surfaces`) are the model's three actuated joints, each
+driving the lift-drag plugin named after it through ``control_joint_rad_to_cl``: the lift coefficient of
+that plugin's panel changes by that much per radian of the joint. Read from PX4-SITL_gazebo-classic's
+``models/standard_vtol/standard_vtol.sdf`` (commit 7ee67ba):
+
+* ``left_elevon_joint``, ``right_elevon_joint``: -0.5 /rad on the wing half (``left_wing``,
+  ``right_wing``, centre of pressure at (-0.05, +-0.3, 0.05) m, Gazebo's x forward, y left, z up);
+* ``elevator_joint``: -4.0 /rad on the ``elevator`` panel of 0.01 m^2 at (-0.5, 0, 0) m;
+* joint limits +-0.53 rad (the file's comment: -30/+30 deg);
+* the ``rudder`` plugin has no control joint (its joint is limited to +-0.01 rad and not driven by the
+  MAVLink interface's channels): the model has no rudder, and neither do we.
+
+That file's wing halves are 0.12 m^2 on a 1.5 kg airframe, where our vehicle file's force model is of
+the 5 kg, 0.50 m^2-per-half version; the per-radian lift changes are the same in both, so each elevon
+acts on half of our wing area. In our frame (FRD) a panel's lift change is a body-z force
+``dF_z = -q A dCL``; its moment ``r x F`` at the centre of pressure gives the derivatives, divided by
+``q S`` (forces), ``q S b`` (roll, yaw) or ``q S c`` (pitch), ``c = S / b``.
 """
 from __future__ import annotations
 
@@ -22,6 +40,14 @@ PX4_STANDARD_VTOL = {
     "a0_rad": 0.05984,
     "cda_per_rad": 0.6417112299,
     "alpha_stall_rad": 0.33914,
+    # control surfaces (the same file): control_joint_rad_to_cl, panel area (None: half of our wing),
+    # centre of pressure in Gazebo's x forward, y left, z up
+    "elevon_rad_to_cl": -0.5,
+    "elevon_cp_m": (-0.05, 0.3, 0.05),
+    "elevator_rad_to_cl": -4.0,
+    "elevator_area_m2": 0.01,
+    "elevator_cp_m": (-0.5, 0.0, 0.0),
+    "surface_limit_rad": 0.53,
 }
 
 
@@ -53,4 +79,29 @@ def px4_standard_vtol_force_model(p: dict | None = None) -> dict[str, float]:
         "CTx": ctx, "CTz": ctz, "CS": cs, "k1": 1.0, "k2": k2,
         "CD0": float(cd0), "CD1": float(cd1), "CD2": round(float(cd2), 12),
         "CL0": p["cla_per_rad"] * p["a0_rad"], "CL1": p["cla_per_rad"],
+    }
+
+
+def _panel_derivatives(rad_to_cl: float, area_m2: float, cp_flu_m, S: float, b: float) -> list[float]:
+    """CX..Cn per radian of a panel whose lift coefficient changes by ``rad_to_cl`` per radian."""
+    c = S / b
+    r = np.array([cp_flu_m[0], -cp_flu_m[1], -cp_flu_m[2]])  # Gazebo FLU -> our FRD
+    F = np.array([0.0, 0.0, -rad_to_cl * area_m2])          # lift is along -z (FRD); per unit q and radian
+    M = np.cross(r, F)
+    return [float(v) for v in (F[0] / S, F[1] / S, F[2] / S, M[0] / (S * b), M[1] / (S * c), M[2] / (S * b))]
+
+
+def px4_standard_vtol_surfaces(wing_area_m2: float, wingspan_m: float, p: dict | None = None) -> dict[str, list[float]]:
+    """The derivatives per radian (CX, CY, CZ, Cl, Cm, Cn) of the model's elevons and elevator.
+
+    ``wing_area_m2`` and ``wingspan_m`` are our vehicle file's reference area and span; each elevon
+    acts on half of the wing area (module docstring).
+    """
+    p = dict(PX4_STANDARD_VTOL if p is None else p)
+    S, b = wing_area_m2, wingspan_m
+    x, y, z = p["elevon_cp_m"]
+    return {
+        "elevon_left": _panel_derivatives(p["elevon_rad_to_cl"], S / 2, (x, y, z), S, b),
+        "elevon_right": _panel_derivatives(p["elevon_rad_to_cl"], S / 2, (x, -y, z), S, b),
+        "elevator": _panel_derivatives(p["elevator_rad_to_cl"], p["elevator_area_m2"], p["elevator_cp_m"], S, b),
     }
