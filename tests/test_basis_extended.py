@@ -10,7 +10,7 @@ import pytest
 
 from vtoladapt import load_vehicle
 from vtoladapt.bases import describe_basis, evaluate, extended, input_rows
-from vtoladapt.layout import MOTOR_PUSHER, N_MOTORS
+from vtoladapt.layout import MOTOR_PUSHER, N_ACTUATORS, N_MOTORS, N_SURFACES
 from vtoladapt.sim import plant
 from vtoladapt.sim.plant import PlantConfig
 
@@ -32,9 +32,11 @@ def test_first_eight_columns_are_the_papers_bit_for_bit(name):
 
 
 def _plant_force(p, v_i_B, u_x, u_z):
-    motor = np.full(N_MOTORS, u_z)
+    # the rotors, then the control surfaces at neutral and healthy (the columns carry no surface force)
+    motor = np.zeros(N_ACTUATORS)
+    motor[:N_MOTORS] = u_z
     motor[MOTOR_PUSHER] = u_x
-    rotors = plant.rotor_terms(motor, 0, p)
+    rotors = plant.rotor_terms(motor, 0, p, np.zeros(N_SURFACES), 0)
     return np.array(plant.true_forces_moments(v_i_B[0], v_i_B[1], v_i_B[2], 0.0, 0.0, 0.0, rotors, p)[:3])
 
 
