@@ -1,7 +1,7 @@
 """Benchmarks of the controller step: through the Python API, and inside a compiled loop.
 
 Targets (issue 4): one ``composite`` step through ``Controller.step`` <= 10 us median; the same
-step inside an njit loop <= 2 us.
+step inside an njit loop <= 2 us; with the learned basis (issue 23) <= 3 us.
 
 Operating point: hover facing a 9 m/s headwind at the wing solution's attitude (adaptation, wing
 attitude and allocation all active). The accelerometer reading is made consistent with the
@@ -78,8 +78,8 @@ def _median_per_call(fn, n_inner: int, repeats: int, clock=time.perf_counter) ->
     return float(np.median(times))
 
 
-def _settled_state(veh, kind, meas, ref, n=1000):
-    params = controller_params(ControllerConfig(kind=kind), veh)
+def _settled_state(veh, kind, meas, ref, n=1000, basis=None):
+    params = controller_params(ControllerConfig(kind=kind, basis=basis), veh)
     state = controller_initial_state(params)
     cmd = np.zeros(L.CMD_SIZE)
     diag = np.zeros(diagnostics_size(params))
@@ -119,6 +119,17 @@ def run() -> list[tuple[str, float, str]]:
 
         rows.append((f"{kind}_step_njit_loop_median", 1e6 * _median_per_call(loop, 20000, 15), "us"))
         rows.append((f"{kind}_step_njit_loop_median_cpu",
+                     1e6 * _median_per_call(loop, 20000, 15, time.process_time), "us"))
+
+    # issue #23: the same step adapting the extended physics basis (13) and the learned one (13 + h; target <= 3 us)
+    for basis in ("extended", "learned"):
+        fns, params, state, cmd, diag = _settled_state(veh, "composite", meas, ref, basis=basis)
+
+        def loop(n, fns=fns, params=params, state=state, cmd=cmd, diag=diag):
+            _loop(fns, params, state, m, r, 0.004, cmd, diag, n)
+
+        rows.append((f"composite_{basis}_basis_step_njit_loop_median", 1e6 * _median_per_call(loop, 20000, 15), "us"))
+        rows.append((f"composite_{basis}_basis_step_njit_loop_median_cpu",
                      1e6 * _median_per_call(loop, 20000, 15, time.process_time), "us"))
 
     # the flight computer's step: the controller and the allocator that realises its moment, at 9 m/s,

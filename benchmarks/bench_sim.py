@@ -76,6 +76,35 @@ def _loop_rows() -> list[tuple[str, float, str]]:
     return rows
 
 
+def _basis_rows() -> list[tuple[str, float, str]]:
+    """The same 60 s closed loop (1 kHz plant) adapting the extended and the learned basis (issue #23:
+    >= 600x real time with the learned one), and the shipped learned bases' training time (recorded in
+    their files when ``vtoladapt learn-basis`` made them)."""
+    from vtoladapt.bases.learned import TRAINED_DIR
+    from vtoladapt.bases.netfile import read_net
+    from vtoladapt.sim.scenario import scenario_from_mapping
+    from vtoladapt.sim.driver import simulate
+
+    rows = []
+    for basis in ("extended", "learned"):
+        sc = scenario_from_mapping({**SCENARIO, "controller": {"kind": "composite", "basis": basis}}, "bench_sim")
+        simulate(replace(sc, duration_s=1.0))
+        walls, cpus = [], []
+        for _ in range(5):
+            t0 = time.perf_counter()
+            c0 = time.process_time()
+            simulate(sc)
+            cpus.append(time.process_time() - c0)
+            walls.append(time.perf_counter() - t0)
+        rows.append((f"real-time factor, 1 kHz plant, {basis} basis", 60.0 / min(walls), "x"))
+        rows.append((f"real-time factor by CPU time, 1 kHz plant, {basis} basis", 60.0 / min(cpus), "x"))
+    for path in sorted(TRAINED_DIR.glob("*.npz")):
+        s = read_net(path).meta["summary"]
+        rows.append((f"training time of the shipped learned basis {path.stem} ({s['flights']} flights, "
+                     f"{s['iterations']} L-BFGS iterations)", float(s["train_seconds"]), "s"))
+    return rows
+
+
 def _many_rows() -> list[tuple[str, float, str]]:
     """Throughput of simulate_many: 8 seeds of the 60 s run on one thread per core."""
     from vtoladapt.sim.scenario import scenario_from_mapping
@@ -205,7 +234,7 @@ def _cli_start_rows() -> list[tuple[str, float, str]]:
 
 
 def run() -> list[tuple[str, float, str]]:
-    return _loop_rows() + _many_rows() + _part_rows() + _cli_start_rows()
+    return _loop_rows() + _basis_rows() + _many_rows() + _part_rows() + _cli_start_rows()
 
 
 if __name__ == "__main__":

@@ -3,7 +3,7 @@
 From the bottom: the foundation (configuration, array layouts, frames, errors, outputs and their folder
 lock, the component registries and the parts' interface), the models (the vehicle, the force model and its
 bases, the airflow probe's physics), the components (wind parts, sensor channels, the controller), the simulator, the
-applications built on it (experiments, fitting, the probe's tools, replay, the Gymnasium
+applications built on it (experiments, fitting, learning a basis, the probe's tools, replay, the Gymnasium
 environment, campaigns, the pre-flight check that sets up an experiment's runs) and the command line. A module imports its own layer and those below: a
 model never reaches into the simulator, the simulator never into an application. The import graph is
 the static one of ``tests/test_import_graph.py`` (imports inside functions included).
@@ -26,7 +26,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("components", ("vtoladapt.wind", "vtoladapt.sensors", "vtoladapt.control", "vtoladapt.fitting.posterior")),
     ("sim", ("vtoladapt.sim",)),
     ("apps", ("vtoladapt.experiments", "vtoladapt.fitting", "vtoladapt.probe", "vtoladapt.replay", "vtoladapt.gym",
-              "vtoladapt.campaign", "vtoladapt.preflight")),
+              "vtoladapt.campaign", "vtoladapt.preflight", "vtoladapt.learn")),
     ("cli", ("vtoladapt.cli", "vtoladapt")),
 )
 """Layer name and the modules (a name and everything under it) it holds, bottom first; a module is in

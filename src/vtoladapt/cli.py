@@ -292,6 +292,7 @@ def build_parser() -> argparse.ArgumentParser:
     from .campaign.runner import register_cli as register_campaign
     from .experiments.tuning import register_cli as register_tune
     from .fitting.cli import register_cli as register_fitting
+    from .learn.cli import register_cli as register_learn
     from .probe.cli import register_cli as register_probe
     from .replay.cli import register_cli as register_replay
 
@@ -300,7 +301,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="show the traceback of an error (accepted anywhere on the line)")
     sub = parser.add_subparsers(dest="command", required=True)
     for register in (_add_reproduce, _add_run, register_tune, _add_vehicle, _add_listings, register_campaign,
-                     register_fitting, register_probe, register_replay):
+                     register_fitting, register_learn, register_probe, register_replay):
         register(sub)
     return parser
 

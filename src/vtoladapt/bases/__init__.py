@@ -260,6 +260,12 @@ BASES: Registry = Registry("basis", check_basis, (
     BasisInfo("paper", "Paper (8)", "paper",
               "the paper's force model: thrust, rotor side force, lift and drag polars (eq:fThat, eq:fAhat), "
               "8 parameters"),
+    BasisInfo("extended", "Extended physics (13)", "extended",
+              "the paper's eight and the physics it lacks: side force C_Y(beta), the post-stall plate's C_N90, "
+              "the lift slope near stall, the pusher's advance-ratio thrust loss; 13 parameters"),
+    BasisInfo("learned", "Learned (13 + h)", "learned",
+              "the extended physics columns and h columns of a network trained on flight logs by meta-learning "
+              "(vtoladapt learn-basis); the vehicle's shipped file or [basis_settings.learned] file"),
 ), package=__name__)
 
 DEFAULT_BASIS = "paper"

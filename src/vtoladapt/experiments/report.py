@@ -563,7 +563,62 @@ def build_report(title: str, metrics: dict, figures: Iterable[FigureRef], notes:
         sections.append(Section("The paper's claims, checked in simulation (single seed)",
                                 tables=(claims_table(metrics["claims"]),)))
     sections.extend(distribution_sections(metrics))
+    if metrics.get("bases"):
+        sections.append(bases_section(metrics["bases"]))
     return Report(title, tuple(paragraph(n) for n in notes), tuple(sections), tuple(figures))
+
+
+# --- the force-model bases (issue #23; the metrics: vtoladapt.learn.report.bases_metrics) ---------------
+def _fraction_cell(d) -> str:
+    if not d or not d.get("n"):
+        return "n/a"
+    lo, hi = d["ci95"]
+    return f"{d['fraction']:.2f} ({d['successes']}/{d['n']}) [{lo:.2f}, {hi:.2f}]"
+
+
+def bases_section(m: dict):
+    """The report's section "Force-model bases compared"."""
+    def table(caption, headers, rows):
+        return Table(caption, tuple(headers), tuple(tuple(Cell(str(c), numeric=i > 0) for i, c in enumerate(r))
+                                                    for r in rows))
+
+    tables = []
+    paras = [paragraph("The paper's claims above use the paper's eight-parameter basis. The extended physics "
+                       "basis adds a side force C_Y(β), the post-stall plate's C_N90, the lift slope near "
+                       "stall and the pusher's advance-ratio loss; the learned basis adds a network's columns "
+                       "trained on flights of the same vehicle (README \"Force-model bases: extended physics "
+                       "and learned\").")]
+    ceil = m.get("ceiling", {})
+    if ceil:
+        bins = list(next(iter(ceil.values()))["p95_g"])
+        rows = tuple((b, *[("–" if v["p95_g"][k] is None else f"{v['p95_g'][k]:.4f}") for k in bins],
+                      "yes" if v["pass"] else "no") for b, v in ceil.items())
+        tables.append(table("Constant-weights ceiling on the comparison's composite log (computed in this run): "
+                            "p95 error (g) per true-airspeed bin (m/s) of the best constant weights of each basis, "
+                            "fitted to the true specific force with the true flow and throttles.",
+                            ("basis", *bins, "all bins < 0.05 g"), rows))
+    env = m.get("envelope")
+    if env:
+        names = list(env["rows"])
+        c = env["rows"][names[0]]["campaign"]
+        paras.append(paragraph(f"Envelope campaign per basis (committed `docs/basis_comparison.json`, made by "
+                               f"`python -m vtoladapt.learn.evaluate --runs {c.get('runs')}`: {c.get('runs')} draws of "
+                               f"`scenarios/envelope.toml`, seed {c.get('seed')}; the learned bases were trained on "
+                               "other draws, seed 2222; not re-flown here: it takes far longer than the reproduction)."))
+        rows = [("composite p95 < 0.05 g in every bin", *[_fraction_cell(env["rows"][n]["targets"]["pred_err_every_bin"])
+                                                          for n in names]),
+                ("every adaptive law beats PID and PD", *[_fraction_cell(env["rows"][n]["targets"]["beats_pid_pd"])
+                                                          for n in names])]
+        for b in env["rows"][names[0]]["by_airspeed"]:
+            rows.append((f"p95 < 0.05 g, bin {b} m/s", *[_fraction_cell(env["rows"][n]["by_airspeed"].get(b)) for n in names]))
+        tables.append(table("Fraction of draws where the target holds (successes/judged) [95 % Wilson interval].",
+                            ("target", *names), tuple(rows)))
+        if env.get("ceiling"):
+            bases = list(env["ceiling"])
+            tables.append(table("Constant-weights ceiling over the same draws (least squares on the true force).",
+                                ("draws", *bases), tuple((k, *[_fraction_cell(env["ceiling"][b].get(k)) for b in bases])
+                                                         for k in env["ceiling"][bases[0]])))
+    return Section("Force-model bases compared", paragraphs=tuple(paras), tables=tuple(tables))
 
 
 # --- rendering -------------------------------------------------------------------------------------------

@@ -1,0 +1,49 @@
+"""The constant-weights ceiling of a basis on one log: the best any estimator of that basis can do.
+
+:func:`ceiling_fit`: the best *constant* weights for the whole run, by least squares on the aircraft's
+true specific force with the true incident flow, the throttles the rotors actually had (the lift
+collective as the RMS of the four rotors: the same total thrust) and the true attitude and rates,
+judged as the envelope campaign judges the controller (p95 < 0.05 g in every true-airspeed bin, after
+the first 2 s). No sensor, no adaptation lag: what the basis allows at best.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..frames import GRAVITY_MPS2
+from ..sim.run_metrics import AIRSPEED_BINS_MPS, PRED_ERR_SKIP_S, airspeed_bin_labels
+
+
+def true_inputs(result, vehicle) -> tuple[np.ndarray, np.ndarray]:
+    """Basis input rows from the log's *true* state (flow, rotor throttles, attitude, rates) and the true force."""
+    from ..bases import input_rows
+
+    v_i = result.columns_like(("v_i_x_mps", "v_i_y_mps", "v_i_z_mps"))
+    lift = result.columns_like(tuple(f"motor{i}_frac" for i in range(1, 5)))
+    u_z = np.sqrt(np.mean(lift * lift, axis=1))
+    x = input_rows(v_i, result["pusher_frac"], u_z, vehicle.model_kernel,
+                   q_WB=result.columns_like(("q_w", "q_x", "q_y", "q_z")),
+                   omega_B=result.columns_like(("omega_x_radps", "omega_y_radps", "omega_z_radps")),
+                   v_W=result.columns_like(("v_N_mps", "v_E_mps", "v_D_mps")))
+    return x, result.columns_like(("f_B_x_mps2", "f_B_y_mps2", "f_B_z_mps2"))
+
+
+def ceiling_fit(result, vehicle, spec) -> dict:
+    """The constant-weights ceiling of ``spec`` on one log: p95 error (g) per airspeed bin and whether all pass."""
+    from ..bases import evaluate
+
+    x, f = true_inputs(result, vehicle)
+    t = result.time_s
+    late = (t >= t[0] + PRED_ERR_SKIP_S) & np.all(np.isfinite(x), axis=1) & np.all(np.isfinite(f), axis=1)
+    Phi = evaluate(spec, x[late])
+    A = Phi.reshape(-1, spec.n)
+    y = f[late].reshape(-1)
+    theta, *_ = np.linalg.lstsq(A, y, rcond=None)
+    e = np.linalg.norm((y - A @ theta).reshape(-1, 3), axis=1) / GRAVITY_MPS2
+    airspeed = result["airspeed_mps"][late]
+    bins = {}
+    for i, lab in enumerate(airspeed_bin_labels()):
+        sel = (airspeed >= AIRSPEED_BINS_MPS[i]) & (airspeed < AIRSPEED_BINS_MPS[i + 1])
+        bins[lab] = float(np.percentile(e[sel], 95)) if sel.any() else None
+    ok = all(v < 0.05 for v in bins.values() if v is not None)
+    return {"p95_g": bins, "pass": ok, "rms_g": float(np.sqrt(np.mean(e * e)))}

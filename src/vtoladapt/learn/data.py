@@ -1,0 +1,163 @@
+"""Training data from flight logs: one task per flight, what the flight computer had and the force it measured.
+
+For each sample: the basis input block (:data:`vtoladapt.bases.INPUT`) the controller formed, as
+far as the log holds it, and the measured specific force (the accelerometer, body, m/s^2) that the
+basis must predict. The accelerometer is the *target* only; no input is derived from it.
+
+* **A simulator log** (``SimulationResult`` Parquet, ``vtoladapt run`` / :func:`fly_draws`): the
+  incident flow the controller used (``ctrl_v_i_*``) and whether it was the probe's
+  (``probe_valid_used``), the throttle commands passed through the vehicle's nominal motor lag as the
+  controller does (:func:`lagged_throttles`), the measured attitude, rates and velocity.
+* **A PX4 flight log** (``.ulg`` or a CSV folder, read as :mod:`vtoladapt.replay` reads it): the
+  incident velocity from the pitot or inertial minus wind, the logged throttles through the same
+  lag, attitude and velocity; the log's rates are not on the replay grid, so ``omega_B`` is the
+  attitude quaternion's derivative (``2 q^-1 dq/dt``).
+
+Samples are kept from ``skip_s`` on, every ``stride``-th, where every input and the force are finite.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from ..bases import evaluate, input_rows
+from ..config import ConfigError
+
+SIM_COLUMNS = {
+    "v_i": ("ctrl_v_i_x_mps", "ctrl_v_i_y_mps", "ctrl_v_i_z_mps"),
+    "valid": ("probe_valid_used",),
+    "u": ("cmd_u_x_frac", "cmd_u_z_frac"),
+    "q": ("meas_q_w", "meas_q_x", "meas_q_y", "meas_q_z"),
+    "omega": ("meas_omega_x_radps", "meas_omega_y_radps", "meas_omega_z_radps"),
+    "v": ("meas_v_N_mps", "meas_v_E_mps", "meas_v_D_mps"),
+    "f": ("meas_accel_x_mps2", "meas_accel_y_mps2", "meas_accel_z_mps2"),
+}
+"""The simulator log's columns a training sample is built from (README "Log columns")."""
+
+
+@dataclass(eq=False)
+class Flight:
+    """One flight's samples: basis input rows ``x`` (N, INPUT.size), measured force ``f`` (N, 3), and
+    where they came from (``vehicle`` name, ``source`` file, ``info``: the draw's seed and conditions)."""
+
+    x: np.ndarray
+    f: np.ndarray
+    vehicle: str
+    source: str
+    info: dict
+
+
+def lagged_throttles(u_cmd: np.ndarray, dt: float, tau_x: float, tau_z: float) -> np.ndarray:
+    """The throttles that produced each tick's measured force: the command held over the previous
+    tick through a first-order lag (the controller's ``basis_input``; the first two ticks and after
+    a non-finite command: the previous command itself)."""
+    u_prev = np.vstack([u_cmd[:1], u_cmd[:-1]])
+    a = np.array([np.exp(-dt / tau_x), np.exp(-dt / tau_z)])
+    out = np.empty_like(u_prev)
+    est = u_prev[0].copy()
+    for t in range(len(u_prev)):
+        if t >= 2 and np.all(np.isfinite(est)):
+            est = u_prev[t] + (est - u_prev[t]) * a
+        else:  # the start, or after a gap in the log (NaN): the lag restarts from the command
+            est = u_prev[t].copy()
+        out[t] = est
+    return out
+
+
+def _select(t_s: np.ndarray, skip_s: float, stride: int) -> np.ndarray:
+    idx = np.flatnonzero(t_s >= t_s[0] + skip_s)
+    return idx[::stride]
+
+
+def flight_from_result(result, vehicle, source: str = "", skip_s: float = 1.0, stride: int = 5,
+                       info: Optional[dict] = None) -> Flight:
+    """A :class:`Flight` from a simulator log (``SimulationResult``) flown by ``vehicle``."""
+    missing = [c for cols in SIM_COLUMNS.values() for c in cols if c not in result]
+    if missing:
+        raise ConfigError(f"{source or 'log'}: not a controller log: missing columns {', '.join(missing[:4])}")
+    t = result.time_s
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.004
+    cols = {k: result.columns_like(v) for k, v in SIM_COLUMNS.items()}
+    act = vehicle.actuators
+    u = lagged_throttles(cols["u"], dt, act.pusher_motor_time_constant_s, act.lift_motor_time_constant_s)
+    sel = _select(t, skip_s, stride)
+    x = input_rows(cols["v_i"][sel], u[sel, 0], u[sel, 1], vehicle.model_kernel, valid=cols["valid"][sel, 0],
+                   q_WB=cols["q"][sel], omega_B=cols["omega"][sel], v_W=cols["v"][sel])
+    f = cols["f"][sel]
+    ok = np.all(np.isfinite(x), axis=1) & np.all(np.isfinite(f), axis=1)
+    meta = dict(getattr(result, "metadata", {}) or {})
+    return Flight(x[ok], f[ok], str(meta.get("vehicle", vehicle.name)), source,
+                  info if info is not None else {"seed": meta.get("seed"), "scenario": meta.get("scenario")})
+
+
+def quaternion_rates(q: np.ndarray, dt: float) -> np.ndarray:
+    """Body rates (rad/s) from a unit quaternion series (scalar first): ``omega = 2 vec(q^* dq/dt)``."""
+    dq = np.gradient(q, dt, axis=0)
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    dw, dx, dy, dz = dq[:, 0], dq[:, 1], dq[:, 2], dq[:, 3]
+    return 2.0 * np.column_stack([w * dx - x * dw - y * dz + z * dy,
+                                  w * dy + x * dz - y * dw - z * dx,
+                                  w * dz - x * dy + y * dx - z * dw])
+
+
+def flight_from_flightlog(log, vehicle, skip_s: float = 1.0, stride: int = 5) -> Flight:
+    """A :class:`Flight` from a PX4 log read by :mod:`vtoladapt.replay` (samples on the ground left out)."""
+    dt = 1.0 / log.rate_hz
+    u_cmd = np.column_stack([log.throttle_x_pct, log.throttle_z_pct]) / 100.0
+    act = vehicle.actuators
+    u = lagged_throttles(u_cmd, dt, act.pusher_motor_time_constant_s, act.lift_motor_time_constant_s)
+    omega = quaternion_rates(log.q_WB, dt)
+    sel = _select(log.t_s, skip_s, stride)
+    sel = sel[~log.landed[sel]]
+    x = input_rows(log.v_i_B_mps[sel], u[sel, 0], u[sel, 1], vehicle.model_kernel,
+                   valid=log.v_i_from_pitot[sel].astype(float), q_WB=log.q_WB[sel], omega_B=omega[sel],
+                   v_W=log.v_W_mps[sel])
+    f = log.f_meas_B_mps2[sel]
+    ok = np.all(np.isfinite(x), axis=1) & np.all(np.isfinite(f), axis=1)
+    return Flight(x[ok], f[ok], vehicle.name, str(log.source), {"source": str(log.source)})
+
+
+LOG_SUFFIXES = (".parquet", ".ulg")
+
+
+def log_files(paths) -> list[Path]:
+    """The log files among ``paths`` (a folder contributes its ``*.parquet`` and ``*.ulg``, sorted)."""
+    out: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            out += sorted(q for q in p.iterdir() if q.suffix in LOG_SUFFIXES and q.is_file())
+        elif p.is_file():
+            out.append(p)
+        else:
+            raise ConfigError(f"{p}: no such log file or folder")
+    return out
+
+
+def read_flight(path: Path, vehicle=None, skip_s: float = 1.0, stride: int = 5) -> Flight:
+    """One log file as a :class:`Flight`; ``vehicle`` defaults to the one a simulator log names."""
+    from ..vehicle import load_vehicle
+
+    if path.suffix == ".parquet":
+        from ..sim.results import SimulationResult
+
+        try:
+            res = SimulationResult.from_parquet(path)
+        except (ValueError, OSError) as exc:
+            raise ConfigError(f"{path}: not a vtoladapt simulator log ({str(exc).splitlines()[0]})") from None
+        veh = vehicle or load_vehicle(res.metadata.get("vehicle", ""))
+        info = dict(res.metadata.get("draw", {})) or {"seed": res.metadata.get("seed")}
+        return flight_from_result(res, veh, str(path), skip_s, stride, info=info)
+    if vehicle is None:
+        raise ConfigError(f"{path}: a PX4 log does not name its vehicle; allowed: --vehicle NAME or PATH")
+    from ..replay.cli import read_flight_log
+    from ..replay.flightlog import ReadSettings
+
+    return flight_from_flightlog(read_flight_log(path, ReadSettings()), vehicle, skip_s, stride)
+
+
+def physics_columns(spec, flight: Flight) -> np.ndarray:
+    """The physics basis's ``Phi`` (N, 3, m) at the flight's inputs."""
+    return evaluate(spec, flight.x)

@@ -1,0 +1,282 @@
+"""The envelope campaign per force-model basis, the held-out rows and the constant-weights ceiling.
+
+    python -m vtoladapt.learn.evaluate --runs 40 --out out/basis_eval
+
+flies the envelope campaign's draws (``scenarios/envelope.toml``, its own seed 1111: disjoint from the
+training draws' seed 2222 of the shipped learned bases) once per basis (``paper``, ``extended``,
+``learned``: every controller of the file, each adapting that basis), and the learned basis once more
+with each airframe flying the *other* family's network (held-out airframe: trained on caltech_vtol
+only, flown on px4_standard_vtol, and the reverse). Each goes to ``<out>/<row>/`` as a campaign
+does (``campaign.parquet``, ``summary.json``). ``<out>/comparison.json`` and ``comparison.md`` hold the
+table: per basis, the fraction of draws where each target holds with its 95 % Wilson interval,
+per airspeed bin, on the conditions held out of training (the fan schedule and bearing sector the
+shipped bases never saw), and the constant-weights ceiling.
+
+**The ceiling** (:func:`.ceiling.ceiling_fit`): for each draw, the best *constant* weights of a basis for the
+whole run, by least squares on the aircraft's true specific force with the true incident flow,
+the throttles the rotors actually had (the lift collective as the RMS of the four rotors: the
+same total thrust) and the true attitude and rates, judged by the same target (p95 < 0.05 g in
+every true-airspeed bin, after the first 2 s). It is what any estimator of that basis could do at
+best, with no sensor and no adaptation lag; the log it is fitted on is the composite law's with
+the paper's basis (the same flight for every basis).
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import dataclasses
+import json
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from ..stats import fraction_holding
+from .ceiling import ceiling_fit, true_inputs  # noqa: F401  (true_inputs: part of this module's interface)
+
+CAMPAIGN = Path(__file__).resolve().parents[3] / "scenarios" / "envelope.toml"
+BASES = ("paper", "extended", "learned")
+HELD_OUT = {"fan_schedule": "ramp_100", "fan bearing": "[225,315) deg"}
+"""Conditions the shipped learned bases never saw in training (``learn-basis --hold-out-schedule ramp_100
+--hold-out-bearing 225:315``); the group labels are the campaign's."""
+FAMILIES = ("caltech_vtol", "px4_standard_vtol")
+
+
+def cross_vehicle_files(folder: Path) -> dict[str, str]:
+    """Vehicle files that fly the other family's shipped network (held-out airframe)."""
+    from ..bases.learned import TRAINED_DIR
+    from ..vehicle import VEHICLE_DIR
+
+    folder.mkdir(parents=True, exist_ok=True)
+    out = {}
+    for name, other in zip(FAMILIES, reversed(FAMILIES)):
+        text = (VEHICLE_DIR / f"{name}.toml").read_text()
+        path = folder / f"{name}_with_{other}_net.toml"
+        path.write_text(text + f'\n[basis_settings.learned]\nfile = "{TRAINED_DIR / (other + ".npz")}"\n'
+                               "allow_other_vehicle = true\n")
+        out[name] = str(path)
+    return out
+
+
+def specs_for(specs, basis: str, vehicle_files: dict | None = None, controllers=None) -> list:
+    """The campaign's runs with ``[controller] basis`` set (and the vehicles swapped for ``vehicle_files``)."""
+    out = []
+    for s in specs:
+        if controllers and s.controller not in controllers:
+            continue
+        m = copy.deepcopy(s.mapping)
+        m["controller"] = {**m.get("controller", {}), "basis": basis}
+        if vehicle_files:
+            m["vehicle"] = vehicle_files.get(m["vehicle"], m["vehicle"])
+        out.append(dataclasses.replace(s, mapping=m))
+    return out
+
+
+def run_ceilings(specs, bases_specs: dict, workers: int = 2) -> list[dict]:
+    """Fly each draw once (composite, paper basis) and fit every basis's constant weights to it."""
+    from ..sim.driver import simulate
+    from ..sim.scenario import scenario_from_mapping
+
+    draws = [s for s in specs if s.controller == "composite"]
+
+    def one(s):
+        m = copy.deepcopy(s.mapping)
+        m["controller"] = {**m.get("controller", {}), "kind": "composite", "basis": "paper"}
+        sc = scenario_from_mapping(m, s.source, source_path=s.source)
+        res = simulate(sc)
+        veh = sc.load_vehicle()
+        row = {"run": s.index, **{f"group.{k}": v for k, v in s.groups.items()}}
+        for name, by_vehicle in bases_specs.items():
+            row[name] = ceiling_fit(res, veh, by_vehicle[veh.name])
+        return row
+
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        return sorted(pool.map(one, draws), key=lambda r: r["run"])
+
+
+def _frac(outcomes) -> dict:
+    f = fraction_holding(outcomes)
+    return {"fraction": f.fraction, "ci95": list(f.ci95), "successes": f.successes, "n": f.n}
+
+
+def compare(out: Path, rows: dict[str, Path], ceilings: list[dict]) -> dict:
+    """comparison.json and comparison.md from each row's summary.json and the ceilings."""
+    table: dict = {"rows": {}, "ceiling": {}, "held_out": HELD_OUT}
+    for name, folder in rows.items():
+        s = json.loads((folder / "summary.json").read_text())
+        entry = {"targets": {k: s["targets"][k] for k in ("pred_err_every_bin", "beats_pid_pd", "finite_logs",
+                                                          "alpha_protect_brief")},
+                 "by_airspeed": {b: v["pred_err_every_bin"] for b, v in s["by_airspeed"].items()},
+                 "groups": {f"{g}: {lab}": {k: v[k] for k in ("pred_err_every_bin", "beats_pid_pd")}
+                            for g, labs in s["groups"].items() for lab, v in labs.items()},
+                 "controllers": {c: {k: v.get(k) for k in ("beats_pid_pd", "vel_err_rms_mps",
+                                                          "pred_err_p95_g_worst_bin")}
+                                 for c, v in s["controllers"].items()},
+                 "campaign": s["campaign"]}
+        table["rows"][name] = entry
+    table["paired"] = paired(rows)
+    for basis in (ceilings[0].keys() - {"run"} if ceilings else ()):
+        if basis.startswith("group."):
+            continue
+        table["ceiling"][basis] = {"all": _frac(r[basis]["pass"] for r in ceilings)}
+        for g in sorted({k for r in ceilings for k in r if k.startswith("group.")}):
+            for lab in sorted({r[g] for r in ceilings}):
+                table["ceiling"][basis][f"{g[6:]}: {lab}"] = _frac(r[basis]["pass"] for r in ceilings if r[g] == lab)
+    (out / "comparison.json").write_text(json.dumps(table, indent=1))
+    (out / "comparison.md").write_text(markdown(table))
+    return table
+
+
+def worst_bin(folder: Path) -> dict[int, float]:
+    """Per draw: the composite's worst-bin p95 prediction error (g) and whether every bin is below 0.05 g."""
+    import pyarrow.parquet as pq
+
+    t = pq.read_table(folder / "campaign.parquet").to_pydict()
+    bins = [k for k in t if k.startswith("pred_err_p95_g[")]
+    out = {}
+    for i, c in enumerate(t["controller"]):
+        if c == "composite":
+            vals = [t[b][i] for b in bins if t[b][i] is not None and np.isfinite(t[b][i])]
+            out[int(t["run"][i])] = max(vals) if vals else float("nan")
+    return out
+
+
+def paired(rows: dict[str, Path]) -> dict:
+    """Each row against the paper's basis, draw by draw: the composite's worst-bin p95 difference (Hodges-Lehmann
+    estimate and 95 % interval of the signed-rank test, :func:`vtoladapt.experiments.pairs.paired_difference`) and
+    the draws that pass only with one of the two."""
+    from ..experiments.pairs import paired_difference
+
+    if "paper" not in rows:
+        return {}
+    base = worst_bin(rows["paper"])
+    out = {}
+    for name, folder in rows.items():
+        if name == "paper":
+            continue
+        other = worst_bin(folder)
+        runs = sorted(set(base) & set(other))
+        a = np.array([other[r] for r in runs])
+        b = np.array([base[r] for r in runs])
+        out[name] = {"worst_bin_p95_g_minus_paper": paired_difference(a, b),
+                     "pass_only_here": int(np.sum((a < 0.05) & ~(b < 0.05))),
+                     "pass_only_with_paper": int(np.sum(~(a < 0.05) & (b < 0.05))), "draws": len(runs)}
+    return out
+
+
+def _cell(d: dict | None) -> str:
+    if not d or not d.get("n"):
+        return "–"
+    lo, hi = d["ci95"]
+    return f"{d['fraction']:.2f} ({d['successes']}/{d['n']}) [{lo:.2f}, {hi:.2f}]"
+
+
+def _mi(d: dict | None) -> str:
+    if not d or d.get("median") is None:
+        return "–"
+    lo, hi = d["iqr"]
+    return f"{d['median']:.3g} [{lo:.3g}, {hi:.3g}]"
+
+
+def markdown(table: dict) -> str:
+    """The comparison as Markdown tables (README "Force-model bases compared")."""
+    rows = table["rows"]
+    names = list(rows)
+    any_row = rows[names[0]]
+    c = any_row["campaign"]
+    lines = [f"Envelope campaign draws: {c.get('runs', '?')} (seed {c.get('seed', '?')}), every controller "
+             "adapting the basis of the column; fraction of draws where the target holds (successes/judged) "
+             "[95 % Wilson interval].", "",
+             "| target | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+    for key, label in (("pred_err_every_bin", "composite p95 prediction error < 0.05 g in every airspeed bin"),
+                       ("beats_pid_pd", "every adaptive law beats PID and PD (RMS ‖ṽ‖)"),
+                       ("finite_logs", "every log finite"),
+                       ("alpha_protect_brief", "composite: α past the protected angle only briefly")):
+        lines.append(f"| {label} | " + " | ".join(_cell(rows[n]["targets"][key]) for n in names) + " |")
+    for b in any_row["by_airspeed"]:
+        lines.append(f"| p95 < 0.05 g in bin {b} m/s | " + " | ".join(_cell(rows[n]["by_airspeed"].get(b))
+                                                                    for n in names) + " |")
+    for g in any_row["groups"]:
+        held = any(g.endswith(f": {v}") and g.startswith(k) for k, v in table["held_out"].items())
+        tag = " (held out of training)" if held else ""
+        lines.append(f"| p95 every bin, {g}{tag} | " + " | ".join(
+            _cell(rows[n]["groups"].get(g, {}).get("pred_err_every_bin")) for n in names) + " |")
+    lines.append("| composite worst-bin p95 [g], median [IQR] | " + " | ".join(
+        _mi(rows[n]["controllers"].get("composite", {}).get("pred_err_p95_g_worst_bin")) for n in names) + " |")
+    for cid in any_row["controllers"]:
+        lines.append(f"| RMS ‖ṽ‖ [m/s] of {cid}, median [IQR] | " + " | ".join(
+            _mi(rows[n]["controllers"].get(cid, {}).get("vel_err_rms_mps")) for n in names) + " |")
+    if table.get("paired"):
+        lines += ["", "Paired with the paper's basis, draw by draw (composite law): the difference of the worst-bin "
+                      "p95 prediction error (Hodges-Lehmann estimate [95 % interval], signed-rank test) and the draws "
+                      "that meet the target with only one of the two:", "",
+                  "| basis | worst-bin p95 minus the paper's [g] | pass only with it | pass only with the paper |",
+                  "|---|---|---|---|"]
+        for n, d in table["paired"].items():
+            e = d["worst_bin_p95_g_minus_paper"]
+            est = "–" if e["estimate"] is None else f"{e['estimate']:+.4f} [{e['ci95'][0]:+.4f}, {e['ci95'][1]:+.4f}]"
+            lines.append(f"| {n} | {est} | {d['pass_only_here']}/{d['draws']} | {d['pass_only_with_paper']}/{d['draws']} |")
+    if table["ceiling"]:
+        bases = list(table["ceiling"])
+        lines += ["", "Constant-weights ceiling (least squares on the true specific force with the true flow, "
+                      "throttles, attitude and rates; the same target):", "",
+                  "| draws | " + " | ".join(bases) + " |", "|---|" + "---|" * len(bases)]
+        for key in table["ceiling"][bases[0]]:
+            lines.append(f"| {key} | " + " | ".join(_cell(table["ceiling"][b].get(key)) for b in bases) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    """``python -m vtoladapt.learn.evaluate``: every row's campaign, the ceilings, comparison.json/.md."""
+    from ..bases import describe_basis
+    from ..campaign.runner import plan_campaign_file, run_campaign
+    from ..vehicle import load_vehicle
+
+    p = argparse.ArgumentParser(prog="python -m vtoladapt.learn.evaluate", description=__doc__.split("\n\n")[0])
+    p.add_argument("--campaign", type=Path, default=CAMPAIGN)
+    p.add_argument("--runs", type=int, default=40)
+    p.add_argument("--seed", type=int, default=None, help="default: the campaign file's (1111)")
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--bases", default=",".join(BASES))
+    p.add_argument("--no-cross", action="store_true", help="skip the held-out-airframe row")
+    p.add_argument("--no-ceiling", action="store_true")
+    p.add_argument("--controllers", default="", help="comma-separated subset (default: the file's)")
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--keep", action="store_true", help="reuse a row whose summary.json exists in --out")
+    args = p.parse_args(argv)
+    cf, specs = plan_campaign_file(args.campaign, runs=args.runs, seed=args.seed)
+    controllers = [c for c in args.controllers.split(",") if c] or None
+    args.out.mkdir(parents=True, exist_ok=True)
+    info = {"file": str(args.campaign), "runs": args.runs, "seed": args.seed or cf.config.seed,
+            "sampling": cf.config.sampling, "duration_s": 40.0}
+    rows: dict[str, Path] = {}
+    plan = [(b, b, None) for b in args.bases.split(",")]
+    if not args.no_cross and "learned" in args.bases.split(","):
+        plan.append(("learned (other airframe's network)", "learned", cross_vehicle_files(args.out / "vehicles")))
+    for name, basis, vfiles in plan:
+        folder = args.out / name.split(" ")[0] if vfiles is None else args.out / "learned_cross"
+        rows[name] = folder
+        if args.keep and (folder / "summary.json").is_file():
+            continue
+        t0 = time.perf_counter()
+        run_campaign(specs_for(specs, basis, vfiles, controllers), folder, scheduler="none", n_workers=args.workers,
+                     show_progress=False, campaign=dict(info, basis=basis, cross=vfiles is not None))
+        print(f"{name}: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
+    ceilings = []
+    if args.keep and (args.out / "ceilings.json").is_file():
+        ceilings = json.loads((args.out / "ceilings.json").read_text())
+    elif not args.no_ceiling:
+        t0 = time.perf_counter()
+        by = {b: {v: describe_basis(load_vehicle(v), b) for v in FAMILIES} for b in args.bases.split(",")}
+        ceilings = run_ceilings(specs, by, args.workers)
+        (args.out / "ceilings.json").write_text(json.dumps(ceilings, indent=1))
+        print(f"ceilings: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
+    table = compare(args.out, rows, ceilings)
+    print(markdown(table))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

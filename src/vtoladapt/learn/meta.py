@@ -1,0 +1,208 @@
+"""Meta-learning a shared basis: each flight's linear weights solved in closed form inside the loss.
+
+The objective is Neural-Fly's (O'Connell et al., Science Robotics 2022, eq. 6 without the
+adversarial term): with ``Phi_t(x) = [A_t(x) | phi_net(x; w)]`` (the fixed physics columns ``A``
+and the network's ``h`` columns) and the flight's measured specific force ``y``,
+
+    L(w) = mean_t  min_a  (1 / 3 N_t) ( ||y_t - Phi_t a||^2 + sum_k (sigma_y / s_k)^2 (a_k - a0_k)^2 )
+           + weight_decay * |W|^2,
+
+a ridge regression per flight (prior mean ``a0`` and std ``s`` per weight: the physics columns'
+prior, and ``N(0, net_weight_std^2)`` for the learned ones; ``sigma_y`` the force noise). The
+inner minimum is solved exactly (normal equations, one small ``m + h`` system per flight), so the
+gradient with respect to the network's outputs is, by the envelope theorem (``dL/da = 0`` at the
+solution), ``-(2 / 3 N_t) r a_net^T`` with the residual ``r``; backpropagation through the two
+``tanh`` layers is written out below and checked against finite differences by the tests.
+L-BFGS (:func:`scipy.optimize.minimize`) minimises ``L`` over the network's weights.
+
+Why no deep-learning framework: the network is small (16 inputs, two hidden layers of 32, 3 h
+outputs), the data fit in memory (tens of flights of a few thousand samples), and full-batch
+L-BFGS with an exact gradient converges in a few hundred iterations of numpy in a minute or two on
+two cores, deterministically for a seed. numpy and scipy are already the package's dependencies,
+so training needs no extra install and nothing can pull a GPU wheel.
+
+The optional domain-adversarial term of Neural-Fly is not implemented (see the README's measured
+numbers for what the learned basis does without it).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import minimize
+
+from ..bases.netfile import N_FEATURES, forward
+
+
+@dataclass
+class Task:
+    """One flight: normalised features ``z`` (N, F), physics columns ``A`` (N, 3, m), measured force ``y`` (N, 3)."""
+
+    z: np.ndarray
+    A: np.ndarray
+    y: np.ndarray
+    name: str = ""
+
+
+@dataclass(frozen=True)
+class MetaSettings:
+    """Training settings (recorded in the basis file)."""
+
+    h: int = 4
+    hidden: tuple[int, int] = (32, 32)
+    sigma_y: float = 0.3            # m/s^2: the force's noise and model error scale in the ridge
+    net_weight_std: float = 1.0     # prior std of each learned weight in the per-flight ridge
+    weight_decay: float = 1e-4
+    max_iter: int = 400
+    seed: int = 0
+
+
+@dataclass
+class MetaResult:
+    """The trained network's arrays, the per-flight weights and the loss history."""
+
+    arrays: dict
+    weights: list = field(default_factory=list)   # per task: the (m + h) weights of the final ridge
+    loss: list = field(default_factory=list)
+    physics_only_loss: float = float("nan")
+    seconds: float = 0.0
+    iterations: int = 0
+
+
+def init_arrays(settings: MetaSettings, rng: np.random.Generator) -> dict:
+    """Glorot-uniform weights, zero biases."""
+    H1, H2 = settings.hidden
+    sizes = [("W1", (H1, N_FEATURES)), ("W2", (H2, H1)), ("W3", (3 * settings.h, H2))]
+    out = {}
+    for name, (o, i) in sizes:
+        lim = np.sqrt(6.0 / (o + i))
+        out[name] = rng.uniform(-lim, lim, size=(o, i))
+    out["b1"], out["b2"], out["b3"] = np.zeros(H1), np.zeros(H2), np.zeros(3 * settings.h)
+    return out
+
+
+ORDER = ("W1", "b1", "W2", "b2", "W3", "b3")
+
+
+def flatten(arrays: dict) -> np.ndarray:
+    """The network's arrays as one vector (the optimiser's), in :data:`ORDER`."""
+    return np.concatenate([arrays[k].ravel() for k in ORDER])
+
+
+def unflatten(w: np.ndarray, like: dict) -> dict:
+    """The inverse of :func:`flatten`, shaped like ``like``."""
+    out, i = {}, 0
+    for k in ORDER:
+        n = like[k].size
+        out[k] = w[i:i + n].reshape(like[k].shape)
+        i += n
+    return out
+
+
+class Objective:
+    """``L(w)`` and its gradient over a fixed set of tasks (the arrays concatenated once)."""
+
+    def __init__(self, tasks: list[Task], prior_mean: np.ndarray, prior_std: np.ndarray, settings: MetaSettings):
+        self.settings = settings
+        self.z = np.concatenate([t.z for t in tasks])
+        self.bounds = np.cumsum([0] + [len(t.y) for t in tasks])
+        self.A = [t.A for t in tasks]
+        self.y = [t.y for t in tasks]
+        self.m = tasks[0].A.shape[2]
+        h = settings.h
+        self.a0 = np.concatenate([prior_mean, np.zeros(h)])
+        s = np.concatenate([prior_std, np.full(h, settings.net_weight_std)])
+        self.d = (settings.sigma_y / s) ** 2
+        # flat (3 N, m) and (3 N,) views for BLAS; the physics block's normal equations do not change: once
+        self.A = [np.ascontiguousarray(A.reshape(3 * A.shape[0], A.shape[2])) for A in self.A]
+        self.y = [np.ascontiguousarray(y.reshape(-1)) for y in self.y]
+        self.AtA = [A.T @ A for A in self.A]
+        self.Aty = [A.T @ y for A, y in zip(self.A, self.y)]
+
+    def solve_task(self, t: int, N: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """Ridge weights, residual (n, 3) and loss of task ``t`` with network outputs ``N`` (n, 3, h)."""
+        A, y, m = self.A[t], self.y[t], self.m
+        h = N.shape[2]
+        Nf = N.reshape(-1, h)
+        k = m + h
+        G = np.empty((k, k))
+        b = np.empty(k)
+        G[:m, :m] = self.AtA[t]
+        G[:m, m:] = A.T @ Nf
+        G[m:, :m] = G[:m, m:].T
+        G[m:, m:] = Nf.T @ Nf
+        b[:m] = self.Aty[t]
+        b[m:] = Nf.T @ y
+        G[np.diag_indices(k)] += self.d
+        b += self.d * self.a0
+        a = np.linalg.solve(G, b)
+        r = y - A @ a[:m] - Nf @ a[m:]
+        loss = (r @ r + np.sum(self.d * (a - self.a0) ** 2)) / len(y)
+        return a, r.reshape(-1, 3), loss
+
+    def __call__(self, w: np.ndarray, like: dict) -> tuple[float, np.ndarray]:
+        arrays = unflatten(w, like)
+        h = self.settings.h
+        out, (a1, a2) = forward(arrays, self.z)
+        N_all = out.reshape(-1, 3, h)
+        g_out = np.empty_like(out)
+        total = 0.0
+        T = len(self.A)
+        for t in range(T):
+            s, e = self.bounds[t], self.bounds[t + 1]
+            a, r, loss = self.solve_task(t, N_all[s:e])
+            total += loss / T
+            # envelope theorem: d loss / d N[n, r, j] = -(2 / 3 N_t) r[n, r] a_net[j]
+            g = (-2.0 / (3 * (e - s) * T)) * r[:, :, None] * a[self.m:][None, None, :]
+            g_out[s:e] = g.reshape(e - s, 3 * h)
+        wd = self.settings.weight_decay
+        total += wd * sum(float(np.sum(arrays[k] ** 2)) for k in ("W1", "W2", "W3"))
+        grads = {"W3": g_out.T @ a2 + 2 * wd * arrays["W3"], "b3": g_out.sum(0)}
+        d2 = (g_out @ arrays["W3"]) * (1.0 - a2 * a2)
+        grads["W2"] = d2.T @ a1 + 2 * wd * arrays["W2"]
+        grads["b2"] = d2.sum(0)
+        d1 = (d2 @ arrays["W2"]) * (1.0 - a1 * a1)
+        grads["W1"] = d1.T @ self.z + 2 * wd * arrays["W1"]
+        grads["b1"] = d1.sum(0)
+        return total, flatten(grads)
+
+    def physics_only(self) -> float:
+        """The loss with the physics columns alone (the network's columns zero): what the net must beat."""
+        total = 0.0
+        m = self.m
+        for t in range(len(self.A)):
+            G = self.AtA[t] + np.diag(self.d[:m])
+            a = np.linalg.solve(G, self.Aty[t] + self.d[:m] * self.a0[:m])
+            r = self.y[t] - self.A[t] @ a
+            total += (r @ r + np.sum(self.d[:m] * (a - self.a0[:m]) ** 2)) / len(self.y[t])
+        return total / len(self.A)
+
+
+def train(tasks: list[Task], prior_mean: np.ndarray, prior_std: np.ndarray, settings: MetaSettings,
+          progress=None) -> MetaResult:
+    """Fit the shared network to ``tasks`` (L-BFGS on :class:`Objective`), seeded by ``settings.seed``."""
+    if not tasks:
+        raise ValueError("no flights to train on")
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(settings.seed)
+    like = init_arrays(settings, rng)
+    obj = Objective(tasks, np.asarray(prior_mean, float), np.asarray(prior_std, float), settings)
+    history: list[float] = []
+
+    def fun(w):
+        val, g = obj(w, like)
+        history.append(val)
+        if progress is not None:
+            progress(len(history), val)
+        return val, g
+
+    res = minimize(fun, flatten(like), jac=True, method="L-BFGS-B",
+                   options={"maxiter": settings.max_iter, "maxcor": 20, "ftol": 1e-12, "gtol": 1e-9})
+    arrays = unflatten(res.x, like)
+    out, _ = forward(arrays, obj.z)
+    N_all = out.reshape(-1, 3, settings.h)
+    weights = [obj.solve_task(t, N_all[obj.bounds[t]:obj.bounds[t + 1]])[0] for t in range(len(tasks))]
+    return MetaResult(arrays={k: np.array(v) for k, v in arrays.items()}, weights=weights, loss=history,
+                      physics_only_loss=obj.physics_only(), seconds=time.perf_counter() - t0,
+                      iterations=int(res.nit))
