@@ -284,3 +284,11 @@ def test_corner_plot_text_is_readable():
     assert len(sizes) > 20 and min(sizes) >= 7.0 and CORNER_TICK_PT >= 7.0
     # at the PNG's own resolution a tick label is at least 10 pixels tall
     assert min(sizes) * fig.dpi / 72 >= 10
+
+
+def test_a_comparison_flown_by_one_law_has_no_ranking_tables():
+    """`vtoladapt run paper_comparison --controller composite` ranked nothing and stopped with StopIteration."""
+    from vtoladapt.experiments.report import comparison_pair_tables
+
+    one_law = {"distribution": {"comparison": {"paired": {"ranking": {}, "pairs": {}}, "variants": 3}}}
+    assert comparison_pair_tables(one_law) == []

@@ -474,8 +474,8 @@ def _rank(e: Optional[dict]) -> str:
 def comparison_pair_tables(metrics: dict) -> list:
     """The ranking, the paired differences and (if flown) default against tuned, for a reproduce metrics.json."""
     dist = metrics.get("distribution", {}).get("comparison")
-    if not dist or "paired" not in dist:
-        return []
+    if not dist or "paired" not in dist or not dist["paired"].get("ranking"):
+        return []   # a comparison flown by one law ranks nothing
     tables = [ranking_table(dist), paired_table(dist)]
     if "tuned" in metrics:
         tables.append(tuned_table(metrics["tuned"], dist))
@@ -484,7 +484,8 @@ def comparison_pair_tables(metrics: dict) -> list:
             claims = distribution_claims_table(metrics["tuned"])
             tables.append(Table("The paper's tracking claims with every law's tuned settings. " + claims.caption,
                                 claims.headers, claims.rows))
-        tables.append(ranking_table(metrics["tuned"], title="With the tuned settings. "))
+        if metrics["tuned"].get("paired", {}).get("ranking"):
+            tables.append(ranking_table(metrics["tuned"], title="With the tuned settings. "))
     return tables
 
 
