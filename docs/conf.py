@@ -47,7 +47,8 @@ source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
 # docs/ also holds the measurement scripts, their JSON and figures that README and `make reproduce`
 # use: they are data, not pages (Sphinx reads only .md/.rst sources; these keep it from looking).
-exclude_patterns = ["_build", "_generated", "Thumbs.db", ".DS_Store", "measure_*.py", "*.json"]
+exclude_patterns = ["_build", "_generated", "Thumbs.db", ".DS_Store", "measure_*.py", "*.json",
+                    "basis_comparison.md"]  # a generated table the bases page summarises
 
 myst_enable_extensions = ["colon_fence", "deflist"]
 myst_heading_anchors = 4  # `page.md#a-heading` links resolve and are checked

@@ -19,7 +19,7 @@ One call of :func:`back_end` per tick, after the law's update has written the fo
    contains it.
 4. **Moment command** (:func:`moment`, eq:wr, eq:m_ctrl) with the constrained quaternion error, limited per axis.
 5. **Thruster allocation** at the current attitude with theta-hat's physics part (eq:f_proj,
-   :func:`allocation`, :mod:`.allocation`). A basis's extra columns (after the paper's eight,
+   :func:`allocation`, :mod:`vtoladapt.control.allocation`). A basis's extra columns (after the paper's eight,
    :mod:`vtoladapt.bases`) predict a force ``Phi_extra theta_extra`` at the throttles of this tick's
    regressor: the desired attitude and the allocation take it as a known additive force.
 6. A non-finite command (:func:`output`) (impossible for finite sanitised inputs, but guarded) is replaced by the

@@ -4,7 +4,7 @@ For each sample: the basis input block (:data:`vtoladapt.bases.INPUT`) the contr
 far as the log holds it, and the measured specific force (the accelerometer, body, m/s^2) that the
 basis must predict. The accelerometer is the *target* only; no input is derived from it.
 
-* **A simulator log** (``SimulationResult`` Parquet, ``vtoladapt run`` / :func:`fly_draws`): the
+* **A simulator log** (``SimulationResult`` Parquet, ``vtoladapt run`` / :func:`vtoladapt.learn.flights.fly_draws`): the
   incident flow the controller used (``ctrl_v_i_*``) and whether it was the probe's
   (``probe_valid_used``), the throttle commands passed through the vehicle's nominal motor lag as the
   controller does (:func:`lagged_throttles`), the measured attitude, rates and velocity.

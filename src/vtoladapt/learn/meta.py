@@ -2,7 +2,7 @@
 
 The objective is Neural-Fly's (O'Connell et al., Science Robotics 2022, eq. 6 without the
 adversarial term): with ``Phi_t(x) = [A_t(x) | phi_net(x; w)]`` (the fixed physics columns ``A``
-and the network's ``h`` columns) and the flight's measured specific force ``y``,
+and the network's ``h`` columns) and the flight's measured specific force ``y``::
 
     L(w) = mean_t  min_a  (1 / 3 N_t) ( ||y_t - Phi_t a||^2 + sum_k (sigma_y / s_k)^2 (a_k - a0_k)^2 )
            + weight_decay * |W|^2,
