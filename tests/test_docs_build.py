@@ -25,10 +25,18 @@ DOCS = ROOT / "docs"
 
 @pytest.fixture(scope="module")
 def site(tmp_path_factory) -> Path:
+    import fcntl
+
     out = tmp_path_factory.mktemp("site")
-    done = subprocess.run([sys.executable, "-m", "sphinx", "-b", "html", "-E", "-W", "--keep-going", "-n", "-q",
-                           "-d", str(out / "doctrees"), str(DOCS), str(out / "html")],
-                          cwd=ROOT, capture_output=True, text=True, timeout=1800)
+    # the build runs the examples into docs/_generated, whose output folders a run locks: two test
+    # processes building the site at once (each builds its own copy) take turns
+    lock_path = DOCS / "_build" / ".site-build.lock"
+    lock_path.parent.mkdir(parents=True, exist_ok=True)
+    with open(lock_path, "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        done = subprocess.run([sys.executable, "-m", "sphinx", "-b", "html", "-E", "-W", "--keep-going", "-n", "-q",
+                               "-d", str(out / "doctrees"), str(DOCS), str(out / "html")],
+                              cwd=ROOT, capture_output=True, text=True, timeout=1800)
     assert done.returncode == 0, "the site does not build strictly:\n" + done.stderr[-6000:]
     assert "WARNING" not in done.stderr and "ERROR" not in done.stderr, done.stderr[-6000:]
     return out / "html"
