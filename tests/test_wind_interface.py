@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from doc_pages import section as _section
 from numba import njit
 
 import example_wind_part
@@ -181,15 +182,8 @@ def test_a_registered_part_is_flown_by_the_gym_as_by_simulate():
 
 # --- the how-to's recipe --------------------------------------------------------------------------
 
-def _readme_section(title: str) -> str:
-    """The section ``title`` of the documentation (the how-to docs/howto/wind-and-sensors.md)."""
-    from doc_pages import section
-
-    return section(title)[1]
-
-
 def test_readme_recipe_is_the_example_part_and_runs(tmp_path, monkeypatch):
-    section = _readme_section("Adding a wind model")
+    section = _section("Adding a wind model")[1]
     blocks = re.findall(r"```(\w+)\n(.*?)```", section, re.S)
     module = [b for lang, b in blocks if lang == "python" and "def step(" in b]
     assert module and module[0] == Path(example_wind_part.__file__).read_text()
