@@ -151,6 +151,63 @@ def test_meta_learning_gradient_matches_finite_differences():
         assert g[i] == pytest.approx(fd, rel=1e-5, abs=1e-9)
 
 
+def test_adversarial_gradient_matches_finite_differences():
+    """The meta-learning loss plus the confusion term, the classifier held: the gradient is exact."""
+    from vtoladapt.learn.meta import fit_discriminator
+
+    rng = np.random.default_rng(2)
+    tasks = [Task(z=rng.normal(size=(40, N_FEATURES)), A=rng.normal(size=(40, 3, 2)), y=rng.normal(size=(40, 3)),
+                  condition=i % 2) for i in range(4)]
+    s = MetaSettings(h=3, hidden=(5, 4), weight_decay=1e-3, adversarial=0.7)
+    like = init_arrays(s, rng)
+    obj = Objective(tasks, np.zeros(2), np.ones(2), s)
+    assert obj.n_conditions == 2
+    w = flatten(like)
+    from vtoladapt.bases.netfile import forward
+
+    obj.discriminator = fit_discriminator(forward(like, obj.z)[0], obj.labels, obj.sample_weight, 2)
+    plain = Objective(tasks, np.zeros(2), np.ones(2), s)
+    assert obj(w, like)[0] > plain(w, like)[0]        # the term is on and positive away from confusion
+    _, g = obj(w, like)
+    for i in rng.choice(w.size, 25, replace=False):
+        e = np.zeros_like(w)
+        e[i] = 1e-6
+        fd = (obj(w + e, like)[0] - obj(w - e, like)[0]) / 2e-6
+        assert g[i] == pytest.approx(fd, rel=1e-5, abs=1e-9)
+
+
+def _condition_tasks(rng, conditions, per_condition=4, n=80):
+    """Flights y = g(x) a_t + f_c: one shared column of the first features with the flight's own weight, and a
+    force f_c of the flight's condition (three axes: more than the other learned column can carry as a weight).
+    One input, z[:, 15], is the condition's signature: it tells the conditions apart and explains nothing else."""
+    tasks = []
+    for c in conditions:
+        f_c = np.array([1.0, -0.5, 0.8]) * np.cos(c) + np.array([-0.3, 0.9, 0.4]) * np.sin(1.7 * c)
+        for _ in range(per_condition):
+            z = rng.normal(size=(n, N_FEATURES))
+            z[:, 15] = 0.8 * c + 0.1 * rng.normal(size=n)
+            g = np.stack([np.sin(z[:, 0]), np.tanh(z[:, 3]), 0.5 * z[:, 5] ** 2], axis=1)
+            y = g * (2.0 * rng.normal()) + f_c + 0.01 * rng.normal(size=(n, 3))
+            tasks.append(Task(z=z, A=np.zeros((n, 3, 0)), y=y, condition=c))
+    return tasks
+
+
+def test_the_adversarial_term_hides_the_condition_from_the_basis():
+    """Without the term the trained network carries part of each condition's force by recognising the
+    condition from its signature: a classifier tells the four conditions from its outputs far above chance.
+    The term takes that away in proportion to its weight, at a price in fit (the trade Neural-Fly makes)."""
+    tasks = _condition_tasks(np.random.default_rng(11), conditions=(0, 1, 2, 3))
+    common = dict(h=2, hidden=(12, 12), sigma_y=0.01, net_weight_std=10.0, weight_decay=1e-6, max_iter=240, seed=0)
+    runs = {a: train(tasks, np.zeros(0), np.zeros(0), MetaSettings(**common, adversarial=a, adversarial_rounds=6))
+            for a in (0.0, 0.5)}
+    acc = {a: r.condition_accuracy for a, r in runs.items()}
+    print("condition accuracy", acc, "chance", runs[0.5].condition_chance, "loss", {a: r.loss[-1] for a, r in runs.items()})
+    assert runs[0.0].condition_chance == pytest.approx(1 / 4)
+    assert acc[0.0] > 0.5                      # chance: 0.25
+    assert acc[0.5] < acc[0.0] - 0.15
+    assert runs[0.5].loss[-1] > runs[0.0].loss[-1]   # the last entry is the meta-learning loss alone
+
+
 def _true_basis(z):
     """A known smooth 3 x 2 basis of the features."""
     return np.stack([np.stack([np.sin(z[:, 0]), z[:, 1] * z[:, 2]], axis=1),

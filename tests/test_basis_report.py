@@ -31,6 +31,32 @@ def test_ceiling_per_basis_is_nested_and_the_section_renders(tmp_path, monkeypat
     rms = [m["ceiling"][b]["rms_g"] for b in ("paper", "extended", "learned")]
     assert rms[0] >= rms[1] >= rms[2] > 0.0, rms
     assert rms[1] < 0.9 * rms[0]        # side wind: the side force the paper's basis lacks
+    # with what the controller has (its inputs and the accelerometer, both filtered as it filters them)
+    from vtoladapt.bases import describe_basis
+    from vtoladapt.learn.ceiling import measured_ceiling_fit
+    from vtoladapt.sim.results import SimulationResult
+
+    res = SimulationResult.from_parquet(tmp_path / "runs" / "cmp_composite.parquet")
+    veh = scenario.load_vehicle()
+    measured = [measured_ceiling_fit(res, veh, describe_basis(veh, b))["rms_g"] for b in ("paper", "extended")]
+    assert measured[0] >= measured[1] > 0.0, measured
     text = render_markdown(Report("t", (), (bases_section(m),), ()))
     assert "Force-model bases compared" in text and "0.50 (1/2) [0.10, 0.90]" in text
     assert "python -m vtoladapt.learn.evaluate --runs 3" in text
+
+
+def test_the_measured_ceiling_filters_as_the_controller_does():
+    import numpy as np
+
+    from vtoladapt.control.adaptation import lowpass as controller_lowpass
+    from vtoladapt.control.adaptation import lowpass_gain
+    from vtoladapt.learn.ceiling import lowpass
+
+    x = np.random.default_rng(0).normal(size=(200, 3))
+    c = lowpass_gain(10.0, 0.004)
+    ref = np.empty_like(x)
+    y = x[0].copy()
+    for k in range(len(x)):
+        y = np.array([controller_lowpass(y[i], x[k, i], c) for i in range(3)])
+        ref[k] = y
+    np.testing.assert_allclose(lowpass(x, c), ref, rtol=1e-12, atol=1e-12)

@@ -65,6 +65,9 @@ def test_the_same_logs_and_seed_give_the_same_file(trained, tmp_path):
     (["--h", "0"], r"--h = 0: out of range; allowed: 1 to 30"),
     (["--iterations", "-3"], r"--iterations = -3: out of range"),
     (["--vehicle", "px4_standard_vtol"], r"allowed: one vehicle family per basis|no flight"),
+    (["--adversarial", "-0.1"], r"--adversarial = -0\.1: out of range; allowed: 0 to 1000"),
+    (["--adversarial", "nan"], r"--adversarial = nan: out of range"),
+    (["--adversarial", "0.1", "--adversarial-rounds", "0"], r"--adversarial-rounds = 0: out of range"),
 ])
 def test_bad_input_is_refused_in_one_line(trained, tmp_path, capsys, extra, message):
     _, _, folder = trained
@@ -85,3 +88,18 @@ def test_refusals_before_anything_is_read(tmp_path, capsys):
     assert "no logs" in capsys.readouterr().err
     assert main(["learn-basis", str(tmp_path / "nothing_here"), "--out", str(tmp_path / "n.npz")]) == 2
     assert "no such log file or folder" in capsys.readouterr().err
+
+
+def test_adversarial_training_records_how_well_the_conditions_can_be_told_apart(trained, tmp_path, capsys):
+    """With --adversarial the file records the term's weight and, as every file does, how well a classifier tells
+    the flights' conditions from the trained outputs (three logs without campaign conditions: three flights)."""
+    _, _, folder = trained
+    out = tmp_path / "adv.npz"
+    assert main(["learn-basis", str(folder / "my_logs"), "--out", str(out), "--h", "2", "--hidden", "6",
+                 "--iterations", "12", "--adversarial", "0.01", "--adversarial-rounds", "3"]) == 0
+    err = capsys.readouterr().err
+    assert "a classifier tells the flights' 3 conditions" in err, err
+    meta = read_net(out).meta
+    assert meta["settings"]["adversarial"] == 0.01 and meta["settings"]["adversarial_rounds"] == 3
+    s = meta["summary"]
+    assert s["conditions"] == 3 and s["condition_chance"] >= 0.333 and 0.0 <= s["condition_accuracy"] <= 1.0

@@ -11,6 +11,7 @@ from ..bases import describe_basis
 from ..bases.netfile import NetFile, features_rows, write_net
 from ..config import ConfigError
 from .data import Flight, physics_columns
+from .flights import BEARING_KEY
 from .meta import MetaSettings, Task, train
 
 FEATURE_STD_FLOOR = 1e-3
@@ -30,10 +31,22 @@ def normalisation(flights: Sequence[Flight]) -> tuple[np.ndarray, np.ndarray]:
     return mean, np.where(std > FEATURE_STD_FLOOR, std, 1.0)
 
 
+def condition_of(flight: Flight) -> str:
+    """The flight's condition for the adversarial term: its fan schedule and fan-bearing quadrant (centred on
+    0, 90, 180, 270 deg, the envelope campaign's groups) when its log says so, else the flight itself."""
+    schedule = flight.info.get("choice.fan_schedule")
+    bearing = flight.info.get(BEARING_KEY)
+    if schedule is None and bearing is None:
+        return f"flight:{flight.source}"
+    quadrant = "" if bearing is None else f"@{int(((float(bearing) + 45.0) % 360.0) // 90.0) * 90}deg"
+    return f"{schedule or ''}{quadrant}"
+
+
 def tasks_for(flights: Sequence[Flight], spec, x_mean, x_std) -> list[Task]:
-    """One :class:`Task` per flight: normalised features, the physics columns, the measured force."""
-    return [Task(z=(features_rows(f.x) - x_mean) / x_std, A=physics_columns(spec, f), y=f.f, name=f.source)
-            for f in flights]
+    """One :class:`Task` per flight: normalised features, the physics columns, the measured force, the condition."""
+    names = sorted({condition_of(f) for f in flights})
+    return [Task(z=(features_rows(f.x) - x_mean) / x_std, A=physics_columns(spec, f), y=f.f, name=f.source,
+                 condition=names.index(condition_of(f))) for f in flights]
 
 
 def learn_basis(flights: Sequence[Flight], vehicle, settings: MetaSettings, command: str = "",
@@ -66,16 +79,24 @@ def learn_basis(flights: Sequence[Flight], vehicle, settings: MetaSettings, comm
     summary = {"loss_physics_only": result.physics_only_loss, "loss_final": result.loss[-1] if result.loss else None,
                "loss_initial": result.loss[0] if result.loss else None, "iterations": result.iterations,
                "evaluations": len(result.loss), "train_seconds": round(seconds, 2),
-               "samples": int(sum(len(f.f) for f in flights)), "flights": len(flights)}
+               "samples": int(sum(len(f.f) for f in flights)), "flights": len(flights),
+               "conditions": len({t.condition for t in tasks}),
+               "condition_accuracy": _finite_or_none(result.condition_accuracy),
+               "condition_chance": _finite_or_none(result.condition_chance)}
     meta = {"vehicle": vehicle.name, "physics": "extended", "command": command, "seed": settings.seed,
             "settings": {"h": settings.h, "hidden": list(settings.hidden), "sigma_y": settings.sigma_y,
                          "net_weight_std": settings.net_weight_std, "weight_decay": settings.weight_decay,
-                         "max_iter": settings.max_iter},
+                         "max_iter": settings.max_iter, "adversarial": settings.adversarial,
+                         "adversarial_rounds": settings.adversarial_rounds},
             "draws": [f.info for f in flights], "summary": summary, **(extra_meta or {})}
     net = NetFile(x_mean=x_mean, x_std=x_std, W1=result.arrays["W1"], b1=result.arrays["b1"],
                   W2=result.arrays["W2"], b2=result.arrays["b2"], W3=result.arrays["W3"], b3=result.arrays["b3"],
                   theta_mean=theta_mean, theta_std=theta_std, meta=meta)
     return net, summary
+
+
+def _finite_or_none(x: float):
+    return round(float(x), 4) if np.isfinite(x) else None
 
 
 def save(net: NetFile, path: str | Path, force: bool = False) -> Path:

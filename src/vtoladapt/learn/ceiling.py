@@ -5,6 +5,13 @@ true specific force with the true incident flow, the throttles the rotors actual
 collective as the RMS of the four rotors: the same total thrust) and the true attitude and rates,
 judged as the envelope campaign judges the controller (p95 < 0.05 g in every true-airspeed bin, after
 the first 2 s). No sensor, no adaptation lag: what the basis allows at best.
+
+:func:`measured_ceiling_fit`: the same with what the controller has instead of the truth: the inputs it
+formed (the flow it used, probe or fallback; the throttle commands through the nominal motor lag; the
+measured attitude, rates and velocity) and the accelerometer, both through the controller's low-pass,
+so that the residual is the prediction error the controller's constant-weights best would log. The gap
+between the two ceilings is what sensing costs; the gap between this one and the closed loop is what
+the estimator (adaptation, its lag and its tracking term) costs.
 """
 from __future__ import annotations
 
@@ -35,12 +42,41 @@ def ceiling_fit(result, vehicle, spec) -> dict:
     x, f = true_inputs(result, vehicle)
     t = result.time_s
     late = (t >= t[0] + PRED_ERR_SKIP_S) & np.all(np.isfinite(x), axis=1) & np.all(np.isfinite(f), axis=1)
-    Phi = evaluate(spec, x[late])
-    A = Phi.reshape(-1, spec.n)
-    y = f[late].reshape(-1)
+    return _judge(evaluate(spec, x[late]), f[late], result["airspeed_mps"][late], spec.n)
+
+
+def measured_ceiling_fit(result, vehicle, spec, cutoff_hz: float = 10.0) -> dict:
+    """:func:`ceiling_fit` with the controller's inputs and accelerometer, both low-passed at ``cutoff_hz`` as the
+    controller filters them (the paper's 10 Hz)."""
+    from ..bases import evaluate
+    from .data import flight_from_result
+
+    flight = flight_from_result(result, vehicle, skip_s=0.0, stride=1)
+    if len(flight.f) != len(result.time_s):    # a non-finite sample: the filter would smear it; judge nothing
+        return {"p95_g": {}, "pass": False, "rms_g": float("nan")}
+    t = result.time_s
+    dt = float(np.median(np.diff(t)))
+    c = 1.0 - np.exp(-2.0 * np.pi * cutoff_hz * dt)
+
+    Phi = evaluate(spec, flight.x)
+    late = t >= t[0] + PRED_ERR_SKIP_S
+    return _judge(lowpass(Phi, c)[late], lowpass(flight.f, c)[late], result["airspeed_mps"][late], spec.n)
+
+
+def lowpass(a: np.ndarray, c: float) -> np.ndarray:
+    """The controller's first-order filter along axis 0, ``y_k = y_k-1 + c (x_k - y_k-1)``, started at the first
+    sample (:func:`vtoladapt.control.adaptation.lowpass`, vectorised)."""
+    from scipy.signal import lfilter
+
+    return lfilter([c], [1.0, c - 1.0], a - a[0], axis=0) + a[0]
+
+
+def _judge(Phi: np.ndarray, f: np.ndarray, airspeed: np.ndarray, n: int) -> dict:
+    """Least-squares constant weights of ``Phi`` (N, 3, n) for ``f`` (N, 3); the residual judged per airspeed bin."""
+    A = Phi.reshape(-1, n)
+    y = f.reshape(-1)
     theta, *_ = np.linalg.lstsq(A, y, rcond=None)
     e = np.linalg.norm((y - A @ theta).reshape(-1, 3), axis=1) / GRAVITY_MPS2
-    airspeed = result["airspeed_mps"][late]
     bins = {}
     for i, lab in enumerate(airspeed_bin_labels()):
         sel = (airspeed >= AIRSPEED_BINS_MPS[i]) & (airspeed < AIRSPEED_BINS_MPS[i + 1])

@@ -36,6 +36,11 @@ def register_cli(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--hidden", type=int, default=32, help="width of each of the two hidden layers (default 32)")
     p.add_argument("--iterations", type=int, default=300, help="L-BFGS iterations (default 300)")
     p.add_argument("--train-seed", type=int, default=0, help="seed of the network's initial weights (default 0)")
+    p.add_argument("--adversarial", type=float, default=0.0, metavar="ALPHA",
+                   help="weight of the domain-adversarial term that keeps the network from telling the flights' "
+                   "conditions apart (default 0: off; see the docs' bases page)")
+    p.add_argument("--adversarial-rounds", type=int, default=8, help="--adversarial: classifier fits, each "
+                   "followed by ITERATIONS / ROUNDS L-BFGS iterations (default 8)")
     p.add_argument("--stride", type=int, default=5, help="keep every N-th sample of a log (default 5: 50 Hz)")
     p.add_argument("--workers", type=int, default=2, help="--fly: flights in parallel (default 2)")
     p.add_argument("--force", action="store_true", help="replace an existing --out file")
@@ -45,10 +50,12 @@ def register_cli(subparsers) -> argparse.ArgumentParser:
 
 def _check(args) -> None:
     for name, lo, hi in (("h", 1, 30), ("hidden", 2, 256), ("iterations", 1, 100_000), ("stride", 1, 10_000),
-                         ("runs", 1, 100_000), ("workers", 1, 256)):
+                         ("runs", 1, 100_000), ("workers", 1, 256), ("adversarial_rounds", 1, 1000)):
         v = getattr(args, name)
         if not lo <= v <= hi:
             raise ConfigError(f"--{name.replace('_', '-')} = {v}: out of range; allowed: {lo} to {hi}")
+    if not (args.adversarial >= 0.0 and args.adversarial <= 1e3):   # also refuses nan
+        raise ConfigError(f"--adversarial = {args.adversarial}: out of range; allowed: 0 to 1000")
     if args.out.exists() and not args.force:
         raise ConfigError(f"{args.out}: exists; allowed: a new file, or --force to replace it")
     if not args.out.parent.is_dir():
@@ -97,12 +104,22 @@ def cmd_learn_basis(args: argparse.Namespace) -> int:
     else:
         flights = [f for f in flights if f.vehicle == vehicle.name or not f.source.endswith(".parquet")]
     settings = MetaSettings(h=args.h, hidden=(args.hidden, args.hidden), max_iter=args.iterations,
-                            seed=args.train_seed)
+                            seed=args.train_seed, adversarial=args.adversarial,
+                            adversarial_rounds=args.adversarial_rounds)
     command = "vtoladapt learn-basis " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "learn-basis" else ""
     net, summary = learn_basis(flights, vehicle, settings, command=command, extra_meta=extra)
     save(net, args.out, force=args.force)
     print(f"learn-basis: {args.out}: {summary['flights']} flights, {summary['samples']} samples, "
           f"loss {summary['loss_physics_only']:.4g} (physics columns alone) -> {summary['loss_final']:.4g} "
-          f"(with {args.h} learned columns) in {summary['train_seconds']:.0f} s", file=sys.stderr)
+          f"(with {args.h} learned columns) in {summary['train_seconds']:.0f} s" + _condition_note(summary),
+          file=sys.stderr)
     return 0
+
+
+def _condition_note(summary: dict) -> str:
+    if summary.get("condition_accuracy") is None:
+        return ""
+    return (f"; a classifier tells the flights' {summary['conditions']} conditions from the network's outputs in "
+            f"{100 * summary['condition_accuracy']:.0f} % of samples (largest condition "
+            f"{100 * summary['condition_chance']:.0f} %)")

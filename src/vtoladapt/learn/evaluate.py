@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ..stats import fraction_holding
-from .ceiling import ceiling_fit, true_inputs  # noqa: F401  (true_inputs: part of this module's interface)
+from .ceiling import ceiling_fit, measured_ceiling_fit, true_inputs  # noqa: F401  (true_inputs: part of this module's interface)
 
 CAMPAIGN = Path(__file__).resolve().parents[3] / "scenarios" / "envelope.toml"
 BASES = ("paper", "extended", "learned")
@@ -44,20 +44,42 @@ HELD_OUT = {"fan_schedule": "ramp_100", "fan bearing": "[225,315) deg"}
 FAMILIES = ("caltech_vtol", "px4_standard_vtol")
 
 
-def cross_vehicle_files(folder: Path) -> dict[str, str]:
-    """Vehicle files that fly the other family's shipped network (held-out airframe)."""
-    from ..bases.learned import TRAINED_DIR
+def vehicle_files(folder: Path, nets: dict[str, Path], tag: str, allow_other: bool = False) -> dict[str, str]:
+    """Vehicle files (written into ``folder``) that fly ``nets[vehicle]`` as their learned basis."""
     from ..vehicle import VEHICLE_DIR
 
     folder.mkdir(parents=True, exist_ok=True)
     out = {}
-    for name, other in zip(FAMILIES, reversed(FAMILIES)):
-        text = (VEHICLE_DIR / f"{name}.toml").read_text()
-        path = folder / f"{name}_with_{other}_net.toml"
-        path.write_text(text + f'\n[basis_settings.learned]\nfile = "{TRAINED_DIR / (other + ".npz")}"\n'
-                               "allow_other_vehicle = true\n")
+    for name, net in nets.items():
+        path = folder / f"{name}_{tag}.toml"
+        path.write_text((VEHICLE_DIR / f"{name}.toml").read_text()
+                        + f'\n[basis_settings.learned]\nfile = "{Path(net).resolve()}"\n'
+                        + ("allow_other_vehicle = true\n" if allow_other else ""))
         out[name] = str(path)
     return out
+
+
+def cross_vehicle_files(folder: Path) -> dict[str, str]:
+    """Vehicle files that fly the other family's shipped network (held-out airframe)."""
+    from ..bases.learned import TRAINED_DIR
+
+    return {name: vehicle_files(folder, {name: TRAINED_DIR / f"{other}.npz"}, f"with_{other}_net", True)[name]
+            for name, other in zip(FAMILIES, reversed(FAMILIES))}
+
+
+def learned_files_option(text: str) -> tuple[str, dict[str, Path]]:
+    """``--learned-files LABEL=DIR``: the label and the folder's ``<vehicle>.npz`` for both families."""
+    from ..config import ConfigError
+
+    label, sep, folder = text.partition("=")
+    if not sep or not label.isidentifier():
+        raise ConfigError(f"--learned-files {text!r}: allowed: LABEL=DIR with LABEL a plain name (letters, digits, _)")
+    nets = {v: Path(folder) / f"{v}.npz" for v in FAMILIES}
+    missing = [str(p) for p in nets.values() if not p.is_file()]
+    if missing:
+        raise ConfigError(f"--learned-files {text!r}: {', '.join(missing)} not found; allowed: a folder with a "
+                          f"trained file per vehicle family ({', '.join(v + '.npz' for v in FAMILIES)})")
+    return label, nets
 
 
 def specs_for(specs, basis: str, vehicle_files: dict | None = None, controllers=None) -> list:
@@ -88,8 +110,10 @@ def run_ceilings(specs, bases_specs: dict, workers: int = 2) -> list[dict]:
         res = simulate(sc)
         veh = sc.load_vehicle()
         row = {"run": s.index, **{f"group.{k}": v for k, v in s.groups.items()}}
+        cutoff = sc.controller.lowpass_cutoff_hz
         for name, by_vehicle in bases_specs.items():
             row[name] = ceiling_fit(res, veh, by_vehicle[veh.name])
+            row[f"{name}, measured inputs"] = measured_ceiling_fit(res, veh, by_vehicle[veh.name], cutoff)
         return row
 
     with ThreadPoolExecutor(max_workers=workers) as pool:
@@ -245,7 +269,14 @@ def main(argv=None) -> int:
     p.add_argument("--controllers", default="", help="comma-separated subset (default: the file's)")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--keep", action="store_true", help="reuse a row whose summary.json exists in --out")
+    p.add_argument("--learned-files", action="append", default=[], metavar="LABEL=DIR",
+                   help="one more row: the learned basis flown from DIR/<vehicle>.npz (networks you trained)")
     args = p.parse_args(argv)
+    try:
+        extra = [learned_files_option(t) for t in args.learned_files]
+    except Exception as e:                       # one line, like every refusal of the tool
+        print(f"error: {e}", file=sys.stderr)
+        return 2
     cf, specs = plan_campaign_file(args.campaign, runs=args.runs, seed=args.seed)
     controllers = [c for c in args.controllers.split(",") if c] or None
     args.out.mkdir(parents=True, exist_ok=True)
@@ -255,8 +286,11 @@ def main(argv=None) -> int:
     plan = [(b, b, None) for b in args.bases.split(",")]
     if not args.no_cross and "learned" in args.bases.split(","):
         plan.append(("learned (other airframe's network)", "learned", cross_vehicle_files(args.out / "vehicles")))
+    for label, nets in extra:
+        plan.append((f"learned ({label})", "learned", vehicle_files(args.out / "vehicles", nets, label)))
     for name, basis, vfiles in plan:
-        folder = args.out / name.split(" ")[0] if vfiles is None else args.out / "learned_cross"
+        folder = (args.out / name.split(" ")[0] if vfiles is None else args.out / "learned_cross"
+                  if name.startswith("learned (other") else args.out / f"learned_{name[9:-1]}")
         rows[name] = folder
         if args.keep and (folder / "summary.json").is_file():
             continue

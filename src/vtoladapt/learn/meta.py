@@ -15,14 +15,32 @@ solution), ``-(2 / 3 N_t) r a_net^T`` with the residual ``r``; backpropagation t
 ``tanh`` layers is written out below and checked against finite differences by the tests.
 L-BFGS (:func:`scipy.optimize.minimize`) minimises ``L`` over the network's weights.
 
+The domain-adversarial term (optional: ``MetaSettings.adversarial = alpha > 0``, ``learn-basis
+--adversarial``). Neural-Fly adds a discriminator that tries to tell a flight's condition (there the
+wind speed) from ``phi_net(x)``, and trains the network to defeat it, so that ``phi`` carries what all
+conditions share and the linear weights carry the condition. Here the discriminator is a linear
+softmax classifier of the network's ``3 h`` outputs (standardised), and the network's term is the
+*confusion* loss (Tzeng et al., ICCV 2015): the cross-entropy of the classifier's prediction against
+the uniform distribution over the ``C`` conditions, minimal (``log C``) when the classifier can no
+longer tell them apart::
+
+    L_adv(w) = alpha * mean_t mean_n ( -(1/C) sum_c log softmax_c(D s(phi_net(x_n; w)) + d) ) - alpha log C.
+
+Unlike the negated classification loss of a gradient-reversal layer, it is bounded below with the
+classifier held fixed, so L-BFGS can minimise it in rounds: fit the classifier (multinomial logistic
+regression, convex, on the current network's outputs), then run ``max_iter / rounds`` L-BFGS
+iterations of ``L + L_adv`` with the classifier held, warm-started from the previous round's
+weights. A flight's condition is its fan schedule and fan-bearing quadrant when the log says so
+(``--fly``), else the flight itself. With ``alpha = 0`` (the default) training is the plain objective
+above, in one L-BFGS run: the shipped files were made so. What the term buys is measured in the
+docs (``docs/howto/bases.md``, "The adversarial term").
+
 Why no deep-learning framework: the network is small (16 inputs, two hidden layers of 32, 3 h
 outputs), the data fit in memory (tens of flights of a few thousand samples), and full-batch
 L-BFGS with an exact gradient converges in a few hundred iterations of numpy in a minute or two on
 two cores, deterministically for a seed. numpy and scipy are already the package's dependencies,
 so training needs no extra install and nothing can pull a GPU wheel.
 
-The optional domain-adversarial term of Neural-Fly is not implemented (see the README's measured
-numbers for what the learned basis does without it).
 """
 from __future__ import annotations
 
@@ -31,6 +49,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import minimize
+from scipy.special import logsumexp
 
 from ..bases.netfile import N_FEATURES, forward
 
@@ -43,6 +62,7 @@ class Task:
     A: np.ndarray
     y: np.ndarray
     name: str = ""
+    condition: int = -1     # index of the flight's condition for the adversarial term (-1: the task's own index)
 
 
 @dataclass(frozen=True)
@@ -56,6 +76,9 @@ class MetaSettings:
     weight_decay: float = 1e-4
     max_iter: int = 400
     seed: int = 0
+    adversarial: float = 0.0        # alpha of the domain-adversarial (confusion) term; 0: off
+    adversarial_rounds: int = 8     # classifier fits, each followed by max_iter / rounds L-BFGS iterations
+    discriminator_l2: float = 1e-3  # ridge of the condition classifier's weights
 
 
 @dataclass
@@ -68,6 +91,8 @@ class MetaResult:
     physics_only_loss: float = float("nan")
     seconds: float = 0.0
     iterations: int = 0
+    condition_accuracy: float = float("nan")   # a classifier fitted on the final outputs: fraction of samples
+    condition_chance: float = float("nan")     # told right, and the largest condition's share (chance level)
 
 
 def init_arrays(settings: MetaSettings, rng: np.random.Generator) -> dict:
@@ -100,6 +125,57 @@ def unflatten(w: np.ndarray, like: dict) -> dict:
     return out
 
 
+@dataclass(frozen=True)
+class Discriminator:
+    """A linear softmax classifier of the condition from the network's standardised outputs."""
+
+    D: np.ndarray      # (C, 3 h)
+    d: np.ndarray      # (C,)
+    mu: np.ndarray     # (3 h,) output means and spreads at the fit: s = (out - mu) / sd
+    sd: np.ndarray
+
+    def log_probabilities(self, out: np.ndarray) -> np.ndarray:
+        logits = ((out - self.mu) / self.sd) @ self.D.T + self.d
+        return logits - logsumexp(logits, axis=1, keepdims=True)
+
+    def confusion(self, out: np.ndarray, weight: np.ndarray) -> tuple[float, np.ndarray]:
+        """``sum_n weight_n (-(1/C) sum_c log p_nc) - log C`` (>= 0, 0 when every prediction is uniform) and its
+        gradient with respect to ``out``."""
+        logp = self.log_probabilities(out)
+        C = self.D.shape[0]
+        value = float(weight @ (-logp.mean(axis=1))) - np.log(C)
+        g_logits = weight[:, None] * (np.exp(logp) - 1.0 / C)
+        return value, (g_logits @ self.D) / self.sd
+
+    def accuracy(self, out: np.ndarray, labels: np.ndarray) -> float:
+        """Fraction of samples whose condition the classifier names."""
+        return float(np.mean(np.argmax(self.log_probabilities(out), axis=1) == labels))
+
+
+def fit_discriminator(out: np.ndarray, labels: np.ndarray, weight: np.ndarray, n_conditions: int,
+                      l2: float = 1e-3) -> Discriminator:
+    """The classifier that best tells ``labels`` from ``out`` (weighted multinomial logistic regression with a
+    ridge on the weights; convex, solved by L-BFGS from zero, so deterministic)."""
+    mu = out.mean(axis=0)
+    sd = np.maximum(out.std(axis=0), 1e-9)
+    s = (out - mu) / sd
+    C, k = n_conditions, out.shape[1]
+    onehot = np.zeros((len(labels), C))
+    onehot[np.arange(len(labels)), labels] = 1.0
+    wsum = float(weight.sum())
+
+    def fun(p):
+        D, d = p[:C * k].reshape(C, k), p[C * k:]
+        logits = s @ D.T + d
+        logp = logits - logsumexp(logits, axis=1, keepdims=True)
+        val = -float(np.sum(weight[:, None] * onehot * logp)) / wsum + l2 * float(np.sum(D * D))
+        g = weight[:, None] * (np.exp(logp) - onehot) / wsum
+        return val, np.concatenate([(g.T @ s + 2 * l2 * D).ravel(), g.sum(0)])
+
+    res = minimize(fun, np.zeros(C * k + C), jac=True, method="L-BFGS-B", options={"maxiter": 500, "gtol": 1e-8})
+    return Discriminator(D=res.x[:C * k].reshape(C, k), d=res.x[C * k:], mu=mu, sd=sd)
+
+
 class Objective:
     """``L(w)`` and its gradient over a fixed set of tasks (the arrays concatenated once)."""
 
@@ -119,6 +195,14 @@ class Objective:
         self.y = [np.ascontiguousarray(y.reshape(-1)) for y in self.y]
         self.AtA = [A.T @ A for A in self.A]
         self.Aty = [A.T @ y for A, y in zip(self.A, self.y)]
+        # the adversarial term: each sample's condition (0 .. C-1) and weight 1 / (T N_t) (each flight
+        # counts as much as in L); the classifier is held between rounds (None: the term is off)
+        raw = np.array([t.condition if t.condition >= 0 else -(i + 1) for i, t in enumerate(tasks)])
+        _, codes = np.unique(raw, return_inverse=True)
+        self.n_conditions = int(codes.max()) + 1
+        self.labels = np.repeat(codes, np.diff(self.bounds))
+        self.sample_weight = np.repeat(1.0 / (len(tasks) * np.diff(self.bounds)), np.diff(self.bounds))
+        self.discriminator: Discriminator | None = None
 
     def solve_task(self, t: int, N: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """Ridge weights, residual (n, 3) and loss of task ``t`` with network outputs ``N`` (n, 3, h)."""
@@ -156,6 +240,10 @@ class Objective:
             # envelope theorem: d loss / d N[n, r, j] = -(2 / 3 N_t) r[n, r] a_net[j]
             g = (-2.0 / (3 * (e - s) * T)) * r[:, :, None] * a[self.m:][None, None, :]
             g_out[s:e] = g.reshape(e - s, 3 * h)
+        if self.discriminator is not None and self.settings.adversarial > 0:
+            val, g_adv = self.discriminator.confusion(out, self.sample_weight)
+            total += self.settings.adversarial * val
+            g_out += self.settings.adversarial * g_adv
         wd = self.settings.weight_decay
         total += wd * sum(float(np.sum(arrays[k] ** 2)) for k in ("W1", "W2", "W3"))
         grads = {"W3": g_out.T @ a2 + 2 * wd * arrays["W3"], "b3": g_out.sum(0)}
@@ -197,12 +285,33 @@ def train(tasks: list[Task], prior_mean: np.ndarray, prior_std: np.ndarray, sett
             progress(len(history), val)
         return val, g
 
-    res = minimize(fun, flatten(like), jac=True, method="L-BFGS-B",
-                   options={"maxiter": settings.max_iter, "maxcor": 20, "ftol": 1e-12, "gtol": 1e-9})
-    arrays = unflatten(res.x, like)
+    options = {"maxiter": settings.max_iter, "maxcor": 20, "ftol": 1e-12, "gtol": 1e-9}
+    w = flatten(like)
+    if settings.adversarial > 0 and obj.n_conditions > 1:
+        rounds = max(1, min(settings.adversarial_rounds, settings.max_iter))
+        iterations = 0
+        for r in range(rounds):
+            out, _ = forward(unflatten(w, like), obj.z)
+            obj.discriminator = fit_discriminator(out, obj.labels, obj.sample_weight, obj.n_conditions,
+                                                  settings.discriminator_l2)
+            budget = settings.max_iter // rounds + (1 if r < settings.max_iter % rounds else 0)
+            res = minimize(fun, w, jac=True, method="L-BFGS-B", options=dict(options, maxiter=budget))
+            w, iterations = res.x, iterations + int(res.nit)
+        obj.discriminator = None
+        history.append(obj(w, like)[0])   # the last entry: the meta-learning loss alone, as without the term
+    else:
+        res = minimize(fun, w, jac=True, method="L-BFGS-B", options=options)
+        w, iterations = res.x, int(res.nit)
+    arrays = unflatten(w, like)
     out, _ = forward(arrays, obj.z)
     N_all = out.reshape(-1, 3, settings.h)
     weights = [obj.solve_task(t, N_all[obj.bounds[t]:obj.bounds[t + 1]])[0] for t in range(len(tasks))]
+    # how well the condition can still be told from the trained outputs (with or without the term)
+    accuracy = chance = float("nan")
+    if obj.n_conditions > 1:
+        accuracy = fit_discriminator(out, obj.labels, obj.sample_weight, obj.n_conditions,
+                                     settings.discriminator_l2).accuracy(out, obj.labels)
+        chance = float(np.bincount(obj.labels).max() / len(obj.labels))
     return MetaResult(arrays={k: np.array(v) for k, v in arrays.items()}, weights=weights, loss=history,
                       physics_only_loss=obj.physics_only(), seconds=time.perf_counter() - t0,
-                      iterations=int(res.nit))
+                      iterations=iterations, condition_accuracy=accuracy, condition_chance=chance)
