@@ -616,7 +616,9 @@ def bases_section(m: dict):
                             ("target", *names), tuple(rows)))
         if env.get("ceiling"):
             bases = list(env["ceiling"])
-            tables.append(table("Constant-weights ceiling over the same draws (least squares on the true force).",
+            tables.append(table("Constant-weights ceiling over the same draws: least squares on the true force with "
+                                "the true inputs; in the columns 'measured inputs', on the accelerometer with the "
+                                "controller's own inputs, both filtered as the controller filters them.",
                                 ("draws", *bases), tuple((k, *[_fraction_cell(env["ceiling"][b].get(k)) for b in bases])
                                                          for k in env["ceiling"][bases[0]])))
     return Section("Force-model bases compared", paragraphs=tuple(paras), tables=tuple(tables))

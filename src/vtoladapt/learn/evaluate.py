@@ -141,9 +141,8 @@ def compare(out: Path, rows: dict[str, Path], ceilings: list[dict]) -> dict:
                  "campaign": s["campaign"]}
         table["rows"][name] = entry
     table["paired"] = paired(rows)
-    for basis in (ceilings[0].keys() - {"run"} if ceilings else ()):
-        if basis.startswith("group."):
-            continue
+    # in the rows' order: each basis with the true inputs, then with the controller's
+    for basis in (k for k in (ceilings[0] if ceilings else {}) if k != "run" and not k.startswith("group.")):
         table["ceiling"][basis] = {"all": _frac(r[basis]["pass"] for r in ceilings)}
         for g in sorted({k for r in ceilings for k in r if k.startswith("group.")}):
             for lab in sorted({r[g] for r in ceilings}):
@@ -245,7 +244,8 @@ def markdown(table: dict) -> str:
     if table["ceiling"]:
         bases = list(table["ceiling"])
         lines += ["", "Constant-weights ceiling (least squares on the true specific force with the true flow, "
-                      "throttles, attitude and rates; the same target):", "",
+                      "throttles, attitude and rates; in the columns 'measured inputs', on the accelerometer with the "
+                      "controller's own inputs, both through its 10 Hz filter; the same target):", "",
                   "| draws | " + " | ".join(bases) + " |", "|---|" + "---|" * len(bases)]
         for key in table["ceiling"][bases[0]]:
             lines.append(f"| {key} | " + " | ".join(_cell(table["ceiling"][b].get(key)) for b in bases) + " |")
@@ -280,7 +280,9 @@ def main(argv=None) -> int:
     cf, specs = plan_campaign_file(args.campaign, runs=args.runs, seed=args.seed)
     controllers = [c for c in args.controllers.split(",") if c] or None
     args.out.mkdir(parents=True, exist_ok=True)
-    info = {"file": str(args.campaign), "runs": args.runs, "seed": args.seed or cf.config.seed,
+    repo = CAMPAIGN.parents[1]
+    shown = args.campaign.resolve()
+    info = {"file": str(shown.relative_to(repo) if shown.is_relative_to(repo) else shown), "runs": args.runs, "seed": args.seed or cf.config.seed,
             "sampling": cf.config.sampling, "duration_s": 40.0}
     rows: dict[str, Path] = {}
     plan = [(b, b, None) for b in args.bases.split(",")]
