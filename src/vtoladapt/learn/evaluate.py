@@ -12,13 +12,18 @@ table: per basis, the fraction of draws where each target holds with its 95 % Wi
 per airspeed bin, on the conditions held out of training (the fan schedule and bearing sector the
 shipped bases never saw), and the constant-weights ceiling.
 
+``--learned-files LABEL=DIR`` adds a row flying the networks ``DIR/<vehicle>.npz`` (e.g. trained with
+``learn-basis --adversarial``).
+
 **The ceiling** (:func:`.ceiling.ceiling_fit`): for each draw, the best *constant* weights of a basis for the
 whole run, by least squares on the aircraft's true specific force with the true incident flow,
 the throttles the rotors actually had (the lift collective as the RMS of the four rotors: the
 same total thrust) and the true attitude and rates, judged by the same target (p95 < 0.05 g in
 every true-airspeed bin, after the first 2 s). It is what any estimator of that basis could do at
 best, with no sensor and no adaptation lag; the log it is fitted on is the composite law's with
-the paper's basis (the same flight for every basis).
+the paper's basis (the same flight for every basis). Beside it, each basis's ceiling with the
+controller's own inputs and accelerometer, filtered as it filters them
+(:func:`.ceiling.measured_ceiling_fit`): the gap between the two is what sensing costs.
 """
 from __future__ import annotations
 
