@@ -135,6 +135,16 @@ def test_not_a_basis_file(tmp_path):
         read_net(tmp_path / "missing.npz")
 
 
+def assert_gradient_matches_central_differences(obj, w, like, rng, n=25, step=1e-6):
+    """``obj``'s analytic gradient at ``w`` against central differences in ``n`` random coordinates."""
+    _, g = obj(w, like)
+    for i in rng.choice(w.size, n, replace=False):
+        e = np.zeros_like(w)
+        e[i] = step
+        fd = (obj(w + e, like)[0] - obj(w - e, like)[0]) / (2 * step)
+        assert g[i] == pytest.approx(fd, rel=1e-5, abs=1e-9)
+
+
 def test_meta_learning_gradient_matches_finite_differences():
     rng = np.random.default_rng(1)
     tasks = [Task(z=rng.normal(size=(40, N_FEATURES)), A=rng.normal(size=(40, 3, 2)), y=rng.normal(size=(40, 3)))
@@ -143,12 +153,7 @@ def test_meta_learning_gradient_matches_finite_differences():
     like = init_arrays(s, rng)
     obj = Objective(tasks, np.zeros(2), np.ones(2), s)
     w = flatten(like)
-    _, g = obj(w, like)
-    for i in rng.choice(w.size, 25, replace=False):
-        e = np.zeros_like(w)
-        e[i] = 1e-6
-        fd = (obj(w + e, like)[0] - obj(w - e, like)[0]) / 2e-6
-        assert g[i] == pytest.approx(fd, rel=1e-5, abs=1e-9)
+    assert_gradient_matches_central_differences(obj, w, like, rng)
 
 
 def test_adversarial_gradient_matches_finite_differences():
@@ -168,12 +173,7 @@ def test_adversarial_gradient_matches_finite_differences():
     obj.discriminator = fit_discriminator(forward(like, obj.z)[0], obj.labels, obj.sample_weight, 2)
     plain = Objective(tasks, np.zeros(2), np.ones(2), s)
     assert obj(w, like)[0] > plain(w, like)[0]        # the term is on and positive away from confusion
-    _, g = obj(w, like)
-    for i in rng.choice(w.size, 25, replace=False):
-        e = np.zeros_like(w)
-        e[i] = 1e-6
-        fd = (obj(w + e, like)[0] - obj(w - e, like)[0]) / 2e-6
-        assert g[i] == pytest.approx(fd, rel=1e-5, abs=1e-9)
+    assert_gradient_matches_central_differences(obj, w, like, rng)
 
 
 def _condition_tasks(rng, conditions, per_condition=4, n=80):
