@@ -85,6 +85,21 @@ class Settings(Validated):
                             gt=0.0, le=1e6)
 
 
+def shipped_architectures() -> tuple[tuple[int, int, int], ...]:
+    """``(h, H1, H2)`` of the shipped files (:data:`TRAINED_DIR`), distinct, sorted: the sizes the
+    compiled code is specialised for (:data:`SHIPPED_ARCHITECTURE`, :data:`vtoladapt.control.adaptation.SPECIALISED_N`)."""
+    found = set()
+    for path in sorted(TRAINED_DIR.glob("*.npz")):
+        try:
+            net = read_net(path)
+        except ConfigError:
+            # a file being rewritten (training) must not stop the package from importing: its size just
+            # runs the generic loops, and the test of the shipped files fails on it
+            continue
+        found.add((net.h, *net.hidden))
+    return tuple(sorted(found))
+
+
 def net_path(vehicle, settings: Settings) -> Path:
     """The file ``settings`` names, relative paths against the vehicle file's folder; or the shipped one."""
     if settings.file:

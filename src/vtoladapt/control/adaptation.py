@@ -95,10 +95,33 @@ from ..layout import BlockLayout, Field
 from .exact_step import EXACT_WORK, constant_gain_inverse
 from .linalg import cholesky_lower, cholesky_solve, factor_apply, factor_diag, gram_of_factor, inverse_factor
 
-SPECIALISED_N = 8
-"""The number of parameters the hot kernels are also compiled for with constant loop lengths: the paper's
-basis, the default (:data:`vtoladapt.bases.N_PHYSICS`); any other n runs the same code with loops of
-run-time length (about twice as long for n = 8)."""
+N_SPECIALISED_SLOTS = 3
+"""How many basis sizes the hot kernels are compiled for with constant loop lengths (each one is a copy
+of the step in the compiled code, so first-import compile time grows with it)."""
+
+
+def _specialised_sizes() -> tuple[int, ...]:
+    """The n of every shipped basis: the paper's, the extended one's and the learned one's for each shipped
+    network (13 + h), smallest first, at most :data:`N_SPECIALISED_SLOTS` of them (the others run the
+    generic loops; ``tests/test_adaptation_specialised.py`` fails if a shipped basis's n is left out)."""
+    from ..bases import N_PHYSICS, extended, learned
+
+    sizes = {N_PHYSICS, extended.N} | {extended.N + h for h, _, _ in learned.shipped_architectures()}
+    return tuple(sorted(sizes))[:N_SPECIALISED_SLOTS]
+
+
+SPECIALISED_N = _specialised_sizes()
+"""The numbers of parameters the hot kernels are also compiled for with constant loop lengths, derived from
+the shipped bases (:func:`_specialised_sizes`: 8 for the paper's, 13 for the extended, 17 for the learned
+with the shipped h = 4); any other n (a user's basis) runs the same code with loops of run-time length
+(1.5-2 times as long). The values are frozen into the compiled code when it is cached: a shipped network
+with another h after that runs the generic loops (same numbers) until the package's source changes."""
+_SLOT_N = SPECIALISED_N + (0,) * (N_SPECIALISED_SLOTS - len(SPECIALISED_N))
+N_SLOT_0 = _SLOT_N[0]
+N_SLOT_1 = _SLOT_N[1]
+N_SLOT_2 = _SLOT_N[2]
+"""The three compiled sizes as the global constants Numba freezes (an unused slot holds 0: no basis has
+zero parameters)."""
 
 ADAPT_COMPOSITE = 0
 ADAPT_PCONST = 1
@@ -211,9 +234,9 @@ def offsets_table(n: int, memory_at: int, prior_at: int, work_at: int) -> np.nda
 
 # --- small dense linear algebra: vtoladapt.control.linalg ----------------------------------------
 # The small kernels the step calls are inlined into it (``inline="always"``): the step is compiled for
-# the paper's n as a constant (SPECIALISED_N), and only inlined code sees that constant and runs loops
-# of constant length. The projection, too large to inline twice into the step, specialises itself the
-# same way.
+# each shipped basis's n as a constant (SPECIALISED_N), and only inlined code sees that constant and runs
+# loops of constant length. The projection, too large to inline into every copy of the step, specialises
+# itself the same way.
 
 
 # --- filters and the prediction error -----------------------------------------------------------
@@ -439,15 +462,18 @@ def project_direction(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_l
         Number of active bounds (0 if none), or -1 if the iteration limit was reached (``d`` is
         then the last iterate, and the caller's clip keeps theta-hat inside); and their bit mask.
     """
-    if n == SPECIALISED_N:
-        return _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start,
-                        SPECIALISED_N)
+    if n == N_SLOT_0:
+        return _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, N_SLOT_0)
+    if n == N_SLOT_1:
+        return _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, N_SLOT_1)
+    if n == N_SLOT_2:
+        return _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, N_SLOT_2)
     return _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, n)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, n) -> tuple:
-    """The body of :func:`project_direction` (inlined into it twice: for the paper's n and for any n)."""
+    """The body of :func:`project_direction` (inlined into it for each specialised n and for any n)."""
     for i in range(n):
         x[d + i] = x[d0 + i]
     if at_upper == 0 and at_lower == 0:
@@ -614,13 +640,19 @@ def adaptation_step_with_error(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt
     """:func:`weighted_adaptation_step` given the prediction error ``e`` (eq:prediction_error, before the
     update: what the controller's front end has formed already); returns ``(n_active, active_set)``.
 
-    Compiled twice: for the paper's n (:data:`SPECIALISED_N`, every loop of constant length) and for
-    any n; the two give the same numbers, the first in about half the time.
+    Compiled for each shipped basis's n (:data:`SPECIALISED_N`, every loop of constant length) and for
+    any n; they give the same numbers, the first in half to two thirds of the time.
     """
     n = int(at[a + AT_N])
-    if n == SPECIALISED_N:
+    if n == N_SLOT_0:
         return _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma, trace_max,
-                     active_set, w_track, w_pred, directional, gain_scale, e, SPECIALISED_N, toward_prior)
+                     active_set, w_track, w_pred, directional, gain_scale, e, N_SLOT_0, toward_prior)
+    if n == N_SLOT_1:
+        return _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma, trace_max,
+                     active_set, w_track, w_pred, directional, gain_scale, e, N_SLOT_1, toward_prior)
+    if n == N_SLOT_2:
+        return _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma, trace_max,
+                     active_set, w_track, w_pred, directional, gain_scale, e, N_SLOT_2, toward_prior)
     return _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma, trace_max,
                  active_set, w_track, w_pred, directional, gain_scale, e, n, toward_prior)
 
@@ -754,7 +786,7 @@ def lyapunov_at(v0, v1, v2, q0_tilde, theta_buf, i_theta, P_inv_buf, i_P_inv, th
     return V + 0.5 * q
 
 
-__all__ = ["ADAPT_COMPOSITE", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "AT", "SPECIALISED_N", "AT_A_M",
+__all__ = ["ADAPT_COMPOSITE", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "AT", "N_SPECIALISED_SLOTS", "SPECIALISED_N", "AT_A_M",
            "AT_D", "AT_D0", "AT_DWT", "AT_FACTOR", "AT_GAMMA", "AT_GAMMA0", "AT_K", "AT_L", "AT_LOWER", "AT_M",
            "AT_MU", "AT_N", "AT_P0", "AT_P_DIAG", "AT_RHS", "AT_S", "AT_SWD", "AT_SYSTEM", "AT_S_FACTOR", "AT_TAU",
            "AT_THETA", "AT_THETA0", "AT_THETA_INIT", "AT_UPPER", "AT_W", "AT_WTW", "TINY", "adaptation_step",

@@ -103,12 +103,18 @@ def adaptive_estimate(mode, params, state, tick, diag, s_active, d_proj, forget_
     ``w_pred``, ``directional``, ``gain_scale``, ``toward_prior``: see
     :func:`vtoladapt.control.adaptation.weighted_adaptation_step` (the defaults are the paper's law).
     Returns ``(adapt_active, faults)``: whether theta-hat was updated, ``FAULT_*`` bits. Compiled for the
-    paper's n with constant loop lengths too (:data:`vtoladapt.control.adaptation.SPECIALISED_N`).
+    shipped bases' n with constant loop lengths too (:data:`vtoladapt.control.adaptation.SPECIALISED_N`).
     """
     n = int(params[A_N])
-    if n == ad.SPECIALISED_N:
+    if n == ad.N_SLOT_0:
         return _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max,
-                         w_track, w_pred, directional, gain_scale, toward_prior, ad.SPECIALISED_N)
+                         w_track, w_pred, directional, gain_scale, toward_prior, ad.N_SLOT_0)
+    if n == ad.N_SLOT_1:
+        return _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max,
+                         w_track, w_pred, directional, gain_scale, toward_prior, ad.N_SLOT_1)
+    if n == ad.N_SLOT_2:
+        return _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max,
+                         w_track, w_pred, directional, gain_scale, toward_prior, ad.N_SLOT_2)
     return _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max,
                      w_track, w_pred, directional, gain_scale, toward_prior, n)
 
