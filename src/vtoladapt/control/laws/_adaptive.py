@@ -68,13 +68,10 @@ def accumulate_information(params, state, weight, dt, n) -> None:
     s = int(params[A_INFO_SUM])
     c = weight * dt
     for i in range(n):
+        w0, w1, w2 = state[w + i], state[w + n + i], state[w + 2 * n + i]
         for j in range(i, n):
-            t = 0.0
-            for r in range(3):
-                t += state[w + n * r + i] * state[w + n * r + j]
-            v = state[s + n * i + j] + c * t
-            state[s + n * i + j] = v
-            state[s + n * j + i] = v
+            state[s + n * i + j] += c * (0.0 + w0 * state[w + j] + w1 * state[w + n + j] + w2 * state[w + 2 * n + j])
+    ad.mirror_upper(state, s, n)
 
 
 @njit(cache=True)
@@ -88,9 +85,8 @@ def add_information(params, state, g, weight, dt, n) -> None:
     c = weight * dt
     for i in range(n):
         for j in range(i, n):
-            v = state[s + n * i + j] + c * state[g + n * i + j]
-            state[s + n * i + j] = v
-            state[s + n * j + i] = v
+            state[s + n * i + j] += c * state[g + n * i + j]
+    ad.mirror_upper(state, s, n)
 
 
 @njit(cache=True, _nrt=False)
