@@ -102,8 +102,8 @@ from numba import njit
 from ..frames import rows_transpose_times
 from ..layout import BlockLayout, Field
 from .exact_step import EXACT_WORK, constant_gain_inverse
-from .linalg import (cholesky_lower, cholesky_solve, factor_apply, factor_diag, gram_of_factor, inverse_factor,
-                     mirror_upper)
+from .linalg import (cholesky_inline, cholesky_lower, cholesky_solve, factor_apply, factor_diag, gram_of_factor,
+                     inverse_factor, inverse_factor_inline, mirror_upper)
 from .sizes import N_SLOT_0, N_SLOT_1, N_SLOT_2, N_SPECIALISED_SLOTS, SPECIALISED_N
 
 ADAPT_COMPOSITE = 0
@@ -444,18 +444,16 @@ def project_direction(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_l
         Number of active bounds (0 if none), or -1 if the iteration limit was reached (``d`` is
         then the last iterate, and the caller's clip keeps theta-hat inside); and their bit mask.
     """
+    # only the paper's n (the smallest shipped size) with constant loops: the projection runs on the ticks
+    # a bound is held, and a copy per shipped size cost more first-import compile time than it saved
     if n == N_SLOT_0:
         return _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, N_SLOT_0)
-    if n == N_SLOT_1:
-        return _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, N_SLOT_1)
-    if n == N_SLOT_2:
-        return _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, N_SLOT_2)
     return _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, n)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, n) -> tuple:
-    """The body of :func:`project_direction` (inlined into it for each specialised n and for any n)."""
+    """The body of :func:`project_direction` (inlined into it for the paper's n and for any n)."""
     for i in range(n):
         x[d + i] = x[d0 + i]
     if at_upper == 0 and at_lower == 0:
@@ -708,12 +706,12 @@ def _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b,
             constant_gain_inverse(x, wf, prior, p0, gamma0, G, int(at[a + AT_EXACT]), w_pred * dt, n)
         M = int(at[a + AT_M])
         L = int(at[a + AT_L])
-        if not cholesky_lower(x, G, x, L, n):
+        if not cholesky_inline(x, G, x, L, n):
             if mode == ADAPT_COMPOSITE:
                 for i in range(n * n):
                     x[gam + i] = prior[gamma0 + i]
             return -2, active_set
-        inverse_factor(x, L, x, M, n)
+        inverse_factor_inline(x, L, x, M, n)
         for i in range(n):
             x[d0 + i] = x[tau + i]
         factor_apply(x, M, x, d0, n)

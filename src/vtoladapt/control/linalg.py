@@ -23,9 +23,21 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def cholesky_lower(A, a, L, l, n) -> bool:
     """Cholesky factor (lower) of the SPD ``n x n`` matrix at ``A[a:]`` into ``L[l:]``; False if not PD.
+
+    :func:`cholesky_inline` compiled once, for the small systems of the projection and the directional
+    forgetting and for any caller off the adaptation step's path (an inlined copy in each of them cost
+    first-import compile time for nothing measurable).
+    """
+    return cholesky_inline(A, a, L, l, n)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def cholesky_inline(A, a, L, l, n) -> bool:
+    """:func:`cholesky_lower` inlined into the caller: the adaptation step, where a constant n makes its
+    loops of constant length (a third faster at n = 17).
 
     Column by column; the entries of a column two rows at a time, each its own sum in the textbook
     order (``A[i, j] - L[i, 0] L[j, 0] - L[i, 1] L[j, 1] - ...``): two independent chains of additions
@@ -80,8 +92,14 @@ def cholesky_solve(L, l, n, b, o) -> None:
         b[i] = t / L[n * i + i]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def inverse_factor(L, l, M, m, n) -> None:
+    """:func:`inverse_factor_inline` compiled once, for the callers off the adaptation step's main path."""
+    inverse_factor_inline(L, l, M, m, n)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def inverse_factor_inline(L, l, M, m, n) -> None:
     """``M = L^-1`` (lower triangular) for a Cholesky factor ``L`` of ``A``, so ``A^-1 = M^T M``.
 
     ``n x n``, ``L`` at ``L[l:]`` (from :func:`cholesky_lower`), ``M`` into ``M[m:]``. Forward
