@@ -22,7 +22,7 @@ SCANNED = ("layout.py", "parts.py", "sim", "wind", "sensors", "gym", "control", 
 force model's."""
 
 NOT_OFFSETS: dict[str, str] = {
-    "SPECIALISED_N": "the basis size the adaptation's unrolled kernels are written for (the paper's 8)",
+    "N_SPECIALISED_SLOTS": "count: basis sizes the adaptation's kernels are compiled for with constant loops",
     "ADAPT_COMPOSITE": "enum: adaptation mode", "ADAPT_PCONST": "enum: adaptation mode",
     "ADAPT_TRACKING": "enum: adaptation mode", "ADAPT_NONE": "enum: adaptation mode",
     "PROJECTION_MAX_ITER": "iteration cap of the projection",

@@ -84,6 +84,15 @@ is none, from every bound ``K tau`` points out of. The projection never increase
 ``theta~^T K^-1 d`` for any truth inside the box, which is what the Lyapunov argument needs. A
 component that reaches its bound within the step is clipped to it (the continuous trajectory
 would hit the bound mid-step and then slide).
+
+Compiled sizes
+--------------
+The step, the projection and the front end's loops over n are compiled for every shipped basis's n
+with constant loop lengths (:data:`.sizes.SPECIALISED_N`: 8, 13 and 13 + h, derived from the bases and the
+shipped network files, not typed) and once more for any n (a user's basis). The copies run the same
+sums in the same order, so they give the same numbers bit for bit
+(``tests/test_adaptation_specialised.py``); the constant lengths make the composite step at n = 17
+about 1.6 times as fast. Each copy costs compile time on the first import.
 """
 from __future__ import annotations
 
@@ -93,12 +102,9 @@ from numba import njit
 from ..frames import rows_transpose_times
 from ..layout import BlockLayout, Field
 from .exact_step import EXACT_WORK, constant_gain_inverse
-from .linalg import cholesky_lower, cholesky_solve, factor_apply, factor_diag, gram_of_factor, inverse_factor
-
-SPECIALISED_N = 8
-"""The number of parameters the hot kernels are also compiled for with constant loop lengths: the paper's
-basis, the default (:data:`vtoladapt.bases.N_PHYSICS`); any other n runs the same code with loops of
-run-time length (about twice as long for n = 8)."""
+from .linalg import (cholesky_inline, cholesky_lower, cholesky_solve, factor_apply, factor_diag, gram_of_factor,
+                     inverse_factor, inverse_factor_inline, mirror_upper)
+from .sizes import N_SLOT_0, N_SLOT_1, N_SLOT_2, N_SPECIALISED_SLOTS, SPECIALISED_N
 
 ADAPT_COMPOSITE = 0
 ADAPT_PCONST = 1
@@ -211,9 +217,9 @@ def offsets_table(n: int, memory_at: int, prior_at: int, work_at: int) -> np.nda
 
 # --- small dense linear algebra: vtoladapt.control.linalg ----------------------------------------
 # The small kernels the step calls are inlined into it (``inline="always"``): the step is compiled for
-# the paper's n as a constant (SPECIALISED_N), and only inlined code sees that constant and runs loops
-# of constant length. The projection, too large to inline twice into the step, specialises itself the
-# same way.
+# each shipped basis's n as a constant (SPECIALISED_N), and only inlined code sees that constant and runs
+# loops of constant length. The projection, too large to inline into every copy of the step, specialises
+# itself the same way.
 
 
 # --- filters and the prediction error -----------------------------------------------------------
@@ -265,13 +271,12 @@ def gram(W, w, G, g, n) -> None:
     """``G = W^T W`` (n x n, exactly symmetric) for the 3 x n ``W`` at ``W[w:]``."""
     W = W[w:w + 3 * n]
     G = G[g:g + n * n]
+    # the upper triangle by rows (contiguous: vectorised), then mirrored; each sum 0 + row 0 + row 1 + row 2
     for i in range(n):
+        w0, w1, w2 = W[i], W[n + i], W[2 * n + i]
         for j in range(i, n):
-            t = 0.0
-            for r in range(3):
-                t += W[n * r + i] * W[n * r + j]
-            G[n * i + j] = t
-            G[n * j + i] = t
+            G[n * i + j] = 0.0 + w0 * W[j] + w1 * W[n + j] + w2 * W[2 * n + j]
+    mirror_upper(G, 0, n)
 
 
 @njit(cache=True)
@@ -294,11 +299,11 @@ def information_update(Gamma, g, Gamma0, g0, WtW, h, a, b, n, toward_prior=1.0) 
     Gamma = Gamma[g:g + n * n]
     Gamma0 = Gamma0[g0:g0 + n * n]
     WtW = WtW[h:h + n * n]
+    c = toward_prior * (1.0 - a)
     for i in range(n):
         for j in range(i, n):
-            v = flush_tiny(a * Gamma[n * i + j] + toward_prior * (1.0 - a) * Gamma0[n * i + j] + b * WtW[n * i + j])
-            Gamma[n * i + j] = v
-            Gamma[n * j + i] = v
+            Gamma[n * i + j] = flush_tiny(a * Gamma[n * i + j] + c * Gamma0[n * i + j] + b * WtW[n * i + j])
+    mirror_upper(Gamma, 0, n)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -439,15 +444,16 @@ def project_direction(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_l
         Number of active bounds (0 if none), or -1 if the iteration limit was reached (``d`` is
         then the last iterate, and the caller's clip keeps theta-hat inside); and their bit mask.
     """
-    if n == SPECIALISED_N:
-        return _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start,
-                        SPECIALISED_N)
+    # only the paper's n (the smallest shipped size) with constant loops: the projection runs on the ticks
+    # a bound is held, and a copy per shipped size cost more first-import compile time than it saved
+    if n == N_SLOT_0:
+        return _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, N_SLOT_0)
     return _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, n)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _project(K, k, G, g, x, tau, d0, d, sa, sl, rhs, mu, at_upper, at_lower, active_start, n) -> tuple:
-    """The body of :func:`project_direction` (inlined into it twice: for the paper's n and for any n)."""
+    """The body of :func:`project_direction` (inlined into it for the paper's n and for any n)."""
     for i in range(n):
         x[d + i] = x[d0 + i]
     if at_upper == 0 and at_lower == 0:
@@ -614,13 +620,19 @@ def adaptation_step_with_error(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt
     """:func:`weighted_adaptation_step` given the prediction error ``e`` (eq:prediction_error, before the
     update: what the controller's front end has formed already); returns ``(n_active, active_set)``.
 
-    Compiled twice: for the paper's n (:data:`SPECIALISED_N`, every loop of constant length) and for
-    any n; the two give the same numbers, the first in about half the time.
+    Compiled for each shipped basis's n (:data:`SPECIALISED_N`, every loop of constant length) and for
+    any n; they give the same numbers, the first in half to two thirds of the time.
     """
     n = int(at[a + AT_N])
-    if n == SPECIALISED_N:
+    if n == N_SLOT_0:
         return _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma, trace_max,
-                     active_set, w_track, w_pred, directional, gain_scale, e, SPECIALISED_N, toward_prior)
+                     active_set, w_track, w_pred, directional, gain_scale, e, N_SLOT_0, toward_prior)
+    if n == N_SLOT_1:
+        return _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma, trace_max,
+                     active_set, w_track, w_pred, directional, gain_scale, e, N_SLOT_1, toward_prior)
+    if n == N_SLOT_2:
+        return _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma, trace_max,
+                     active_set, w_track, w_pred, directional, gain_scale, e, N_SLOT_2, toward_prior)
     return _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b, sigma, trace_max,
                  active_set, w_track, w_pred, directional, gain_scale, e, n, toward_prior)
 
@@ -694,12 +706,12 @@ def _step(mode, at, a, x, prior, Phi, phi, R, v_tilde_W, dt, forget_a, forget_b,
             constant_gain_inverse(x, wf, prior, p0, gamma0, G, int(at[a + AT_EXACT]), w_pred * dt, n)
         M = int(at[a + AT_M])
         L = int(at[a + AT_L])
-        if not cholesky_lower(x, G, x, L, n):
+        if not cholesky_inline(x, G, x, L, n):
             if mode == ADAPT_COMPOSITE:
                 for i in range(n * n):
                     x[gam + i] = prior[gamma0 + i]
             return -2, active_set
-        inverse_factor(x, L, x, M, n)
+        inverse_factor_inline(x, L, x, M, n)
         for i in range(n):
             x[d0 + i] = x[tau + i]
         factor_apply(x, M, x, d0, n)
@@ -754,7 +766,8 @@ def lyapunov_at(v0, v1, v2, q0_tilde, theta_buf, i_theta, P_inv_buf, i_P_inv, th
     return V + 0.5 * q
 
 
-__all__ = ["ADAPT_COMPOSITE", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "AT", "SPECIALISED_N", "AT_A_M",
+__all__ = ["ADAPT_COMPOSITE", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "AT", "N_SLOT_0", "N_SLOT_1", "N_SLOT_2",
+           "N_SPECIALISED_SLOTS", "SPECIALISED_N", "AT_A_M",
            "AT_D", "AT_D0", "AT_DWT", "AT_FACTOR", "AT_GAMMA", "AT_GAMMA0", "AT_K", "AT_L", "AT_LOWER", "AT_M",
            "AT_MU", "AT_N", "AT_P0", "AT_P_DIAG", "AT_RHS", "AT_S", "AT_SWD", "AT_SYSTEM", "AT_S_FACTOR", "AT_TAU",
            "AT_THETA", "AT_THETA0", "AT_THETA_INIT", "AT_UPPER", "AT_W", "AT_WTW", "TINY", "adaptation_step",

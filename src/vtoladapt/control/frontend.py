@@ -134,8 +134,12 @@ def prediction_error(params, state) -> tuple:
     """``e = W theta-hat - a_m`` (eq:prediction_error) from the shared estimate, body, m/s^2."""
     n = int(params[A_N])
     w, th, am = int(params[A_W]), int(params[A_THETA]), int(params[A_A_M])
-    if n == ad.SPECIALISED_N:
-        return ad.prediction_error(state, w, state, th, state, am, ad.SPECIALISED_N)
+    if n == ad.N_SLOT_0:
+        return ad.prediction_error(state, w, state, th, state, am, ad.N_SLOT_0)
+    if n == ad.N_SLOT_1:
+        return ad.prediction_error(state, w, state, th, state, am, ad.N_SLOT_1)
+    if n == ad.N_SLOT_2:
+        return ad.prediction_error(state, w, state, th, state, am, ad.N_SLOT_2)
     return ad.prediction_error(state, w, state, th, state, am, n)
 
 
@@ -415,8 +419,12 @@ def regressor_and_filters(fns, params, state, meas, accel_ok) -> None:
     am = int(params[A_A_M])
     c_f = state[S_GAINS + GAIN_LOWPASS]
     if state[S_FILT_INIT] > 0.0:
-        if n == ad.SPECIALISED_N:
-            filter_regressor(state, wf, phi, c_f, ad.SPECIALISED_N)
+        if n == ad.N_SLOT_0:
+            filter_regressor(state, wf, phi, c_f, ad.N_SLOT_0)
+        elif n == ad.N_SLOT_1:
+            filter_regressor(state, wf, phi, c_f, ad.N_SLOT_1)
+        elif n == ad.N_SLOT_2:
+            filter_regressor(state, wf, phi, c_f, ad.N_SLOT_2)
         else:
             filter_regressor(state, wf, phi, c_f, n)
         if accel_ok:

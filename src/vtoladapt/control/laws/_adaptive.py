@@ -68,13 +68,10 @@ def accumulate_information(params, state, weight, dt, n) -> None:
     s = int(params[A_INFO_SUM])
     c = weight * dt
     for i in range(n):
+        w0, w1, w2 = state[w + i], state[w + n + i], state[w + 2 * n + i]
         for j in range(i, n):
-            t = 0.0
-            for r in range(3):
-                t += state[w + n * r + i] * state[w + n * r + j]
-            v = state[s + n * i + j] + c * t
-            state[s + n * i + j] = v
-            state[s + n * j + i] = v
+            state[s + n * i + j] += c * (0.0 + w0 * state[w + j] + w1 * state[w + n + j] + w2 * state[w + 2 * n + j])
+    linalg.mirror_upper(state, s, n)
 
 
 @njit(cache=True)
@@ -88,9 +85,8 @@ def add_information(params, state, g, weight, dt, n) -> None:
     c = weight * dt
     for i in range(n):
         for j in range(i, n):
-            v = state[s + n * i + j] + c * state[g + n * i + j]
-            state[s + n * i + j] = v
-            state[s + n * j + i] = v
+            state[s + n * i + j] += c * state[g + n * i + j]
+    linalg.mirror_upper(state, s, n)
 
 
 @njit(cache=True, _nrt=False)
@@ -103,12 +99,18 @@ def adaptive_estimate(mode, params, state, tick, diag, s_active, d_proj, forget_
     ``w_pred``, ``directional``, ``gain_scale``, ``toward_prior``: see
     :func:`vtoladapt.control.adaptation.weighted_adaptation_step` (the defaults are the paper's law).
     Returns ``(adapt_active, faults)``: whether theta-hat was updated, ``FAULT_*`` bits. Compiled for the
-    paper's n with constant loop lengths too (:data:`vtoladapt.control.adaptation.SPECIALISED_N`).
+    shipped bases' n with constant loop lengths too (:data:`vtoladapt.control.adaptation.SPECIALISED_N`).
     """
     n = int(params[A_N])
-    if n == ad.SPECIALISED_N:
+    if n == ad.N_SLOT_0:
         return _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max,
-                         w_track, w_pred, directional, gain_scale, toward_prior, ad.SPECIALISED_N)
+                         w_track, w_pred, directional, gain_scale, toward_prior, ad.N_SLOT_0)
+    if n == ad.N_SLOT_1:
+        return _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max,
+                         w_track, w_pred, directional, gain_scale, toward_prior, ad.N_SLOT_1)
+    if n == ad.N_SLOT_2:
+        return _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max,
+                         w_track, w_pred, directional, gain_scale, toward_prior, ad.N_SLOT_2)
     return _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forget_b, sigma, trace_max,
                      w_track, w_pred, directional, gain_scale, toward_prior, n)
 

@@ -106,8 +106,12 @@ def gain_scale(params, state) -> float:
     if not np.isfinite(k_I_max):
         return 1.0
     n = int(params[A_N])
-    if n == ad.SPECIALISED_N:
-        t = _trace_phi_p0_phi(params, state, ad.SPECIALISED_N)
+    if n == ad.N_SLOT_0:
+        t = _trace_phi_p0_phi(params, state, ad.N_SLOT_0)
+    elif n == ad.N_SLOT_1:
+        t = _trace_phi_p0_phi(params, state, ad.N_SLOT_1)
+    elif n == ad.N_SLOT_2:
+        t = _trace_phi_p0_phi(params, state, ad.N_SLOT_2)
     else:
         t = _trace_phi_p0_phi(params, state, n)
     return 1.0 if t <= k_I_max else k_I_max / t
@@ -115,7 +119,7 @@ def gain_scale(params, state) -> float:
 
 @njit(cache=True, inline="always")
 def _trace_phi_p0_phi(params, state, n) -> float:
-    """``trace(Phi P0 Phi^T)`` for n parameters (inlined: the paper's n gives loops of constant length)."""
+    """``trace(Phi P0 Phi^T)`` for n parameters (inlined: a specialised n gives loops of constant length)."""
     p0 = int(params[A_P0])
     phi = int(params[A_PHI])
     t = 0.0
