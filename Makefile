@@ -17,9 +17,14 @@ $(STAMP): pyproject.toml
 # The suite in TEST_WORKERS processes (pytest-xdist; tests/conftest.py groups each module, and the
 # modules sharing a session fixture, into one process). TEST_WORKERS=0 runs it in this process.
 TEST_WORKERS ?= 2
+# A test whose worker process dies is run once more (pytest-rerunfailures), and only such a test: an
+# intermittent native abort inside LLVM while Python collects garbage ("Fatal Python error: Aborted",
+# StringMapImpl::RemoveKey), seen in three of about a dozen full runs since the compiled function tables;
+# cause not found. A failing assertion is never re-run; the crash stays in the log as RERUN.
+RERUN_CRASHED = --reruns 1 --only-rerun "worker '\w+' crashed while running"
 
 test: $(STAMP)
-	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadgroup
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadgroup $(if $(filter 0,$(TEST_WORKERS)),,$(RERUN_CRASHED))
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -m slow
