@@ -135,6 +135,7 @@ class Discriminator:
     sd: np.ndarray
 
     def log_probabilities(self, out: np.ndarray) -> np.ndarray:
+        """``log p(condition | out)`` per sample, (N, C)."""
         logits = ((out - self.mu) / self.sd) @ self.D.T + self.d
         return logits - logsumexp(logits, axis=1, keepdims=True)
 
