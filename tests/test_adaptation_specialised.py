@@ -68,7 +68,10 @@ def _adaptation(rng, n, on_bounds):
     return at, x, prior
 
 
-@pytest.mark.parametrize("mode_name", sorted(MODES))
+# the composite mode in the default run; the other modes (the same specialised kernels, other branches) with
+# make test-slow: the default suite's budget on two cores
+@pytest.mark.parametrize("mode_name", [m if m == "composite" else pytest.param(m, marks=pytest.mark.slow)
+                                       for m in sorted(MODES)])
 @pytest.mark.parametrize("on_bounds", [False, True])
 @pytest.mark.parametrize("n", ad.SPECIALISED_N)
 def test_specialised_step_equals_the_generic_step_bit_for_bit(n, on_bounds, mode_name):
@@ -172,7 +175,8 @@ def _textbook_gram_update(W, Gamma, Gamma0, a, b, n):
     return G, out
 
 
-@pytest.mark.parametrize("n", list(range(1, 21)) + [33])
+@pytest.mark.parametrize("n", [n if n in ad.SPECIALISED_N else pytest.param(n, marks=pytest.mark.slow)
+                               for n in list(range(1, 21)) + [33]])
 def test_linear_algebra_kernels_give_the_textbook_numbers(n):
     rng = np.random.default_rng(n)
     for _ in range(5):
