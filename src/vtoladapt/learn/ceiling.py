@@ -18,7 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..frames import GRAVITY_MPS2
-from ..sim.run_metrics import AIRSPEED_BINS_MPS, PRED_ERR_SKIP_S, airspeed_bin_labels
+from ..experiments.envelope import PRED_ERR_BOUND_G
+from ..sim.run_metrics import PRED_ERR_SKIP_S, pred_err_p95_by_airspeed
 
 
 def true_inputs(result, vehicle) -> tuple[np.ndarray, np.ndarray]:
@@ -77,9 +78,6 @@ def _judge(Phi: np.ndarray, f: np.ndarray, airspeed: np.ndarray, n: int) -> dict
     y = f.reshape(-1)
     theta, *_ = np.linalg.lstsq(A, y, rcond=None)
     e = np.linalg.norm((y - A @ theta).reshape(-1, 3), axis=1) / GRAVITY_MPS2
-    bins = {}
-    for i, lab in enumerate(airspeed_bin_labels()):
-        sel = (airspeed >= AIRSPEED_BINS_MPS[i]) & (airspeed < AIRSPEED_BINS_MPS[i + 1])
-        bins[lab] = float(np.percentile(e[sel], 95)) if sel.any() else None
-    ok = all(v < 0.05 for v in bins.values() if v is not None)
+    bins = pred_err_p95_by_airspeed(e, airspeed)
+    ok = all(v < PRED_ERR_BOUND_G for v in bins.values() if v is not None)
     return {"p95_g": bins, "pass": ok, "rms_g": float(np.sqrt(np.mean(e * e)))}
