@@ -290,14 +290,16 @@ def main(argv=None) -> int:
     info = {"file": str(shown.relative_to(repo) if shown.is_relative_to(repo) else shown), "runs": args.runs, "seed": args.seed or cf.config.seed,
             "sampling": cf.config.sampling, "duration_s": 40.0}
     rows: dict[str, Path] = {}
-    plan = [(b, b, None) for b in args.bases.split(",")]
+    # (row name, basis, vehicle files to fly instead of the shipped ones, the row's folder in --out)
+    plan = [(b, b, None, b) for b in args.bases.split(",")]
     if not args.no_cross and "learned" in args.bases.split(","):
-        plan.append(("learned (other airframe's network)", "learned", cross_vehicle_files(args.out / "vehicles")))
+        plan.append(("learned (other airframe's network)", "learned", cross_vehicle_files(args.out / "vehicles"),
+                     "learned_cross"))
     for label, nets in extra:
-        plan.append((f"learned ({label})", "learned", vehicle_files(args.out / "vehicles", nets, label)))
-    for name, basis, vfiles in plan:
-        folder = (args.out / name.split(" ")[0] if vfiles is None else args.out / "learned_cross"
-                  if name.startswith("learned (other") else args.out / f"learned_{name[9:-1]}")
+        plan.append((f"learned ({label})", "learned", vehicle_files(args.out / "vehicles", nets, label),
+                     f"learned_{label}"))
+    for name, basis, vfiles, folder_name in plan:
+        folder = args.out / folder_name
         rows[name] = folder
         if args.keep and (folder / "summary.json").is_file():
             continue
