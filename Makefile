@@ -17,17 +17,27 @@ $(STAMP): pyproject.toml
 # The suite in TEST_WORKERS processes (pytest-xdist; tests/conftest.py groups each module, and the
 # modules sharing a session fixture, into one process). TEST_WORKERS=0 runs it in this process.
 TEST_WORKERS ?= 2
-# A test whose worker process dies is run once more (pytest-rerunfailures), and only such a test: an
-# intermittent native abort inside LLVM while Python collects garbage ("Fatal Python error: Aborted",
-# StringMapImpl::RemoveKey), seen in three of about a dozen full runs since the compiled function tables;
-# cause not found. A failing assertion is never re-run; the crash stays in the log as RERUN.
-RERUN_CRASHED = --reruns 1 --only-rerun "worker '\w+' crashed while running"
+# The suite fails fast and never hangs:
+# - a worker process that dies (a native crash) ends the run at once with the test named
+#   (--max-worker-restart=0): a crash is a defect to find, never re-run; with a restart, xdist's
+#   loadgroup scheduler waits forever for the dead worker's group;
+# - a test (with its fixtures) that runs past TEST_TIMEOUT_S has every thread's stack printed and its
+#   process ended (pytest-timeout's thread method), which then ends the run as above;
+# - the whole run is ended after TEST_SESSION_LIMIT (GNU timeout), whatever else happens;
+# - faulthandler prints every thread's stack on a native abort (-X faulthandler).
+# The 20 slowest tests are listed at the end (--durations).
+TEST_TIMEOUT_S ?= 600
+TEST_TIMEOUT_SLOW_S ?= 3600
+TEST_SESSION_LIMIT ?= 30m
+TEST_FLAGS = --durations=20 --durations-min=1 --timeout=$(TEST_TIMEOUT_S) --timeout-method=thread
+XDIST_FLAGS = -n $(TEST_WORKERS) --dist loadgroup --max-worker-restart=0
 
 test: $(STAMP)
-	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadgroup $(if $(filter 0,$(TEST_WORKERS)),,$(RERUN_CRASHED))
+	timeout --kill-after=30s $(TEST_SESSION_LIMIT) $(PY) -X faulthandler -m pytest $(TEST_FLAGS) \
+	    $(if $(filter 0,$(TEST_WORKERS)),,$(XDIST_FLAGS))
 
 test-slow: $(STAMP)
-	$(PY) -m pytest -m slow
+	$(PY) -X faulthandler -m pytest $(TEST_FLAGS) --timeout=$(TEST_TIMEOUT_SLOW_S) -m slow
 
 reproduce: $(STAMP)
 	$(VENV)/bin/vtoladapt reproduce --out $(OUT)
