@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= results
 
-.PHONY: test test-slow test-numba-latest reproduce tune bench docs clean
+.PHONY: test test-slow test-hypothesis test-numba-latest reproduce tune bench docs clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -28,6 +28,12 @@ test: $(STAMP)
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -m slow
+
+# The property tests with fresh examples, within a budget (tests/conftest.py's "ci" Hypothesis profile: each
+# property's own count, at most 300, and HYPOTHESIS_CI_BUDGET_S of them per process, default 900 s), for a
+# scheduled job beside make test, whose derandomized examples are the same every run.
+test-hypothesis: $(STAMP)
+	HYPOTHESIS_PROFILE=ci $(PY) -m pytest -m 'hypothesis and not slow' -n $(TEST_WORKERS) --dist loadgroup
 
 # The suite on the newest Numba and llvmlite releases instead of the pinned ones (pyproject.toml), in a
 # virtual environment of its own: what the next Numba breaks shows here first (src/vtoladapt/_numba_abi.py
