@@ -7,9 +7,11 @@ tables and turn back into first-class functions (:func:`function_loader`). A Num
 changes any of this should need edits here only; ``tests/test_parts.py`` tests each function
 directly and checks that no other module of the package imports a private Numba or llvmlite name.
 
-Checked on Numba 0.68.1 with llvmlite 0.50.0 (LLVM 20), the versions ``pyproject.toml`` pins;
-``make test-numba-latest`` runs the suite on the newest release. Each function says what it relies
-on and what public alternative is missing.
+The whole suite has passed on Numba 0.68.1 with llvmlite 0.50.0 (LLVM 20), the minor version
+``pyproject.toml`` pins; ``make test-numba-latest`` runs it on the newest release. This module's
+functions were also checked on Numba 0.61.2 with llvmlite 0.44.0 (LLVM 15), the oldest release whose
+first-class functions have the ``jit_addr`` field the loader fills (0.59 and 0.60 do not: there the
+loader fails to compile). Each function says what it relies on and what public alternative is missing.
 
 The one private option used elsewhere is ``_nrt=False`` (compile without Numba's reference counting),
 passed by every kernel of the simulator's tick; ``tests/test_parts.py`` allows that keyword and no
@@ -28,8 +30,8 @@ from numba import cfunc, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-NUMBA_CHECKED = ("0.68",)
-"""The Numba minor versions this module was checked on (and the suite passed on)."""
+NUMBA_CHECKED = ("0.61.2", "0.68.1")
+"""The Numba releases this module's functions were checked on (the whole suite: 0.68.1)."""
 
 # Typing a first-class function warns that the feature is experimental. The package uses the
 # documented part of it (functions of one fixed signature, called with positional arguments), and
@@ -42,9 +44,9 @@ def c_kernel(signature: Any, fn: Callable, **options: Any) -> Any:
     reference counting (``_nrt=False``: a kernel of the tick allocates nothing), with NumPy's error
     model (a division by zero gives inf or nan, as in C: an exception cannot cross a C entry point).
 
-    ``options`` are passed on to ``numba.cfunc`` after these. Public API apart from ``_nrt``, a
-    private option of Numba's ``jit`` (0.59-0.68); it has no public equivalent per function (only
-    the process-wide ``NUMBA_DISABLE_NRT``).
+    ``options`` are passed on to ``numba.cfunc`` after these. Checked on 0.61.2 and 0.68.1. Public
+    API apart from ``_nrt``, a private option of Numba's ``jit``; it has no public equivalent per
+    function (only the process-wide ``NUMBA_DISABLE_NRT``).
     """
     return cfunc(signature, **{"cache": True, "_nrt": False, "error_model": "numpy", **options})(fn)
 
@@ -54,8 +56,8 @@ def signature_of(fn: Any) -> Optional[Any]:
     ``None`` if it is none (a Python function, an ``njit`` dispatcher, anything else).
 
     Public API: ``numba.typeof`` of a ``cfunc`` is its ``numba.types.FunctionType``, whose
-    ``signature`` is the signature it was compiled for (checked on 0.59 and 0.68: the package read
-    ``CFunc._sig`` before; ``CFunc`` has no public attribute for it).
+    ``signature`` is the signature it was compiled for (checked on 0.61.2 and 0.68.1; the package
+    read the private ``CFunc._sig`` before: ``CFunc`` has no public attribute for it).
     """
     try:
         ty = numba.typeof(fn)
@@ -76,7 +78,8 @@ def c_address(fn: Any, signature: Any) -> int:
     """The address of the C entry point of ``fn``, a ``cfunc`` compiled for ``signature``;
     ``TypeError`` if it is not one.
 
-    Public API (``CFunc.address``). The address is valid in this process while ``fn`` lives.
+    Public API (``CFunc.address``; checked on 0.61.2 and 0.68.1). The address is valid in this
+    process while ``fn`` lives.
     """
     if not is_c_kernel(fn, signature) or not isinstance(getattr(fn, "address", None), int):
         raise TypeError(f"{fn!r} is not a numba cfunc of {signature}")
@@ -93,8 +96,9 @@ def function_loader(signature: Any, c_column: int) -> Callable:
 
     Private: this builds the value of a ``FunctionType`` in an ``@intrinsic``, so it depends on that
     type's data model (``numba.experimental.function_type.FunctionModel``: a struct ``c_addr``,
-    ``py_addr``, ``jit_addr``; a call goes through ``c_addr`` when ``jit_addr`` is null; the same in
-    0.59-0.68) and on ``numba.core.cgutils``. Missing publicly: a first-class function value made
+    ``py_addr``, ``jit_addr``; a call goes through ``c_addr`` when ``jit_addr`` is null) and on
+    ``numba.core.cgutils``. Checked on 0.61.2 and 0.68.1; 0.59 and 0.60 have no ``jit_addr`` (the
+    intrinsic fails to compile there). Missing publicly: a first-class function value made
     from an address inside compiled code. Numba's own ways of passing one are a Python object
     unboxed at every call (10-180 us: too slow for the Gymnasium environment's steps) or a constant
     compiled into the caller (not cacheable on disk).
@@ -130,7 +134,8 @@ def has_disk_cache(dispatcher: Any) -> bool:
     load from the cache, not a compilation, is then likely); ``True`` when that cannot be told.
 
     Private: the index's file name (``<file stem>.<qualified name>-<line>.py<version>.nbi``, in
-    ``dispatcher.stats.cache_path``) is Numba's cache format (the same in 0.59-0.68). Missing
+    ``dispatcher.stats.cache_path``) is Numba's cache format (checked on 0.61.2 and 0.68.1; the
+    same name in the sources of 0.60-0.68). Missing
     publicly: asking whether a call would compile before making it (``dispatcher.stats`` counts cache
     hits and misses only after the fact).
     """
@@ -153,8 +158,9 @@ def prefetch(typingctx, array2d, i, j):
     read, locality 2, data: towards L2, not L1); a hint: no fault, no effect on results.
 
     Version-dependent: the intrinsic's name follows the LLVM under llvmlite (``llvm.prefetch.p0``
-    from LLVM 17, ``llvm.prefetch.p0i8`` before; llvmlite 0.42 has LLVM 14, 0.50 LLVM 20), and the
-    code is written with ``llvmlite.ir`` and ``numba.core.cgutils``. Missing publicly: Numba has no
+    from LLVM 17, ``llvm.prefetch.p0i8`` before), and the code is written with ``llvmlite.ir`` and
+    ``numba.core.cgutils``. Checked on 0.61.2 (llvmlite 0.44, LLVM 15: ``p0i8``) and 0.68.1
+    (llvmlite 0.50, LLVM 20: ``p0``). Missing publicly: Numba has no
     prefetch (nor any cache hint).
     """
     if not (isinstance(array2d, types.Array) and array2d.ndim == 2 and isinstance(i, types.Integer)
