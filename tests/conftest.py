@@ -105,6 +105,7 @@ def pytest_runtest_call(item):
     if HYPOTHESIS_PROFILE == "ci" and item.get_closest_marker("hypothesis"):
         _ci_search_s[0] += time.monotonic() - t0
 
+
 REPO_DATA_DIR = Path(__file__).resolve().parents[1] / "data"
 """The real data vendored in the repository (small subsets); each folder has a SOURCE.md."""
 
