@@ -205,6 +205,10 @@ def _private_uses(source: str) -> list[str]:
                 found.append(f"{node.lineno}: {chain}")
         elif isinstance(node, ast.Call):
             name = node.func.attr if isinstance(node.func, ast.Attribute) else getattr(node.func, "id", "")
+            if name in ("getattr", "hasattr", "setattr") and len(node.args) > 1:
+                attr = node.args[1]
+                if isinstance(attr, ast.Constant) and attr.value in PRIVATE_ATTRIBUTES:
+                    found.append(f"{node.lineno}: {name}(..., {attr.value!r})")
             if name in NUMBA_DECORATORS:
                 found += [f"{node.lineno}: {name}({k.arg}=...)" for k in node.keywords
                           if k.arg and k.arg.startswith("_") and k.arg not in ALLOWED_PRIVATE_OPTIONS]
@@ -219,11 +223,11 @@ def test_the_scan_finds_what_it_looks_for():
     snippet = ("from numba.experimental.function_type import _get_jit_address\n"
                "from numba.core import cgutils\nimport llvmlite.ir\nfrom numba import _helperlib\n"
                "sig = f._sig\npath = d._cache.cache_path\n@njit(cache=True, _nrt=False, _dbg_optnone=True)\n"
-               "def g(): pass\nname = 'llvm.prefetch.p0'\nx = numba.core.types\n")
+               "def g(): pass\nname = 'llvm.prefetch.p0'\nx = numba.core.types\nsig = getattr(f, '_sig', None)\n")
     found = "\n".join(_private_uses(snippet))
     for expected in ("1: from numba.experimental", "2: from numba.core", "3: import llvmlite.ir",
                      "4: from numba import _helperlib", "5: ._sig", "6: ._cache", "7: njit(_dbg_optnone=...)",
-                     "9: LLVM intrinsic", "10: numba.core.types"):
+                     "9: LLVM intrinsic", "10: numba.core.types", "11: getattr(..., '_sig')"):
         assert expected in found, (expected, found)
     assert "_nrt" not in found
     adapter = _private_uses((PACKAGE_DIR / "_numba_abi.py").read_text())
