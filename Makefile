@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= results
 
-.PHONY: test test-slow reproduce tune bench docs clean
+.PHONY: test test-slow test-hypothesis test-numba-latest reproduce tune bench docs clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -39,6 +39,25 @@ test: $(STAMP)
 test-slow: $(STAMP)
 	$(PY) -X faulthandler -m pytest $(TEST_FLAGS) --timeout=$(TEST_TIMEOUT_SLOW_S) -m slow
 
+# The property tests with fresh examples, within a budget (tests/conftest.py's "ci" Hypothesis profile: each
+# property's own count, at most 300, and HYPOTHESIS_CI_BUDGET_S of them per process, default 900 s), for a
+# scheduled job beside make test, whose derandomized examples are the same every run.
+test-hypothesis: $(STAMP)
+	HYPOTHESIS_PROFILE=ci $(PY) -m pytest -m 'hypothesis and not slow' -n $(TEST_WORKERS) --dist loadgroup
+
+# The suite on the newest Numba and llvmlite releases instead of the pinned ones (pyproject.toml), in a
+# virtual environment of its own: what the next Numba breaks shows here first (src/vtoladapt/_numba_abi.py
+# is the one module holding what the package takes from Numba's internals). pip warns that the upgrade
+# leaves vtoladapt's pin; that is the point. The kernels compile into a cache of their own, emptied on every
+# run (the package's stale-cache check, vtoladapt/_kernel_cache.py, cleans its own __pycache__ only).
+NUMBA_LATEST_VENV := .venv-numba-latest
+test-numba-latest:
+	$(MAKE) $(NUMBA_LATEST_VENV)/.installed VENV=$(NUMBA_LATEST_VENV)
+	$(NUMBA_LATEST_VENV)/bin/python -m pip install --quiet --upgrade numba llvmlite
+	$(NUMBA_LATEST_VENV)/bin/python -c "import numba, llvmlite; print('numba', numba.__version__, 'llvmlite', llvmlite.__version__)"
+	rm -rf $(NUMBA_LATEST_VENV)/numba-cache
+	NUMBA_CACHE_DIR=$(abspath $(NUMBA_LATEST_VENV))/numba-cache $(MAKE) test VENV=$(NUMBA_LATEST_VENV)
+
 reproduce: $(STAMP)
 	$(VENV)/bin/vtoladapt reproduce --out $(OUT)
 
@@ -58,4 +77,4 @@ bench: $(STAMP)
 	$(PY) benchmarks/run_benchmarks.py
 
 clean:
-	rm -rf $(VENV) $(OUT) .pytest_cache docs/_build docs/_generated docs/reference/generated
+	rm -rf $(VENV) $(NUMBA_LATEST_VENV) $(OUT) .pytest_cache docs/_build docs/_generated docs/reference/generated

@@ -1,8 +1,22 @@
 """Shared test fixtures: shipped vehicles, a seeded generator, the repository's vendored real data.
 
 Hypothesis runs without a per-example deadline because the first call of a Numba kernel in a
-fresh process may compile it (seconds), and derandomized (the same examples every run). Choose
-another profile with ``HYPOTHESIS_PROFILE`` (``thorough``: 2000 fresh examples per property).
+fresh process may compile it (seconds). Choose its profile with ``HYPOTHESIS_PROFILE``:
+
+``vtoladapt`` (the default)
+    derandomized: the same commit runs the same examples, so ``make test`` from a clean clone
+    cannot fail on a draw no earlier run made. For every run whose verdict must be reproducible:
+    a change's tests, CI's gate (``make test``), a release.
+``ci``
+    fresh examples every run, within a fixed budget: each property's own count (capped at
+    :data:`CI_EXAMPLES`; a property without one gets Hypothesis's 100), and at most
+    :data:`CI_BUDGET_S` of property tests per process (``HYPOTHESIS_CI_BUDGET_S``), after which the
+    remaining properties are skipped and say so. A failure prints the blob that reproduces it
+    (``@reproduce_failure``). For a scheduled CI job beside the gate, ``make test-hypothesis``: it
+    keeps searching, run after run, at a cost known in advance; a find becomes an ``@example``.
+``thorough``
+    at least :data:`THOROUGH_EXAMPLES` fresh examples per property, no budget: by hand, to search
+    hard after changing a kernel (hours).
 
 ``make test`` runs the suite in two processes (pytest-xdist, ``--dist loadgroup``): each test
 module goes to one process whole, so its module-scoped fixtures are computed once, and the
@@ -15,6 +29,7 @@ import contextlib
 import io
 import os
 import sys
+import time
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -29,6 +44,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
 
 HYPOTHESIS_PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "vtoladapt")
 THOROUGH_EXAMPLES = 2000
+CI_EXAMPLES = 300
+"""The ``ci`` profile's examples per property at most (the default suite's largest counts are 300-500)."""
+CI_BUDGET_S = float(os.environ.get("HYPOTHESIS_CI_BUDGET_S", "900"))
+"""The ``ci`` profile's time for property tests per process (s): the budget of a scheduled search job."""
 # derandomized: the same commit runs the same examples, so a clean clone's suite does not flake on
 # a draw no earlier run made; "thorough" draws fresh examples every run (that is how to search).
 # Every setting that matters is stated: a profile inherits the rest from Hypothesis's defaults, and
@@ -36,6 +55,11 @@ THOROUGH_EXAMPLES = 2000
 settings.register_profile("vtoladapt", deadline=None, derandomize=True)
 settings.register_profile(
     "thorough", deadline=None, derandomize=False, max_examples=THOROUGH_EXAMPLES
+)
+# "ci" replaces Hypothesis's built-in profile of that name (derandomized, loaded where a CI variable is
+# set): here it is the search within a budget, and only HYPOTHESIS_PROFILE=ci loads it
+settings.register_profile(
+    "ci", deadline=None, derandomize=False, max_examples=100, print_blob=True
 )
 settings.load_profile(HYPOTHESIS_PROFILE)
 
@@ -56,7 +80,31 @@ def examples(n: int) -> int:
     A test's own ``@settings(max_examples=...)`` overrides the loaded profile, so every property
     that sets its count goes through this, or ``HYPOTHESIS_PROFILE=thorough`` would not reach it.
     """
-    return max(n, THOROUGH_EXAMPLES) if HYPOTHESIS_PROFILE == "thorough" else n
+    if HYPOTHESIS_PROFILE == "thorough":
+        return max(n, THOROUGH_EXAMPLES)
+    if HYPOTHESIS_PROFILE == "ci":
+        return min(n, CI_EXAMPLES)
+    return n
+
+
+_ci_search_s = [0.0]  # the ci profile's property time spent in this process
+
+
+def pytest_runtest_setup(item):
+    """Under the ``ci`` profile, skip a property once this process has spent :data:`CI_BUDGET_S` on them."""
+    if HYPOTHESIS_PROFILE == "ci" and item.get_closest_marker("hypothesis") and _ci_search_s[0] >= CI_BUDGET_S:
+        pytest.skip(f"the ci profile's search budget is spent ({_ci_search_s[0]:.0f} s of HYPOTHESIS_CI_BUDGET_S = "
+                    f"{CI_BUDGET_S:g} s)")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_call(item):
+    """Count the time of property tests against the ``ci`` profile's budget."""
+    t0 = time.monotonic()
+    yield
+    if HYPOTHESIS_PROFILE == "ci" and item.get_closest_marker("hypothesis"):
+        _ci_search_s[0] += time.monotonic() - t0
+
 
 REPO_DATA_DIR = Path(__file__).resolve().parents[1] / "data"
 """The real data vendored in the repository (small subsets); each folder has a SOURCE.md."""

@@ -4,11 +4,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from vtoladapt.config import Validated, setting
 from vtoladapt.layout import MEAS_P_W, MEAS_V_W, X_P_W, X_V_W, BlockLayout, Field
-from vtoladapt.sensors.registry import SENSOR_STEP_SIGNATURE
+from vtoladapt.sensors.registry import sensor_step
 
 
 @dataclass(frozen=True)
@@ -59,7 +58,7 @@ def initial_state(params: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.zeros(STATE.size)
 
 
-@njit(SENSOR_STEP_SIGNATURE, cache=True, nogil=True, _nrt=False)
+@sensor_step
 def step(params, state, t, dt, x_true, truth, draws, meas):
     """A new fix when one is due (noisy, quantised), else the last one."""
     if t >= state[_NEXT_FIX]:

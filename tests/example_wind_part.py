@@ -5,11 +5,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from vtoladapt.config import Validated, setting
 from vtoladapt.layout import W_MEAN_W, W_V_W, BlockLayout, Field
-from vtoladapt.wind.registry import WIND_STEP_SIGNATURE
+from vtoladapt.wind.registry import wind_step
 
 
 @dataclass(frozen=True)
@@ -50,7 +49,7 @@ def initial_state(params: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.zeros(STATE.size)
 
 
-@njit(WIND_STEP_SIGNATURE, cache=True, nogil=True, _nrt=False)
+@wind_step
 def step(params, state, t, dt, p_W, draws, wind):
     """Add the shear at the vehicle's height (its steady part also to the mean wind) and the gusting."""
     height = -p_W[2]  # p_W is NED

@@ -7,6 +7,7 @@ runs 2000 per property. The fuzz tests scale by ``VTOLADAPT_FUZZ_SCALE`` instead
 from __future__ import annotations
 
 import ast
+import time
 from pathlib import Path
 
 import conftest
@@ -53,3 +54,45 @@ def test_the_default_profile_is_derandomized_and_thorough_is_not():
 
     assert settings.get_profile("vtoladapt").derandomize is True
     assert settings.get_profile("thorough").derandomize is False
+
+
+def test_ci_searches_fresh_examples_with_a_capped_count(monkeypatch):
+    from hypothesis import settings
+
+    ci = settings.get_profile("ci")
+    assert ci.derandomize is False and ci.deadline is None and ci.print_blob is True
+    assert ci.max_examples <= conftest.CI_EXAMPLES
+    monkeypatch.setattr(conftest, "HYPOTHESIS_PROFILE", "ci")
+    assert conftest.examples(25) == 25
+    assert conftest.examples(5000) == conftest.CI_EXAMPLES
+
+
+class _Item:
+    """What the budget hook reads of a test item: its markers."""
+
+    def __init__(self, *markers: str):
+        self.markers = markers
+
+    def get_closest_marker(self, name: str):
+        return name if name in self.markers else None
+
+
+def test_ci_skips_properties_once_its_budget_is_spent(monkeypatch):
+    import pytest
+
+    monkeypatch.setattr(conftest, "HYPOTHESIS_PROFILE", "ci")
+    monkeypatch.setattr(conftest, "CI_BUDGET_S", 0.05)
+    monkeypatch.setattr(conftest, "_ci_search_s", [0.0])
+    conftest.pytest_runtest_setup(_Item("hypothesis"))  # within the budget: runs
+    for markers, sleep_s in ((("hypothesis",), 0.06), ((), 0.2)):  # a property's time counts, another test's not
+        gen = conftest.pytest_runtest_call(_Item(*markers))
+        next(gen)
+        time.sleep(sleep_s)
+        with pytest.raises(StopIteration):
+            next(gen)
+    assert 0.06 <= conftest._ci_search_s[0] < 0.2
+    with pytest.raises(pytest.skip.Exception, match="budget is spent"):
+        conftest.pytest_runtest_setup(_Item("hypothesis"))
+    conftest.pytest_runtest_setup(_Item())  # a test that is not a property always runs
+    monkeypatch.setattr(conftest, "HYPOTHESIS_PROFILE", "vtoladapt")
+    conftest.pytest_runtest_setup(_Item("hypothesis"))  # the default profile has no budget

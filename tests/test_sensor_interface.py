@@ -140,7 +140,7 @@ def test_a_module_without_the_kinds_signature_is_refused(monkeypatch):
     for name in ("Settings", "PARAMS", "STATE", "NORMALS_PER_STEP", "UNIFORMS_PER_STEP", "pack", "initial_state",
                  "WRITES"):
         setattr(bad, name, getattr(example_sensor, name))
-    bad.step = njit(example_sensor.step.py_func)  # compiled for whatever it is called with: no fixed signature
+    bad.step = njit(example_sensor.step.__wrapped__)  # compiled for whatever it is called with: no C kernel
     monkeypatch.setitem(sys.modules, bad.__name__, bad)
     with pytest.raises(TypeError, match="SENSOR_STEP_SIGNATURE"):
         components.register("sensor", PartInfo("bad", bad.__name__))

@@ -132,7 +132,7 @@ def test_a_module_without_the_kinds_signature_is_refused(monkeypatch):
     bad = types.ModuleType("vtoladapt_test_bad_wind")
     for name in ("Settings", "PARAMS", "STATE", "NORMALS_PER_STEP", "UNIFORMS_PER_STEP", "pack", "initial_state"):
         setattr(bad, name, getattr(example_wind_part, name))
-    bad.step = njit(example_wind_part.step.py_func)  # compiled for whatever it is called with: no fixed signature
+    bad.step = njit(example_wind_part.step.__wrapped__)  # compiled for whatever it is called with: no C kernel
     monkeypatch.setitem(sys.modules, bad.__name__, bad)
     with pytest.raises(TypeError, match="WIND_STEP_SIGNATURE"):
         components.register("wind", PartInfo("bad", bad.__name__))

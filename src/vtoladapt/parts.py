@@ -21,21 +21,27 @@ same way. A part's module holds:
     a fresh state block (``STATE.size`` floats); it may draw from ``rng`` (a
     ``numpy.random.Generator``), a number of draws that depends on the settings only;
 ``step``
-    compiled with the kind's fixed signature (``numba.njit(signature)``, see :class:`PartKind`),
-    random numbers arriving pre-drawn in its ``draws`` argument (normals first, then uniforms).
+    a C kernel of the kind's fixed signature (a Numba ``cfunc``: decorate it with the kind's
+    :meth:`PartKind.kernel`, e.g. :func:`vtoladapt.wind.registry.wind_step`), random numbers
+    arriving pre-drawn in its ``draws`` argument (normals first, then uniforms). Like a control
+    law's ``update`` it must not allocate arrays, nor raise: an exception cannot cross its C entry
+    point (it would be printed and ignored), so a part's settings are checked when it is packed.
 
 How the loop calls them
 -----------------------
 The compiled loop is compiled once and never for a particular part: it receives each kind's
 configured parts as a *part table* (:class:`Assembly`), an int64 array with one row per part
-(:data:`PART_ROW`): the addresses of the part's compiled ``step`` and where its blocks sit in the
-kind's parameter, state and draws arrays. :func:`function_loader` turns a row back into a Numba
-first-class function of the kind's signature (``numba.types.FunctionType``), which the loop calls
-(an indirect call, a few nanoseconds). Handing the functions over as a tuple instead would type them
+(:data:`PART_ROW`): the address of the C entry point of the part's ``step`` and where its blocks
+sit in the kind's parameter, state and draws arrays. :func:`function_loader` turns a row back into a
+Numba first-class function of the kind's signature (``numba.types.FunctionType``), which the loop
+calls (an indirect call, a few nanoseconds). Control laws and force-model bases reach the controller
+step the same way (:func:`vtoladapt.control.step.function_table`): every compiled part of a run is
+called through the C ABI, and what that takes of Numba's internals is in
+:mod:`vtoladapt._numba_abi`, nowhere else. Handing the functions over as a tuple instead would type them
 the same way, but Numba then converts the tuple from Python objects on every call of the compiled
 function (60-180 us measured): too slow for the Gymnasium environment, which calls its step for
 every batch of environments. The table's addresses are valid in this process only; it is never
-stored, and it keeps the functions it points to alive.
+stored, and its :class:`Assembly` holds the modules, so the functions it points to stay alive.
 
 Every step draws its random numbers from the run's generator through the loop (:func:`draw`), part
 by part in table order, a fixed count per step, so the streams are those of a step that drew them
@@ -44,22 +50,15 @@ itself.
 from __future__ import annotations
 
 import functools
-import warnings
 from dataclasses import dataclass
 from types import ModuleType
 from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
 from numba import njit, types
-from numba.core import cgutils
-from numba.experimental.function_type import _get_jit_address, _get_wrapper_address
-from numba.extending import intrinsic
 
+from . import _numba_abi
 from .layout import BlockLayout, Field
-
-# Typing a first-class function warns that the feature is experimental; this module relies on it on
-# purpose (and tests it: tests/test_parts.py).
-warnings.filterwarnings("ignore", message="First-class function type feature is experimental")
 
 ARRAY = types.float64[::1]
 """A contiguous float64 array: every array argument of a part's step."""
@@ -86,6 +85,12 @@ class PartKind:
     signature: Any
     extra_attributes: tuple[str, ...] = ()
 
+    def kernel(self, fn: Callable) -> Any:
+        """``fn`` compiled as a step of this kind: a C kernel (``numba.cfunc``) of :attr:`signature`,
+        cached on disk, without reference counting, with NumPy's error model
+        (:func:`vtoladapt._numba_abi.c_kernel`). Use it as a decorator."""
+        return _numba_abi.c_kernel(self.signature, fn)
+
     def check(self, module: ModuleType) -> None:
         """Raise ``TypeError`` naming what ``module`` lacks to be a part of this kind."""
         name = module.__name__
@@ -103,17 +108,14 @@ class PartKind:
         for a in ("pack", "initial_state"):
             if not callable(getattr(module, a)):
                 raise TypeError(f"{self.name} part {name}: {a} must be a function")
-        step = module.step
-        sigs = getattr(step, "nopython_signatures", None)
-        if sigs is None or not any(s.args == self.signature.args and s.return_type == self.signature.return_type
-                                   for s in sigs):
-            raise TypeError(f"{self.name} part {name}: step must be compiled with the kind's signature, "
-                            f"numba.njit({self.name.upper()}_STEP_SIGNATURE): {self.signature}")
+        if not _numba_abi.is_c_kernel(module.step, self.signature):
+            raise TypeError(f"{self.name} part {name}: step must be a numba cfunc of the kind's signature, "
+                            f"{self.name.upper()}_STEP_SIGNATURE = {self.signature} (decorate it with "
+                            f"vtoladapt.{self.name}.registry.{self.name}_step)")
 
 
 PART_ROW = BlockLayout("part table row", [
-    Field("JIT_ADDRESS", 1, "-", "address of the compiled step (Numba's calling convention)"),
-    Field("C_ADDRESS", 1, "-", "address of the step's C wrapper"),
+    Field("C_ADDRESS", 1, "-", "address of the step's C entry point (vtoladapt._numba_abi.c_address)"),
     Field("PARAMS_START", 1, "-", "first slot of the part's block in the kind's parameter array"),
     Field("PARAMS_END", 1, "-", "slot after it"),
     Field("STATE_START", 1, "-", "first slot of the part's block in the kind's state array"),
@@ -123,7 +125,7 @@ PART_ROW = BlockLayout("part table row", [
     Field("DRAWS_END", 1, "-", "slot after its uniforms"),
 ])
 """One row of a part table (int64 entries)."""
-(T_JIT, T_C, T_P0, T_P1, T_S0, T_S1, T_D0, T_N1, T_D1) = PART_ROW.offsets(*(f.name for f in PART_ROW.fields))
+(T_C, T_P0, T_P1, T_S0, T_S1, T_D0, T_N1, T_D1) = PART_ROW.offsets(*(f.name for f in PART_ROW.fields))
 
 
 def function_loader(signature) -> Callable:
@@ -133,49 +135,7 @@ def function_loader(signature) -> Callable:
     ``table`` is an int64 ``(n, PART_ROW.size)`` array built by :class:`Assembly` (an address not
     made there is a crash: kernels trust their tables as they trust their parameter arrays).
     """
-    fnty = types.FunctionType(signature)
-
-    @intrinsic
-    def load(typingctx, table, j):
-        if not (isinstance(table, types.Array) and table.dtype == types.int64 and table.ndim == 2
-                and isinstance(j, types.Integer)):
-            return None
-
-        def codegen(context, builder, sig, args):
-            aty = sig.args[0]
-            ary = context.make_array(aty)(context, builder, args[0])
-            shape = cgutils.unpack_tuple(builder, ary.shape)
-            strides = cgutils.unpack_tuple(builder, ary.strides)
-            row = context.cast(builder, args[1], sig.args[1], types.intp)
-
-            def entry(column: int):
-                ptr = cgutils.get_item_pointer2(context, builder, ary.data, shape, strides, aty.layout,
-                                                [row, context.get_constant(types.intp, column)])
-                return builder.inttoptr(builder.load(ptr), cgutils.voidptr_t)
-
-            fn = cgutils.create_struct_proxy(fnty)(context, builder)
-            fn.jit_addr = entry(T_JIT)
-            fn.c_addr = entry(T_C)
-            fn.py_addr = cgutils.get_null_value(cgutils.voidptr_t)
-            return fn._getvalue()
-
-        return fnty(table, j), codegen
-
-    return load
-
-
-_ADDRESSES: dict[tuple[int, Any], tuple[Any, int, int]] = {}
-
-
-def _addresses(step, signature) -> tuple[int, int]:
-    """``(jit address, C wrapper address)`` of ``step``'s compiled code for ``signature``, looked up once
-    per process (the look-up goes through LLVM's symbol table: 0.2 ms a part, too slow for every
-    episode of the Gymnasium environment). The cache holds ``step`` itself, so its code stays alive."""
-    key = (id(step), signature)
-    hit = _ADDRESSES.get(key)
-    if hit is None or hit[0] is not step:
-        hit = _ADDRESSES[key] = (step, _get_jit_address(step, signature), _get_wrapper_address(step, signature))
-    return hit[1], hit[2]
+    return _numba_abi.function_loader(signature, T_C)
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
@@ -205,11 +165,11 @@ def _layouts(kind: PartKind, modules: tuple, ids: tuple, params_sizes: tuple) ->
         name = part_id.upper()
         p, s, d = params_layout.slice(name), state_layout.slice(name), draws_layout.slice(name)
         row = table[j]
-        row[T_JIT], row[T_C] = _addresses(module.step, kind.signature)
+        row[T_C] = _numba_abi.c_address(module.step, kind.signature)
         row[T_P0], row[T_P1] = p.start, p.stop
         row[T_S0], row[T_S1] = s.start, s.stop
         row[T_D0], row[T_N1], row[T_D1] = d.start, d.start + module.NORMALS_PER_STEP, d.stop
-        if row[T_JIT] <= 0 or row[T_C] <= 0:  # the kernels would call address 0
+        if row[T_C] <= 0:  # the kernels would call address 0
             raise TypeError(f"{kind.name} part {part_id!r}: its step has no compiled code for {kind.signature}")
     return params_layout, state_layout, draws_layout, table
 

@@ -71,9 +71,9 @@ from types import ModuleType
 from typing import Any, Callable, Mapping, Optional
 
 import numpy as np
-from numba import cfunc, njit, types
+from numba import njit, types
 
-from .. import forces
+from .. import _numba_abi, forces
 from ..components import Registry
 from ..config import ConfigError, Validated, build
 from ..layout import BlockLayout, Field
@@ -98,7 +98,7 @@ def regressor_kernel(fn: Callable) -> Any:
     the controller's tick; the controller step receives it as a first-class function argument, so
     the step is compiled once for every basis.
     """
-    return cfunc(REGRESSOR_SIGNATURE, cache=True, _nrt=False, error_model="numpy")(fn)
+    return _numba_abi.c_kernel(REGRESSOR_SIGNATURE, fn)
 
 
 INPUT = BlockLayout("basis input", [
@@ -250,8 +250,7 @@ def check_basis(module: ModuleType) -> None:
         raise TypeError(f"force-model basis {name}: missing {', '.join(missing)} (see vtoladapt.bases)")
     if not (isinstance(module.Settings, type) and dataclasses.is_dataclass(module.Settings)):
         raise TypeError(f"force-model basis {name}: Settings must be a dataclass")
-    sig = getattr(module.regressor, "_sig", None)
-    if sig is None or tuple(sig.args) != tuple(REGRESSOR_SIGNATURE.args) or sig.return_type != types.void:
+    if not _numba_abi.is_c_kernel(module.regressor, REGRESSOR_SIGNATURE):
         raise TypeError(f"force-model basis {name}: regressor must be a numba cfunc of {REGRESSOR_SIGNATURE} "
                         "(decorate it with vtoladapt.bases.regressor_kernel)")
 

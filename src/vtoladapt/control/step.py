@@ -26,11 +26,10 @@ arrays (their scratch lives in the state, and values pass between functions as t
 """
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 from numba import njit, types
 
+from .. import _numba_abi
 from ..parts import PART_ROW, T_C, function_loader
 from ..bases import REGRESSOR_SIGNATURE, BasisSpec, basis_key, basis_module, basis_of_key, describe_basis
 from . import adaptation as ad
@@ -46,10 +45,8 @@ from .frontend import front_end
 from .laws import UPDATE_SIGNATURE, LawContext
 from .registry import ControllerInfo, law_key, law_of_key
 
-# Numba marks first-class function types experimental; the step's use of them (functions of one fixed
-# signature passed as arguments, called directly) is the documented one.
-warnings.filterwarnings("ignore", message="First-class function type feature is experimental")
-
+# Numba marks first-class function types experimental: vtoladapt._numba_abi silences that warning (the
+# step's use of them, functions of one fixed signature passed as arguments and called, is the documented one).
 LAW_FUNCTION = types.FunctionType(UPDATE_SIGNATURE)
 BASIS_FUNCTION = types.FunctionType(REGRESSOR_SIGNATURE)
 
@@ -99,8 +96,8 @@ def function_table(fns) -> np.ndarray:
     to the tick beside the wind parts' and sensor channels' tables. Keep ``fns`` alive while it is used
     (a law's or basis's module holds its function for the process)."""
     table = np.zeros((2, PART_ROW.size), dtype=np.int64)
-    table[0, T_C] = fns[0].address
-    table[1, T_C] = fns[1].address
+    table[0, T_C] = _numba_abi.c_address(fns[0], UPDATE_SIGNATURE)
+    table[1, T_C] = _numba_abi.c_address(fns[1], REGRESSOR_SIGNATURE)
     return table
 
 

@@ -30,12 +30,9 @@ simulator's own, in its order, so a zero residual reproduces ``vtoladapt run`` b
 from __future__ import annotations
 
 import numpy as np
-from llvmlite import ir
-from llvmlite.binding import llvm_version_info
-from numba import njit, types
-from numba.core import cgutils
-from numba.extending import intrinsic
+from numba import njit
 
+from .._numba_abi import prefetch as _prefetch
 from ..control.step import set_last_command
 from ..layout import (CMD_SIZE, CMD_TAU_B, CMD_U_X, CMD_U_Z, MEAS_OMEGA_B, MEAS_P_W, MEAS_Q_WB, MEAS_V_I_B,
                       MEAS_V_I_VALID, MEAS_V_W, REF_P_W, X_P_W, X_Q_WB, X_SIZE, BlockLayout, Field)
@@ -134,35 +131,6 @@ _CACHE_LINE_DOUBLES = 8
 
 _OBS_LOW = OBS_LOW.astype(np.float64)
 _OBS_HIGH = OBS_HIGH.astype(np.float64)
-
-
-# LLVM names the intrinsic by its pointer type: "p0" since pointers became opaque (LLVM 17 has
-# only those), "p0i8" for the typed i8* of the LLVM 14-15 under older numba releases.
-_PREFETCH_INTRINSIC = "llvm.prefetch.p0" if llvm_version_info[0] >= 17 else "llvm.prefetch.p0i8"
-
-
-@intrinsic
-def _prefetch(typingctx, array2d, i, j):
-    """Ask the CPU to bring ``array2d[i, j]``'s cache line into its caches (LLVM's ``llvm.prefetch``;
-    a hint: no fault, no effect on results)."""
-    sig = types.void(array2d, i, j)
-
-    def codegen(context, builder, signature, args):
-        aty = signature.args[0]
-        ary = context.make_array(aty)(context, builder, args[0])
-        ptr = cgutils.get_item_pointer2(context, builder, ary.data, cgutils.unpack_tuple(builder, ary.shape),
-                                        cgutils.unpack_tuple(builder, ary.strides), aty.layout,
-                                        [args[1], args[2]])
-        i8p = builder.bitcast(ptr, ir.IntType(8).as_pointer())
-        i32 = ir.IntType(32)
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [i8p.type, i32, i32, i32]),
-                                            _PREFETCH_INTRINSIC)
-        # read, locality 2 (towards L2, not L1: the next environment's ~10 kB would evict the
-        # current one's from a 32 kB L1), data cache
-        builder.call(fn, [i8p, i32(0), i32(2), i32(1)])
-        return context.get_dummy_value()
-
-    return sig, codegen
 
 
 @njit(cache=True, inline="always")

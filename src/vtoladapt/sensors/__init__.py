@@ -32,8 +32,8 @@ The sensor channel interface
 ----------------------------
 A channel is a module with the interface of :mod:`vtoladapt.parts` (``Settings``, ``PARAMS`` and
 ``STATE`` layouts, draws per step, ``pack(settings, context)``, ``initial_state(params, rng)``) and
-``WRITES``, the measurement fields it writes; its ``step`` is compiled with
-``numba.njit(SENSOR_STEP_SIGNATURE)``::
+``WRITES``, the measurement fields it writes; its ``step`` is decorated with
+:func:`~vtoladapt.sensors.registry.sensor_step` (a C kernel of ``SENSOR_STEP_SIGNATURE``)::
 
     step(params, state, t, dt, x_true, truth, draws, meas)
 

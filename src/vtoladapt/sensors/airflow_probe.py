@@ -35,7 +35,7 @@ from ..probe.calibration import calibrate_tip, load_calibration
 from ..probe.estimation import incident_velocity_from_pressures
 from ..probe.sensor import SENSOR_KERNEL_SIZE, SENSOR_OFFSET_PA, SDP33Sensor, sdp33_sensor_step_drawn
 from ..probe.tip import TIP_KERNEL_SIZE, ProbeTip, probe_differential_pressures
-from .registry import SENSOR_STEP_SIGNATURE
+from .registry import sensor_step
 
 PROBE_MODELS = ("ideal_noise", "pressure")
 PROBE_MODEL_IDEAL_NOISE = PROBE_MODELS.index("ideal_noise")
@@ -230,7 +230,7 @@ def _pressure(params, state, dt, v_i_true, normals, meas) -> bool:
     return incident_velocity_from_pressures(q_meas, params[_RHO_ASSUMED], params[_CAL:], meas[_V_I:_V_I + 3])
 
 
-@njit(SENSOR_STEP_SIGNATURE, cache=True, nogil=True, _nrt=False)
+@sensor_step
 def step(params, state, t, dt, x_true, truth, draws, meas):
     """This tick's incident velocity and its validity flag."""
     v_i_true = truth[_TRUE_V_I:_TRUE_V_I + 3]

@@ -10,12 +10,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from .. import layout
 from ..config import Validated, setting
 from ..layout import BlockLayout, Field
-from .registry import SENSOR_STEP_SIGNATURE
+from .registry import sensor_step
 
 
 @dataclass(frozen=True)
@@ -60,7 +59,7 @@ def initial_state(params: np.ndarray, rng) -> np.ndarray:
     return np.zeros(0)
 
 
-@njit(SENSOR_STEP_SIGNATURE, cache=True, nogil=True, _nrt=False)
+@sensor_step
 def step(params, state, t, dt, x_true, truth, draws, meas):
     """``q_meas = q_true * dq``, ``dq`` a small rotation about body axes."""
     s = params[_STD]

@@ -25,7 +25,7 @@ from .. import layout
 from ..config import Validated, setting
 from ..frames import GRAVITY_MPS2
 from ..layout import BlockLayout, Field
-from .registry import SENSOR_STEP_SIGNATURE
+from .registry import sensor_step
 
 MICRO_G_MPS2 = 1e-6 * GRAVITY_MPS2
 """One micro-g in m/s^2."""
@@ -152,7 +152,7 @@ def _clip(x: float, limit: float) -> float:
     return min(limit, max(-limit, x))
 
 
-@njit(SENSOR_STEP_SIGNATURE, cache=True, nogil=True, _nrt=False)
+@sensor_step
 def step(params, state, t, dt, x_true, truth, draws, meas):
     """Gyro and accelerometer readings of this tick; the biases then walk by one step."""
     if dt != state[_S_DT_KEY]:

@@ -20,7 +20,7 @@ from numba import njit
 from .. import layout
 from ..config import Validated, setting
 from ..layout import BlockLayout, Field
-from .registry import SENSOR_STEP_SIGNATURE
+from .registry import sensor_step
 
 MOCAP_RING_SIZE = 128
 """Ticks of motion-capture history kept for the latency (127 ticks of delay at most)."""
@@ -110,6 +110,16 @@ def pack(settings: MocapConfig, context) -> np.ndarray:
                        LATENCY=settings.latency_s)
 
 
+def check_dt(params: np.ndarray, dt_s: float) -> None:
+    """``ValueError`` if the latency in ``params`` (the channel's block) is more whole ticks of
+    ``dt_s`` than the ring buffer keeps: the step, a C kernel, cannot raise, so this is checked
+    before it runs (by :func:`vtoladapt.sensors.run_sensor_model`; a scenario checks its own)."""
+    ticks = latency_ticks(float(params[_LATENCY]), dt_s)
+    if params[_IDEAL] == 0.0 and ticks >= MOCAP_RING_SIZE:
+        raise ValueError(f"sensors: mocap latency_s = {params[_LATENCY]:g}: {ticks} ticks at dt = {dt_s:g} s "
+                         f"exceeds the ring buffer (at most MOCAP_RING_SIZE - 1 = {MOCAP_RING_SIZE - 1} ticks)")
+
+
 def initial_state(params: np.ndarray, rng) -> np.ndarray:
     """A fresh state (the first step fills it); no draws."""
     return np.zeros(STATE.size)
@@ -133,17 +143,16 @@ def _first_step(state, x_true):
 @njit(cache=True, inline="always")
 def _dt_coefficients(params, state, dt):
     """Coefficients that depend on the tick only, recomputed when ``dt`` changes."""
-    n_delay = int(params[_LATENCY] / dt + 0.5)
-    if n_delay >= MOCAP_RING_SIZE:
-        raise ValueError("sensors: mocap latency_s / dt exceeds the ring buffer "
-                         "(MOCAP_RING_SIZE - 1 ticks)")
+    # a latency beyond the ring is refused when the run is assembled (its settings and the tick are
+    # known then); the step is a C kernel and cannot raise, so the clamp only keeps it inside the ring
+    n_delay = min(int(params[_LATENCY] / dt + 0.5), MOCAP_RING_SIZE - 1)
     state[_S_DELAY] = n_delay
     fc = params[_VEL_LP_HZ]
     state[_S_GAIN] = 1.0 if fc <= 0.0 else -np.expm1(-2.0 * np.pi * fc * dt)
     state[_S_DT_KEY] = dt
 
 
-@njit(SENSOR_STEP_SIGNATURE, cache=True, nogil=True, _nrt=False)
+@sensor_step
 def step(params, state, t, dt, x_true, truth, draws, meas):
     """This tick's delayed, noisy position and velocity."""
     if state[_S_INIT] == 0.0:

@@ -2,7 +2,8 @@
 
 A sensor channel (the interface is :mod:`vtoladapt.parts`'s, plus ``WRITES``: the fields of the
 measurement, :data:`vtoladapt.layout.MEASUREMENT`, it writes) samples the truth of a tick into the
-measurement the controller sees. Its compiled step has the signature :data:`SENSOR_STEP_SIGNATURE`::
+measurement the controller sees. Its step is a C kernel (decorate it with :func:`sensor_step`) of the
+signature :data:`SENSOR_STEP_SIGNATURE`::
 
     step(params, state, t, dt, x_true, truth, draws, meas) -> None
 
@@ -28,6 +29,10 @@ SENSOR_STEP_SIGNATURE = types.void(ARRAY, ARRAY, types.float64, types.float64, A
 """``step(params, state, t, dt, x_true, truth, draws, meas)`` of every sensor channel."""
 
 SENSOR_KIND = PartKind("sensor", SENSOR_STEP_SIGNATURE, extra_attributes=("WRITES",))
+
+sensor_step = SENSOR_KIND.kernel
+"""Decorator: compile a sensor channel's ``step`` as a C kernel of :data:`SENSOR_STEP_SIGNATURE` (a
+Numba ``cfunc``, cached on disk, no reference counting; see :meth:`vtoladapt.parts.PartKind.kernel`)."""
 
 load_sensor_step = function_loader(SENSOR_STEP_SIGNATURE)
 """Compiled: row ``j`` of a sensor part table as a callable step."""

@@ -224,6 +224,9 @@ def run_sensor_model(assembly: Assembly, state: np.ndarray, dt_s: float, x_true:
     layout.TRUTH.view(truth, "F_B")[:] = F
     layout.TRUTH.view(truth, "V_I_B")[:] = VI
     params = assembly.params if params is None else np.ascontiguousarray(params, dtype=float)
+    for part_id, module in zip(assembly.ids, assembly.modules):
+        if hasattr(module, "check_dt"):  # a limit that depends on the tick (the mocap's latency ring)
+            module.check_dt(assembly.block(params, part_id), float(dt_s))
     out = np.empty((X.shape[0], layout.MEAS_SIZE))
     _run_sensor_model(assembly.table, params, state, float(t0_s), float(dt_s), X, truth, rng,
                       np.zeros(assembly.draws_size), out)

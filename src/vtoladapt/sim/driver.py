@@ -8,12 +8,12 @@ import sys
 import threading
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Callable, Optional, Sequence
 
 import numpy as np
 
 from .. import layout
+from .._numba_abi import has_disk_cache
 from ..config import ConfigError
 from ..errors import check_interrupt
 from ..frames import quat_from_euler
@@ -316,16 +316,6 @@ def simulate_many(scenarios: Sequence[Scenario], workers: Optional[int] = None,
         return list(pool.map(run, range(len(scenarios))))
 
 
-def _has_disk_cache(dispatcher) -> bool:
-    """Whether Numba's on-disk cache holds an index for ``dispatcher`` (a cache hit is then likely)."""
-    try:
-        fn = dispatcher.py_func
-        stem = Path(fn.__code__.co_filename).stem
-        return any(Path(dispatcher._cache.cache_path).glob(f"{stem}.{fn.__qualname__}-*.nbi"))
-    except (AttributeError, OSError):
-        return True  # unknown: behave as if cached (compile in this process only)
-
-
 def _controller_step_compiled() -> None:
     """Compile (or load) the controller step for the simulator loop's argument types."""
     from ..control.step import controller_functions, controller_step, diagnostics_size
@@ -370,7 +360,7 @@ def load_kernels(scenario: Scenario) -> None:
     from .loop import run_closed_loop
 
     helper = None
-    if not _has_disk_cache(run_closed_loop) and not _has_disk_cache(controller_step):
+    if not has_disk_cache(run_closed_loop) and not has_disk_cache(controller_step):
         try:
             helper = subprocess.Popen([sys.executable, "-c",
                                        "from vtoladapt.sim.driver import _controller_step_compiled as c; c()"],

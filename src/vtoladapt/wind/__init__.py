@@ -32,8 +32,8 @@ Adding a wind part
 A module of your own (the README's "Adding a wind model" is a complete one, flown by the tests):
 its ``Settings`` (fields declared with :func:`vtoladapt.config.setting`), ``PARAMS`` and ``STATE``
 layouts (:class:`vtoladapt.layout.BlockLayout`), ``NORMALS_PER_STEP`` and ``UNIFORMS_PER_STEP``,
-``pack(settings, wind_config)``, ``initial_state(params, rng)`` and a ``step`` compiled with
-``numba.njit(WIND_STEP_SIGNATURE)`` that adds its velocity to the tick's wind
+``pack(settings, wind_config)``, ``initial_state(params, rng)`` and a ``step`` decorated with
+:func:`~vtoladapt.wind.registry.wind_step` (a C kernel of ``WIND_STEP_SIGNATURE``) that adds its velocity to the tick's wind
 (:data:`vtoladapt.layout.WIND`). Register it by a call, ``vtoladapt.components.register("wind",
 PartInfo("my_id", "my_module"))``, or by an entry point in the group ``vtoladapt.wind``; a
 scenario's ``[wind.my_id]`` table then adds it to the run. The compiled loop is not recompiled: it

@@ -7,10 +7,9 @@ Its settings are the ``constant_mps`` key of ``[wind]`` itself, not a table of i
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from ..layout import W_MEAN_W, W_V_W, BlockLayout, Field
-from .registry import WIND_STEP_SIGNATURE
+from .registry import wind_step
 
 Settings = None
 """No table of its own: :attr:`vtoladapt.wind.WindConfig.constant_mps` holds the vector."""
@@ -31,7 +30,7 @@ def initial_state(params: np.ndarray, rng) -> np.ndarray:
     return np.zeros(0)
 
 
-@njit(WIND_STEP_SIGNATURE, cache=True, nogil=True, _nrt=False)
+@wind_step
 def step(params, state, t, dt, p_W, draws, wind):
     """Add the constant vector to the tick's wind and to its mean."""
     for j in range(3):

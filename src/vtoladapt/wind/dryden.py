@@ -61,7 +61,7 @@ from numba import njit
 
 from ..config import ConfigError, Validated, setting
 from ..layout import W_MEAN_W, W_V_W, BlockLayout, Field
-from .registry import WIND_STEP_SIGNATURE
+from .registry import wind_step
 
 FT_M = 0.3048
 """One foot in metres."""
@@ -379,7 +379,7 @@ def pack(settings: TurbulenceConfig, wind) -> np.ndarray:
     return pack_turbulence(settings, wind.turbulence_axis_NE())
 
 
-@njit(WIND_STEP_SIGNATURE, cache=True, nogil=True, _nrt=False)
+@wind_step
 def step(params, state, t, dt, p_W, draws, wind):
     """Add the turbulence to the tick's wind, convected by and scaled with the parts' mean wind before it."""
     turbulence_step(params, 0, state, 0, wind[W_MEAN_W], wind[W_MEAN_W + 1], wind[W_MEAN_W + 2], dt, draws,

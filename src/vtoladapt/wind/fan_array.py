@@ -22,7 +22,7 @@ from numba import njit
 
 from ..config import ConfigError, Validated, setting
 from ..layout import W_MEAN_W, W_V_W, BlockLayout, Field
-from .registry import WIND_STEP_SIGNATURE
+from .registry import wind_step
 
 FAN_MAX_SPEED_MPS = 12.9
 """Wind speed of the CAST fan array at 100 % throttle (Shi et al. 2020, Sec. Experiments)."""
@@ -354,7 +354,7 @@ def initial_state(params: np.ndarray, rng) -> np.ndarray:
     return np.zeros(0)
 
 
-@njit(WIND_STEP_SIGNATURE, cache=True, nogil=True, _nrt=False)
+@wind_step
 def step(params, state, t, dt, p_W, draws, wind):
     """Add the fan array's mean wind at ``t`` to the wind and to the mean wind (NED, m/s)."""
     v = mean_speed_mps(params, 0, t)

@@ -19,7 +19,7 @@ from numba import njit
 
 from ..config import Validated, setting
 from ..layout import W_V_W, BlockLayout, Field
-from .registry import WIND_STEP_SIGNATURE
+from .registry import wind_step
 
 GUST_SHAPES = ("one_minus_cosine", "step")
 MAX_GUSTS = 16
@@ -107,7 +107,7 @@ def initial_state(params: np.ndarray, rng) -> np.ndarray:
     return np.zeros(0)
 
 
-@njit(WIND_STEP_SIGNATURE, cache=True, nogil=True, _nrt=False)
+@wind_step
 def step(params, state, t, dt, p_W, draws, wind):
     """Add the gusts' wind at ``t`` to the tick's wind (NED, m/s)."""
     add_gusts(params, 0, t, wind[W_V_W:W_V_W + 3])

@@ -3,8 +3,8 @@
 A wind part (the interface is :mod:`vtoladapt.parts`'s) adds its velocity at time ``t`` and the
 vehicle's position ``p_W`` to the tick's wind, a :data:`vtoladapt.layout.WIND` array: to ``V_W``
 always, and to ``MEAN_W`` too if it is a steady part (the fan array, the constant wind), whose sum
-convects the turbulence and scales its fractional intensities. Its compiled step has the signature
-:data:`WIND_STEP_SIGNATURE`::
+convects the turbulence and scales its fractional intensities. Its step is a C kernel (decorate it
+with :func:`wind_step`) of the signature :data:`WIND_STEP_SIGNATURE`::
 
     step(params, state, t, dt, p_W, draws, wind) -> None
 
@@ -28,6 +28,10 @@ WIND_STEP_SIGNATURE = types.void(ARRAY, ARRAY, types.float64, types.float64, ARR
 """``step(params, state, t, dt, p_W, draws, wind)`` of every wind part."""
 
 WIND_KIND = PartKind("wind", WIND_STEP_SIGNATURE)
+
+wind_step = WIND_KIND.kernel
+"""Decorator: compile a wind part's ``step`` as a C kernel of :data:`WIND_STEP_SIGNATURE` (a Numba
+``cfunc``, cached on disk, no reference counting; see :meth:`vtoladapt.parts.PartKind.kernel`)."""
 
 load_wind_step = function_loader(WIND_STEP_SIGNATURE)
 """Compiled: row ``j`` of a wind part table as a callable step."""

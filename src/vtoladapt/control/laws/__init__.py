@@ -12,7 +12,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numba import cfunc, njit, types
+from numba import njit, types
+
+from ... import _numba_abi
 
 from ...config import ConfigError
 from ...layout import BlockLayout
@@ -29,11 +31,11 @@ state, :data:`vtoladapt.control.blocks.TICK`) and the whole diagnostics array.""
 def law_update(fn):
     """Compile a law's ``update`` as a Numba ``cfunc`` of :data:`UPDATE_SIGNATURE`.
 
-    Cached on disk and compiled without reference counting (``_nrt=False``: it must not allocate), like
-    every kernel of the simulator's tick; the controller step receives it as a first-class function
-    argument, so the step is compiled once for every law, a user's included.
+    Cached on disk and compiled without reference counting (it must not allocate), like every kernel
+    of the simulator's tick (:func:`vtoladapt._numba_abi.c_kernel`); the controller step receives it
+    as a first-class function argument, so the step is compiled once for every law, a user's included.
     """
-    return cfunc(UPDATE_SIGNATURE, cache=True, _nrt=False, error_model="numpy")(fn)
+    return _numba_abi.c_kernel(UPDATE_SIGNATURE, fn)
 
 
 @dataclass(frozen=True)
@@ -108,8 +110,7 @@ def check_law(module) -> None:
     for block in ("PARAMS", "STATE", "DIAG"):
         if not isinstance(getattr(module, block), BlockLayout):
             raise TypeError(f"control law {name}: {block} must be a vtoladapt.layout.BlockLayout")
-    sig = getattr(module.update, "_sig", None)
-    if sig is None or tuple(sig.args) != tuple(UPDATE_SIGNATURE.args) or sig.return_type != types.void:
+    if not _numba_abi.is_c_kernel(module.update, UPDATE_SIGNATURE):
         raise TypeError(f"control law {name}: update must be a numba cfunc of {UPDATE_SIGNATURE} (decorate it "
                         "with vtoladapt.control.laws.law_update)")
 
