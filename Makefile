@@ -43,7 +43,7 @@ test-slow: $(STAMP)
 # property's own count, at most 300, and HYPOTHESIS_CI_BUDGET_S of them per process, default 900 s), for a
 # scheduled job beside make test, whose derandomized examples are the same every run.
 test-hypothesis: $(STAMP)
-	HYPOTHESIS_PROFILE=ci $(PY) -m pytest -m 'hypothesis and not slow' -n $(TEST_WORKERS) --dist loadgroup
+	HYPOTHESIS_PROFILE=ci $(PY) -X faulthandler -m pytest $(TEST_FLAGS) -m 'hypothesis and not slow' $(XDIST_FLAGS)
 
 # The suite on the newest Numba and llvmlite releases instead of the pinned ones (pyproject.toml), in a
 # virtual environment of its own: what the next Numba breaks shows here first (src/vtoladapt/_numba_abi.py
