@@ -28,7 +28,7 @@ TEST_WORKERS ?= 2
 # The 20 slowest tests are listed at the end (--durations).
 TEST_TIMEOUT_S ?= 600
 TEST_TIMEOUT_SLOW_S ?= 3600
-TEST_SESSION_LIMIT ?= 30m
+TEST_SESSION_LIMIT ?= 60m
 TEST_FLAGS = --durations=20 --durations-min=1 --timeout=$(TEST_TIMEOUT_S) --timeout-method=thread
 XDIST_FLAGS = -n $(TEST_WORKERS) --dist loadgroup --max-worker-restart=0
 
