@@ -41,7 +41,9 @@ for the whole tick). It is six named stages, each writing its results into the t
    ``W = [Phi]_f`` and ``a_m`` are filtered for every law, so every law's log holds the prediction
    error of its theta-hat (``E`` of the tick, before the law's update). ``may_adapt``: the filters
    have started, the probe and the accelerometer are valid and have been for
-   ``adaptation_holdoff_s`` -- an adaptive law updates theta-hat only then.
+   ``adaptation_holdoff_s`` -- an adaptive law updates theta-hat only then. ``accel_ok``: the same
+   without the probe (filters started, accelerometer valid for ``adaptation_holdoff_s``) -- what a law
+   built on the accelerometer and the actuator state alone (INDI) needs.
 """
 from __future__ import annotations
 
@@ -61,9 +63,9 @@ from .blocks import (
     P_HOLDOFF_S, P_LAMBDA_P, P_LOWPASS_HZ, P_MODEL, P_MOTOR_LAG_ON, P_MOTOR_TAU, P_UNSEEN_ACCEL, P_V_LO,
     P_VCORR_MAX, P_VERR_MAX, P_VPROBE_MAX, P_WD_HZ, P_WIND_FADE, P_WIND_TAU, S_FILT_INIT, S_FLOW_EST_ON,
     S_FLOW_EST_W, S_GAINS, S_GAINS_DT, S_HAVE_REF, S_HAVE_WIND, S_INPUT, S_OMEGA_LAST, S_P_LAST, S_Q_LAST,
-    S_REF_LAST, S_STEPS, S_TICK, S_U_EST, S_U_PREV, S_UNSEEN_FLOW, S_V_LAST, S_VALID_TIME, S_WIND_EST, T_A_D,
-    T_DT, T_E, T_FAULTS, T_MAY_ADAPT, T_NEW_DT, T_P_TILDE, T_PROBE_OK, T_R_WB, T_V_R, T_V_R_DOT, T_V_TILDE,
-    T_V_TILDE_RAW, T_V_W, T_YAW_D,
+    S_REF_LAST, S_STEPS, S_TICK, S_U_EST, S_U_PREV, S_UNSEEN_FLOW, S_V_LAST, S_VALID_TIME, S_ACCEL_VALID_TIME,
+    S_WIND_EST, T_A_D, T_ACCEL_OK, T_DT, T_E, T_FAULTS, T_MAY_ADAPT, T_NEW_DT, T_P_TILDE, T_PROBE_OK, T_R_WB, T_V_R,
+    T_V_R_DOT, T_V_TILDE, T_V_TILDE_RAW, T_V_W, T_YAW_D,
 )
 from .tracking import limit_norm, reference_velocity
 
@@ -442,9 +444,17 @@ def regressor_and_filters(fns, params, state, meas, accel_ok) -> None:
         state[S_VALID_TIME] += state[t + T_DT]
     else:
         state[S_VALID_TIME] = 0.0
+    if accel_ok:
+        state[S_ACCEL_VALID_TIME] += state[t + T_DT]
+    else:
+        state[S_ACCEL_VALID_TIME] = 0.0
     may_adapt = (state[S_FILT_INIT] > 0.0 and probe_ok and accel_ok
                  and state[S_VALID_TIME] >= params[P_HOLDOFF_S] - 1e-12)
     state[t + T_MAY_ADAPT] = 1.0 if may_adapt else 0.0
+    # a law built on the accelerometer alone (INDI) needs the filter flushed, not the probe
+    accel_usable = (state[S_FILT_INIT] > 0.0 and accel_ok
+                    and state[S_ACCEL_VALID_TIME] >= params[P_HOLDOFF_S] - 1e-12)
+    state[t + T_ACCEL_OK] = 1.0 if accel_usable else 0.0
     put3(state, t + T_E, prediction_error(params, state))
 
 
