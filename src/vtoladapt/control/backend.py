@@ -7,7 +7,8 @@ One call of :func:`back_end` per tick, after the law's update has written the fo
 2. **Commanded heading and flow-angle protection** (:func:`heading`, :func:`flow_angle_protection`;
    :mod:`~vtoladapt.control.attitude` module notes): the heading
    weathervanes into the flow above ``weathervane_airspeed_mps`` and follows the reference yaw
-   below, rate limited (while the probe cannot see the flow: against the unexplained force, or into
+   below, rate limited (while the probe cannot see the flow: against the force the physics columns
+   leave unexplained, or into
    the front end's airflow estimate when ``unseen_flow_estimate`` has one); the probe's measured alpha beyond ``alpha_max`` (``alpha_min``) lowers
    (raises) the alpha_d limit through an integral trim.
 3. **Desired attitude** (:func:`attitude`, :mod:`~vtoladapt.control.attitude`) and, if ``omega_d_feedforward`` is on (default off, see
@@ -63,7 +64,7 @@ from .blocks import (
     T_DT, T_E, T_F_R, T_FAULTS, T_LAW_FAULTS, T_P_TILDE, T_PROBE_OK, T_R_WB, T_V_R, T_V_TILDE_RAW, T_V_W,
     T_YAW_D,
 )
-from .frontend import physics_theta, plausible, put3, rows_at, vec3, wrap_angle
+from .frontend import physics_horizontal_error, physics_theta, plausible, put3, rows_at, vec3, wrap_angle
 from .tracking import (
     limit_norm,
     moment_command,
@@ -145,7 +146,13 @@ def heading(params, state, v_i, v_i_W, alpha_raw, probe_ok) -> tuple:
         elif not probe_ok and state[S_UNSEEN_FLOW] > 0.0:
             # blind weathervane: the probe cannot see the flow, the unexplained body-horizontal force
             # (-e, downwind) can: turn the nose against it, until the flow enters the probe's cone
-            e_W = rows_times(rows_at(state, t + T_R_WB), (state[t + T_E], state[t + T_E + 1], 0.0))
+            # (of the physics columns: the force the physics leaves unexplained, whatever extra columns
+            # the basis has; with the paper's basis it is e's, bit for bit)
+            if int(params[A_N]) > N_PHYSICS:
+                e_x, e_y = physics_horizontal_error(params, state)
+            else:
+                e_x, e_y = state[t + T_E], state[t + T_E + 1]
+            e_W = rows_times(rows_at(state, t + T_R_WB), (e_x, e_y, 0.0))
             target, ff = np.arctan2(e_W[1], e_W[0]), 0.0
         elif state[S_WV_ON] > 0.0:
             target, ff = np.arctan2(v_i_W[1], v_i_W[0]), 0.0

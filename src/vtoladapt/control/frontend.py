@@ -14,8 +14,10 @@ for the whole tick). It is six named stages, each writing its results into the t
    :func:`fallback_flow`). The probe's ``v_i`` is used if ``meas[MEAS_V_I_VALID] == 1``, finite and
    below ``probe_airspeed_max_mps``; a finite reading flagged invalid only for a low airspeed
    (below the vehicle's hover-blend airspeed) is used too, since it still measures still air --
-   unless the body-horizontal prediction error (filtered, above ``unseen_flow_accel_mps2``) shows
-   an airflow the probe cannot see (from the side or behind: it reads "invalid, zero" then too).
+   unless the body-horizontal prediction error (filtered, above ``unseen_flow_accel_mps2``; of the
+   physics columns alone, :func:`physics_horizontal_error`, so that a basis's extra columns cannot
+   explain the flow away) shows an airflow the probe cannot see (from the side or behind: it reads
+   "invalid, zero" then too).
    Otherwise the fallback is ``v_i = R^T (v - w_hat)`` with ``w_hat`` the wind estimate
    ``v - R v_i`` low-passed (``wind_estimate_time_constant_s``) while the probe was valid, fading
    toward still air (``wind_estimate_fade_s``) while it is not: a short dropout keeps the wind, a
@@ -51,7 +53,7 @@ import numpy as np
 from numba import njit
 
 from .. import layout as L
-from ..bases import IN_FLOW, IN_OMEGA_B, IN_Q_WB, IN_U, IN_V_I_B, IN_V_I_VALID, IN_V_W, INPUT_SIZE
+from ..bases import IN_FLOW, IN_OMEGA_B, IN_Q_WB, IN_U, IN_V_I_B, IN_V_I_VALID, IN_V_W, INPUT_SIZE, N_PHYSICS
 from ..forces import FLOW_SIZE, incident_flow, model_at, theta_at
 from ..frames import quat_to_rotmat_rows, rows_times, rows_transpose_times, yaw_pitch_roll
 from . import adaptation as ad
@@ -143,6 +145,29 @@ def prediction_error(params, state) -> tuple:
     if n == ad.N_SLOT_2:
         return ad.prediction_error(state, w, state, th, state, am, ad.N_SLOT_2)
     return ad.prediction_error(state, w, state, th, state, am, n)
+
+
+@njit(cache=True)
+def physics_horizontal_error(params, state) -> tuple:
+    """The body-horizontal part ``(e_x, e_y)`` of ``e`` with the physics columns alone, ``W_phys theta_phys - a_m``
+    (the paper's eight, :data:`vtoladapt.bases.N_PHYSICS`), body m/s^2.
+
+    The unseen-flow detector and the blind weathervane judge this one: the force the physics model
+    leaves unexplained. A basis's extra columns (a learned block) may explain part of an unseen
+    flow's drag away, and would make the detector and the weathervane depend on the basis (issue
+    #34, defect 2). With the paper's basis it is ``e``'s first two entries, bit for bit.
+    """
+    n = int(params[A_N])
+    if n == N_PHYSICS:
+        e = prediction_error(params, state)
+        return (e[0], e[1])
+    w, th, am = int(params[A_W]), int(params[A_THETA]), int(params[A_A_M])
+    e0 = -state[am]
+    e1 = -state[am + 1]
+    for j in range(N_PHYSICS):
+        e0 += state[w + j] * state[th + j]
+        e1 += state[w + n + j] * state[th + j]
+    return (e0, e1)
 
 
 @njit(cache=True)
@@ -265,7 +290,7 @@ def probe_usable(params, state, meas) -> bool:
     V_probe = np.sqrt(v_i[0] * v_i[0] + v_i[1] * v_i[1] + v_i[2] * v_i[2])
     probe_ok = meas[L.MEAS_V_I_VALID] == 1.0 and all_finite and V_probe <= params[P_VPROBE_MAX]
     if state[S_FILT_INIT] > 0.0:
-        e_prev = prediction_error(params, state)
+        e_prev = physics_horizontal_error(params, state)
         e_h = np.sqrt(e_prev[0] * e_prev[0] + e_prev[1] * e_prev[1])
         if e_h > params[P_UNSEEN_ACCEL + 1]:
             state[S_UNSEEN_FLOW] = 1.0
