@@ -10,6 +10,13 @@ and a second pusher column ``CTx_extra = u_x^2``, whose weights the test sets.
   calls it an unseen flow and the heading turns against the force. With the test basis and ``Fy0``
   set to exactly that force the full basis explains it (``e = 0``): the decision and the heading must
   still be the paper basis's, tick for tick.
+* **Throttle solve** (:func:`test_throttle_solve_converges_with_a_throttle_dependent_extra_column`):
+  a forward acceleration is commanded in hover, so the pusher must give ``a_x``. ``CTx_extra = r C_Tx``
+  says the pusher gives ``(1 + r)`` times the physics' thrust: the full model's fixed point is
+  ``u_x^2 = a_x / ((1 + r) C_Tx)`` (computed here, independently of the controller). Taken at once at
+  the last command, the extra force closes a one-tick loop of gain ``-r`` through the allocation: an
+  oscillation that decays as ``0.85^k`` at r = 0.85 and never ends at r = 1.5 (the throttle jumps
+  between 0 and the physics' answer). The command must settle on the fixed point without alternating.
 """
 from __future__ import annotations
 
@@ -89,3 +96,20 @@ def test_detector_and_weathervane_judge_the_physics_columns(vehicle, registered)
         assert [r[k] for r in extra] == [r[k] for r in paper], k
     np.testing.assert_allclose([r["heading_cmd_rad"] for r in extra], [r["heading_cmd_rad"] for r in paper],
                                rtol=0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("ratio", (0.85, 1.5))
+def test_throttle_solve_converges_with_a_throttle_dependent_extra_column(vehicle, registered, ratio):
+    a_x = 1.0
+    C_Tx = vehicle.theta_scaled[forces.I_CTX]
+    ac = _StandIn(vehicle, "paper_extra_test", (0.0, ratio * C_Tx), np.zeros(3), a_ref_W=(a_x, 0.0, 0.0))
+    u2 = []
+    for _ in range(500):
+        ac.step()
+        u2.append(ac.cmd[L.CMD_U_X] ** 2)
+    u2 = np.array(u2)
+    np.testing.assert_allclose(u2[-50:], a_x / ((1.0 + ratio) * C_Tx), rtol=1e-6)
+    # no tick-to-tick oscillation on the way: after the start the changes keep their sign
+    d = np.diff(u2[10:])
+    d = d[np.abs(d) > 1e-12 * u2[-1]]
+    assert np.all(d[:-1] * d[1:] > 0.0), "the throttle alternates tick to tick"
