@@ -512,7 +512,10 @@ def tuned_comparison(scenario: Scenario, n: int, default: dict, progress: Option
         base = replace(scenario.controller, kind=cid)
         config = tuned_controller(base, path)
         _, _, _, records[cid] = read_tuned_file(path)
-        settings[cid] = {"default": settings_of(base, cid), "tuned": settings_of(config, cid)}
+        # a gain declared after the file was searched (NOT_IN_SHIPPED_FILES) flies its default: not reported as tuned
+        unsearched = set(NOT_IN_SHIPPED_FILES) - set(records[cid].get("box", {}))
+        settings[cid] = {k: {n: v for n, v in settings_of(c, cid).items() if n not in unsearched}
+                         for k, c in (("default", base), ("tuned", config))}
         if config != base:
             configs[cid] = config
     flown = per_variant_values(fly_variants(scenario, n, progress, configs)) if configs else {}
