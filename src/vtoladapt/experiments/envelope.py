@@ -11,7 +11,7 @@ The targets (issue #11, "Must show"):
 
 ``pred_err_every_bin``
     The composite controller's 95th-percentile prediction error is below
-    :data:`PRED_ERR_BOUND_G` in every true-airspeed bin of ``pred_err_p95_g_by_airspeed``
+    :data:`~vtoladapt.sim.run_metrics.PRED_ERR_BOUND_G` in every true-airspeed bin of ``pred_err_p95_g_by_airspeed``
     (bins with no sample are skipped). A diverged run fails.
 ``alpha_protect_brief`` / ``alpha_stall_brief``
     The true angle of attack goes past the vehicle's protected angle
@@ -49,11 +49,9 @@ from typing import Iterable, Optional, Sequence
 import numpy as np
 
 from ..control.registry import adaptive_ids, composite_ids, paper_baseline_ids
-from ..sim.run_metrics import AIRSPEED_BINS_MPS, airspeed_bin_labels, run_metrics
+from ..sim.run_metrics import AIRSPEED_BINS_MPS, PRED_ERR_BOUND_G, airspeed_bin_labels, run_metrics
 from ..stats import fraction_holding, median_iqr
 
-PRED_ERR_BOUND_G = 0.05
-"""The paper's prediction-error bound (g), judged as the 95th percentile in every airspeed bin."""
 ALPHA_EXCURSION_MAX_S = 0.5
 """Longest allowed excursion of ``|alpha|`` past the protected (or stall) angle (s)."""
 ALPHA_TIME_FRACTION_MAX = 0.01
@@ -66,7 +64,7 @@ YARDSTICK_KEYS = ("pred_valid_pass", "pred_horizon_pass", "hold_pass", "hold_hor
                   "ceiling_measured_pass")
 """Per run, 1/0 (NaN: not judged): the yardstick's one-tick and horizon predictions on probe-valid samples,
 the hold baseline at both, the ceiling on the run's own log with true and with measured inputs, each
-p95 < :data:`PRED_ERR_BOUND_G` in every airspeed bin; beside them ``blind_fraction`` and each one's
+p95 < :data:`~vtoladapt.sim.run_metrics.PRED_ERR_BOUND_G` in every airspeed bin; beside them ``blind_fraction`` and each one's
 worst-bin p95 (``<key>_worst_g``, the ``_pass`` replaced)."""
 HEADLINE_CONTROLLER = "composite"
 """The controller the prediction-error and alpha targets are judged on (others in the per-controller table)."""

@@ -30,14 +30,14 @@ passes much of it); the horizon error says how well a fixed theta-hat carries ov
 changing flight, i.e. the model (the constant-weights ceiling is its best case); neither says
 anything about the blind part of the run, which ``blind_fraction`` sizes. Each is judged as the
 envelope campaign judges the prediction error: p95 per true-airspeed bin against
-:data:`vtoladapt.experiments.envelope.PRED_ERR_BOUND_G` in every bin with samples.
+:data:`vtoladapt.sim.run_metrics.PRED_ERR_BOUND_G` in every bin with samples.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..frames import GRAVITY_MPS2
-from ..sim.run_metrics import PRED_ERR_SKIP_S, pred_err_p95_by_airspeed
+from ..sim.run_metrics import PRED_ERR_BOUND_G, PRED_ERR_SKIP_S, pred_err_p95_by_airspeed
 
 PROBE_SETTLE_S = 0.5
 """A sample is scored once the probe has been used this long without a break (s)."""
@@ -114,8 +114,6 @@ def prediction_yardstick(result, vehicle, spec, cutoff_hz: float = 10.0, horizon
     """The module notes' metrics of one run: ``blind_fraction``, ``scored_fraction`` and, for each of
     :data:`METRICS`, ``{p95_g, p95_g_by_airspeed, pass}`` on the probe-valid samples (``horizon`` None where the
     regressor cannot be rebuilt). ``spec`` is the basis the run flew (its ``theta_hat_*`` columns)."""
-    from .envelope import PRED_ERR_BOUND_G
-
     t = result.time_s
     dt = float(np.median(np.diff(t)))
     lag = max(1, int(round(horizon_s / dt)))
