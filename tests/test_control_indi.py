@@ -30,7 +30,7 @@ from vtoladapt import forces, layout as L, load_vehicle
 from vtoladapt.config import ConfigError
 from vtoladapt.control import Controller, ControllerConfig, Measurement, Reference, controller_arrays
 from control_helpers import columns, new_diag, step as controller_step
-from vtoladapt.control.blocks import FAULT_ACCEL
+from vtoladapt.control.blocks import FAULT_ACCEL, S_TICK, T_MAY_ADAPT
 from vtoladapt.control.registry import controller_ids
 from vtoladapt.control.settings import controller_config_from_mapping
 from vtoladapt.control.laws import indi
@@ -146,13 +146,16 @@ def test_indi_rejects_a_model_error_without_an_integrator(vehicle, coefficient, 
 # Compiled step on a stand-in aircraft: faults and saturation
 # ==================================================================================================
 
-def _hover_meas(accel_B, v_W=(0.0, 0.0, 0.0)):
+def _hover_meas(accel_B, v_W=(0.0, 0.0, 0.0), probe_valid=True):
     m = np.zeros(L.MEAS_SIZE)
     m[L.MEAS_P_W:L.MEAS_P_W + 3] = (0.0, 0.0, -1.5)
     m[L.MEAS_V_W:L.MEAS_V_W + 3] = v_W
     m[L.MEAS_Q_WB] = 1.0
     m[L.MEAS_ACCEL_B:L.MEAS_ACCEL_B + 3] = accel_B
-    m[L.MEAS_V_I_VALID] = 1.0                                     # still air, probe reads zero
+    if probe_valid:
+        m[L.MEAS_V_I_VALID] = 1.0                                 # still air, probe reads zero
+    else:
+        m[L.MEAS_V_I_B:L.MEAS_V_I_B + 3] = np.nan                 # no reading: the front end flies blind
     return m
 
 
@@ -182,12 +185,13 @@ class _StandIn:
         self.diag = new_diag(self.params)
         self.ref = L.pack_reference((0.0, 0.0, -1.5))
 
-    def step(self, accel_valid=True, v_W=(0.0, 0.0, 0.0)):
+    def step(self, accel_valid=True, v_W=(0.0, 0.0, 0.0), probe_valid=True):
         f = np.zeros(3)
         forces.body_force(np.zeros(3), self.cmd[L.CMD_U_X], self.cmd[L.CMD_U_Z], self.vehicle.theta_scaled,
                           self.vehicle.model_kernel, f)
         accel = f + self.d_B if accel_valid else np.full(3, np.nan)
-        controller_step(self.params, self.state, _hover_meas(accel, v_W), self.ref, TICK_S, self.cmd, self.diag)
+        controller_step(self.params, self.state, _hover_meas(accel, v_W, probe_valid), self.ref, TICK_S, self.cmd,
+                        self.diag)
         assert np.all(np.isfinite(self.cmd)) and np.all(np.isfinite(self.diag))
         return _col(self.diag, "indi_increment_N_mps2", 3).copy()
 
@@ -216,6 +220,27 @@ def test_accelerometer_dropout_holds_then_fades_the_increment(vehicle):
     blend_ticks = int(round(indi.IndiSettings().reentry_blend_s / TICK_S))
     assert blend_ticks + 20 < len(back) - holdoff_ticks
     np.testing.assert_allclose(back[-1], -d_B, atol=1e-6)
+
+
+def test_increment_acts_while_the_probe_is_out(vehicle):
+    """Smeur's INDI needs the accelerometer and the actuator state, not the airflow probe (issue #34, defect 1).
+
+    The stand-in's probe gives no reading from the start (the front end flies blind: no adaptation
+    for the adaptive laws, ``probe_valid_used`` = 0) while the accelerometer is good and reads the
+    model force plus ``d_B``. In still air the fallback flow is the still air the stand-in flies in,
+    so ``W theta - a_m = -d_B`` as with the probe: the increment must reach ``-d_B`` just the same.
+    (Gated on the adaptive laws' flag it stayed exactly zero.)
+    """
+    d_B = np.array([0.4, -0.2, 0.6])
+    ac = _StandIn(vehicle, d_B)
+    inc = [ac.step(probe_valid=False) for _ in range(250)]
+    assert _col(ac.diag, "probe_valid_used") == 0.0
+    assert ac.state[S_TICK + T_MAY_ADAPT] == 0.0                  # the adaptive laws would not adapt now
+    np.testing.assert_allclose(inc[-1], -d_B, atol=1e-6)
+    # a probe outage in the middle of a flight keeps the increment where the accelerometer puts it
+    ac.d_B = np.array([-0.3, 0.1, 0.2])
+    inc = [ac.step(probe_valid=k % 50 < 25) for k in range(250)]
+    np.testing.assert_allclose(inc[-1], -ac.d_B, atol=1e-6)
 
 
 def test_accelerometer_nan_from_the_start_flies_the_nominal_command(vehicle):

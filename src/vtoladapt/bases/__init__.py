@@ -49,7 +49,9 @@ the desired attitude (the wing's lift ``C_L0``, ``C_L1``), the flow-angle protec
 thrust allocation (``C_Tx``, ``C_Tz``, ``C_S`` and the polars) invert that physics with the
 first eight entries of theta-hat. The columns after them are *extra* columns: their predicted
 force ``Phi_extra(x) theta_extra`` (at the throttles the regressor was evaluated at, those that
-produced the measured force) is handed to the allocation as a known additive force. So a basis
+produced the measured force; through the controller's filter ``[.]_f``, so that the throttle solve
+follows only the physics columns' throttle dependence,
+:func:`vtoladapt.control.backend.extra_force`) is handed to the allocation as a known additive force. So a basis
 is naturally "the paper's eight columns plus extra ones" (a side force ``C_Y(beta)``, a post-stall
 normal force, a learned block ``phi_net(x)`` evaluated from stored weights inside ``regressor``);
 a basis that wants the physics columns fixed gives them a tiny prior standard deviation and P0.

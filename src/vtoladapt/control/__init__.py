@@ -82,7 +82,7 @@ A law is a module with these seven names, and two optional ones (:func:`.laws.ch
     :func:`.laws.law_update`; it must not allocate). ``params``, ``state`` and ``diag`` are the
     whole arrays, ``tick`` the tick block (:data:`.blocks.TICK`, offsets ``T_*``): ``DT`` (s) and
     ``NEW_DT`` (recompute dt-dependent gains), ``MAY_ADAPT`` (the front end allows adapting
-    theta-hat now), ``FAULTS`` (the front end's ``FAULT_*`` bits of this tick, e.g.
+    theta-hat now), ``ACCEL_OK`` (the filtered accelerometer is usable, the probe or not), ``FAULTS`` (the front end's ``FAULT_*`` bits of this tick, e.g.
     ``FAULT_VELOCITY``: the velocity is the last good one, held because this tick's was not
     plausible), ``R_WB``, ``V_W``, ``V_R_DOT``, ``V_TILDE``, ``A_D``, the prediction error ``E``
     of theta-hat before any update, ...; the regressor ``Phi`` (3 x n) is at ``state[A_PHI]``. It

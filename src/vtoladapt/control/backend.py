@@ -7,7 +7,8 @@ One call of :func:`back_end` per tick, after the law's update has written the fo
 2. **Commanded heading and flow-angle protection** (:func:`heading`, :func:`flow_angle_protection`;
    :mod:`~vtoladapt.control.attitude` module notes): the heading
    weathervanes into the flow above ``weathervane_airspeed_mps`` and follows the reference yaw
-   below, rate limited (while the probe cannot see the flow: against the unexplained force, or into
+   below, rate limited (while the probe cannot see the flow: against the force the physics columns
+   leave unexplained, or into
    the front end's airflow estimate when ``unseen_flow_estimate`` has one); the probe's measured alpha beyond ``alpha_max`` (``alpha_min``) lowers
    (raises) the alpha_d limit through an integral trim.
 3. **Desired attitude** (:func:`attitude`, :mod:`~vtoladapt.control.attitude`) and, if ``omega_d_feedforward`` is on (default off, see
@@ -20,8 +21,9 @@ One call of :func:`back_end` per tick, after the law's update has written the fo
 4. **Moment command** (:func:`moment`, eq:wr, eq:m_ctrl) with the constrained quaternion error, limited per axis.
 5. **Thruster allocation** at the current attitude with theta-hat's physics part (eq:f_proj,
    :func:`allocation`, :mod:`vtoladapt.control.allocation`). A basis's extra columns (after the paper's eight,
-   :mod:`vtoladapt.bases`) predict a force ``Phi_extra theta_extra`` at the throttles of this tick's
-   regressor: the desired attitude and the allocation take it as a known additive force.
+   :mod:`vtoladapt.bases`) predict a force ``W_extra theta_extra`` (the filtered regressor, at the throttles
+   that produced the measured force): the desired attitude and the allocation take it as a known additive
+   force, so the throttle solve follows only the physics columns' throttle dependence (:func:`extra_force`).
 6. A non-finite command (:func:`output`) (impossible for finite sanitised inputs, but guarded) is replaced by the
    previous command and flagged.
 7. The diagnostics (:data:`.blocks.SHARED_DIAG`, theta-hat; :func:`diagnostics`) other than the law's own.
@@ -48,7 +50,7 @@ from .attitude import (
     measured_angle_of_attack,
 )
 from .blocks import (
-    A_A_M, A_D_P_DIAG, A_D_THETA_HAT, A_N, A_P0, A_PHI, A_THETA, DIAG_A_M, DIAG_ADAPT_ACTIVE, DIAG_ALLOC_RES,
+    A_A_M, A_D_P_DIAG, A_D_THETA_HAT, A_N, A_P0, A_THETA, A_W, DIAG_A_M, DIAG_ADAPT_ACTIVE, DIAG_ALLOC_RES,
     DIAG_ALPHA_D, DIAG_ALPHA_LIMITS, DIAG_ALPHA_MEAS, DIAG_ALPHA_SPREAD, DIAG_AIRSPEED, DIAG_BLEND, DIAG_F_R,
     DIAG_FAULTS, DIAG_FLOW_EST_ON, DIAG_HEADING, DIAG_LYAP_Q, DIAG_LYAP_V, DIAG_OMEGA_D, DIAG_OMEGA_R,
     DIAG_P_TILDE, DIAG_PRED_ERR, DIAG_PROBE_VALID, DIAG_Q_D, DIAG_Q_TILDE, DIAG_SAT_X, DIAG_SAT_Z,
@@ -63,7 +65,7 @@ from .blocks import (
     T_DT, T_E, T_F_R, T_FAULTS, T_LAW_FAULTS, T_P_TILDE, T_PROBE_OK, T_R_WB, T_V_R, T_V_TILDE_RAW, T_V_W,
     T_YAW_D,
 )
-from .frontend import physics_theta, plausible, put3, rows_at, vec3, wrap_angle
+from .frontend import physics_horizontal_error, physics_theta, plausible, put3, rows_at, vec3, wrap_angle
 from .tracking import (
     limit_norm,
     moment_command,
@@ -93,10 +95,24 @@ def flow_of_input(state) -> tuple:
 
 @njit(cache=True)
 def extra_force(params, state) -> tuple:
-    """``Phi_extra theta_extra``, body m/s^2: the force of the basis's columns after the physics ones, at this
-    tick's regressor (zero for the paper's basis, which has none)."""
+    """``W_extra theta_extra``, body m/s^2: the force of the basis's columns after the physics ones, from the
+    *filtered* regressor ``W = [Phi]_f`` (zero for the paper's basis, which has none).
+
+    Why filtered (issue #34, defect 3): the extra columns are evaluated at the throttles that produced
+    the measured force, i.e. at the allocation's own earlier commands. Taken at once as a known force
+    (``Phi_extra theta_extra``), a column whose force grows with a throttle closes a loop through the
+    allocation one tick long, with gain ``-r`` (``r`` the column's ``dF/du`` over the physics thrust
+    slope; the learned network's pusher reaches r = 0.66-0.85): a barely damped oscillation of the
+    throttle, unstable for ``r > 1``. Through ``[.]_f`` (gain ``c = 1 - exp(-2 pi f_c dt)``, 0.22 at
+    10 Hz and 4 ms) the per-tick gain is ``1 - c (1 + r)``: the throttle solve follows only the physics
+    columns' throttle dependence at the tick, and the extra force settles to the full model's fixed point
+    (where ``Phi theta`` at the flown throttles is the command) within a few filter time constants, for any
+    ``0 <= r < 2/c - 1`` (8 at the defaults). ``W`` is the same filtered regressor the prediction error and
+    INDI's ``f_0`` use: the extra force the accelerometer is compared with, synchronised alike; and it costs
+    nothing, ``W`` being formed every tick anyway. (Evaluating the extra columns a second time at a held
+    throttle would cost a network evaluation per tick; bounding them would leave the loop's gain as it is.)"""
     n = int(params[A_N])
-    phi = int(params[A_PHI])
+    phi = int(params[A_W])
     th = int(params[A_THETA])
     f0 = 0.0
     f1 = 0.0
@@ -145,7 +161,13 @@ def heading(params, state, v_i, v_i_W, alpha_raw, probe_ok) -> tuple:
         elif not probe_ok and state[S_UNSEEN_FLOW] > 0.0:
             # blind weathervane: the probe cannot see the flow, the unexplained body-horizontal force
             # (-e, downwind) can: turn the nose against it, until the flow enters the probe's cone
-            e_W = rows_times(rows_at(state, t + T_R_WB), (state[t + T_E], state[t + T_E + 1], 0.0))
+            # (of the physics columns: the force the physics leaves unexplained, whatever extra columns
+            # the basis has; with the paper's basis it is e's, bit for bit)
+            if int(params[A_N]) > N_PHYSICS:
+                e_x, e_y = physics_horizontal_error(params, state)
+            else:
+                e_x, e_y = state[t + T_E], state[t + T_E + 1]
+            e_W = rows_times(rows_at(state, t + T_R_WB), (e_x, e_y, 0.0))
             target, ff = np.arctan2(e_W[1], e_W[0]), 0.0
         elif state[S_WV_ON] > 0.0:
             target, ff = np.arctan2(v_i_W[1], v_i_W[0]), 0.0

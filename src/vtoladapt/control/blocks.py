@@ -136,6 +136,8 @@ TICK = BlockLayout("controller tick", [
     Field("NEW_DT", 1, "-", "1 if dt differs from the last tick's (recompute dt-dependent gains)"),
     Field("MAY_ADAPT", 1, "-", "1 if an adaptive law may update theta-hat now (filters started, probe and "
           "accelerometer valid for adaptation_holdoff_s)"),
+    Field("ACCEL_OK", 1, "-", "1 if a law may use the filtered accelerometer now (filters started, accelerometer "
+          "valid for adaptation_holdoff_s; the probe need not be)"),
     Field("PROBE_OK", 1, "-", "1 if the probe's reading is used this tick"),
     Field("FAULTS", 1, "-", "FAULT_* bits found by the front end"),
     Field("R_WB", 9, "-", "attitude R_WB, row-major (sanitised)"),
@@ -155,8 +157,8 @@ TICK = BlockLayout("controller tick", [
 """One tick's named data: the front end writes up to ``E``, the law's ``update`` reads them and writes
 ``F_R``, ``ADAPT_ACTIVE`` and ``LAW_FAULTS``, the back end reads them all. The incident velocity, the
 throttles and the flow quantities of the tick are in the basis's input block (``S_INPUT``)."""
-(T_DT, T_NEW_DT, T_MAY_ADAPT, T_PROBE_OK, T_FAULTS, T_R_WB, T_V_W, T_P_TILDE, T_V_R, T_V_R_DOT, T_V_TILDE_RAW,
- T_V_TILDE, T_A_D, T_YAW_D, T_E, T_F_R, T_ADAPT_ACTIVE, T_LAW_FAULTS) = TICK.offsets(*(f.name for f in TICK.fields))
+(T_DT, T_NEW_DT, T_MAY_ADAPT, T_ACCEL_OK, T_PROBE_OK, T_FAULTS, T_R_WB, T_V_W, T_P_TILDE, T_V_R, T_V_R_DOT,
+ T_V_TILDE_RAW, T_V_TILDE, T_A_D, T_YAW_D, T_E, T_F_R, T_ADAPT_ACTIVE, T_LAW_FAULTS) = TICK.offsets(*(f.name for f in TICK.fields))
 TICK_SIZE = TICK.size
 
 # --- shared state --------------------------------------------------------------------------------
@@ -190,6 +192,7 @@ SHARED_STATE = BlockLayout("controller state (shared)", [
     Field("WIND_EST", 3, "m/s", "wind estimate, NED"),
     Field("HAVE_WIND", 1, "-", "1 once the wind estimate has a sample"),
     Field("VALID_TIME", 1, "s", "time the probe and accelerometer have been valid"),
+    Field("ACCEL_VALID_TIME", 1, "s", "time the accelerometer has been valid (the probe or not)"),
     Field("P_LAST", 3, "m", "last good position, NED"),
     Field("V_LAST", 3, "m/s", "last good velocity, NED"),
     Field("Q_LAST", 4, "-", "last good attitude"),
@@ -217,7 +220,8 @@ SHARED_STATE = BlockLayout("controller state (shared)", [
     Field("FLOW_EST_W", 2, "m/s", "last accepted airflow estimate's horizontal wind, N and E (its warm start)"),
 ])
 (S_TICK, S_INPUT, S_FILT_INIT, S_V_PREV, S_U_PREV, S_TAU_PREV, S_Q_D_PREV, S_WD_X1, S_WD_X2, S_HAVE_QD, S_Y_I_PREV,
- S_HAVE_Y_I, S_WIND_EST, S_HAVE_WIND, S_VALID_TIME, S_P_LAST, S_V_LAST, S_Q_LAST, S_OMEGA_LAST, S_HAVE_MEAS,
+ S_HAVE_Y_I, S_WIND_EST, S_HAVE_WIND, S_VALID_TIME, S_ACCEL_VALID_TIME, S_P_LAST, S_V_LAST, S_Q_LAST, S_OMEGA_LAST,
+ S_HAVE_MEAS,
  S_REF_LAST, S_HAVE_REF, S_SAT_PREV, S_RES_PREV_W, S_TIME, S_STEPS, S_U_EST, S_GAINS_DT,
  S_GAINS, S_HEADING, S_TURN_SIGN, S_WV_ON, S_YAW_REF_PREV, S_HAVE_HEADING, S_ALPHA_F,
  S_ALPHA_TRIM, S_ALPHA_VAR, S_UNSEEN_FLOW, S_FLOW_EST_ON, S_FLOW_EST_W) = SHARED_STATE.offsets(*(f.name for f in SHARED_STATE.fields))

@@ -14,8 +14,10 @@ for the whole tick). It is six named stages, each writing its results into the t
    :func:`fallback_flow`). The probe's ``v_i`` is used if ``meas[MEAS_V_I_VALID] == 1``, finite and
    below ``probe_airspeed_max_mps``; a finite reading flagged invalid only for a low airspeed
    (below the vehicle's hover-blend airspeed) is used too, since it still measures still air --
-   unless the body-horizontal prediction error (filtered, above ``unseen_flow_accel_mps2``) shows
-   an airflow the probe cannot see (from the side or behind: it reads "invalid, zero" then too).
+   unless the body-horizontal prediction error (filtered, above ``unseen_flow_accel_mps2``; of the
+   physics columns alone, :func:`physics_horizontal_error`, so that a basis's extra columns cannot
+   explain the flow away) shows an airflow the probe cannot see (from the side or behind: it reads
+   "invalid, zero" then too).
    Otherwise the fallback is ``v_i = R^T (v - w_hat)`` with ``w_hat`` the wind estimate
    ``v - R v_i`` low-passed (``wind_estimate_time_constant_s``) while the probe was valid, fading
    toward still air (``wind_estimate_fade_s``) while it is not: a short dropout keeps the wind, a
@@ -41,7 +43,9 @@ for the whole tick). It is six named stages, each writing its results into the t
    ``W = [Phi]_f`` and ``a_m`` are filtered for every law, so every law's log holds the prediction
    error of its theta-hat (``E`` of the tick, before the law's update). ``may_adapt``: the filters
    have started, the probe and the accelerometer are valid and have been for
-   ``adaptation_holdoff_s`` -- an adaptive law updates theta-hat only then.
+   ``adaptation_holdoff_s`` -- an adaptive law updates theta-hat only then. ``accel_ok``: the same
+   without the probe (filters started, accelerometer valid for ``adaptation_holdoff_s``) -- what a law
+   built on the accelerometer and the actuator state alone (INDI) needs.
 """
 from __future__ import annotations
 
@@ -49,7 +53,7 @@ import numpy as np
 from numba import njit
 
 from .. import layout as L
-from ..bases import IN_FLOW, IN_OMEGA_B, IN_Q_WB, IN_U, IN_V_I_B, IN_V_I_VALID, IN_V_W, INPUT_SIZE
+from ..bases import IN_FLOW, IN_OMEGA_B, IN_Q_WB, IN_U, IN_V_I_B, IN_V_I_VALID, IN_V_W, INPUT_SIZE, N_PHYSICS
 from ..forces import FLOW_SIZE, incident_flow, model_at, theta_at
 from ..frames import quat_to_rotmat_rows, rows_times, rows_transpose_times, yaw_pitch_roll
 from . import adaptation as ad
@@ -61,9 +65,9 @@ from .blocks import (
     P_HOLDOFF_S, P_LAMBDA_P, P_LOWPASS_HZ, P_MODEL, P_MOTOR_LAG_ON, P_MOTOR_TAU, P_UNSEEN_ACCEL, P_V_LO,
     P_VCORR_MAX, P_VERR_MAX, P_VPROBE_MAX, P_WD_HZ, P_WIND_FADE, P_WIND_TAU, S_FILT_INIT, S_FLOW_EST_ON,
     S_FLOW_EST_W, S_GAINS, S_GAINS_DT, S_HAVE_REF, S_HAVE_WIND, S_INPUT, S_OMEGA_LAST, S_P_LAST, S_Q_LAST,
-    S_REF_LAST, S_STEPS, S_TICK, S_U_EST, S_U_PREV, S_UNSEEN_FLOW, S_V_LAST, S_VALID_TIME, S_WIND_EST, T_A_D,
-    T_DT, T_E, T_FAULTS, T_MAY_ADAPT, T_NEW_DT, T_P_TILDE, T_PROBE_OK, T_R_WB, T_V_R, T_V_R_DOT, T_V_TILDE,
-    T_V_TILDE_RAW, T_V_W, T_YAW_D,
+    S_REF_LAST, S_STEPS, S_TICK, S_U_EST, S_U_PREV, S_UNSEEN_FLOW, S_V_LAST, S_VALID_TIME, S_ACCEL_VALID_TIME,
+    S_WIND_EST, T_A_D, T_ACCEL_OK, T_DT, T_E, T_FAULTS, T_MAY_ADAPT, T_NEW_DT, T_P_TILDE, T_PROBE_OK, T_R_WB, T_V_R,
+    T_V_R_DOT, T_V_TILDE, T_V_TILDE_RAW, T_V_W, T_YAW_D,
 )
 from .tracking import limit_norm, reference_velocity
 
@@ -141,6 +145,29 @@ def prediction_error(params, state) -> tuple:
     if n == ad.N_SLOT_2:
         return ad.prediction_error(state, w, state, th, state, am, ad.N_SLOT_2)
     return ad.prediction_error(state, w, state, th, state, am, n)
+
+
+@njit(cache=True)
+def physics_horizontal_error(params, state) -> tuple:
+    """The body-horizontal part ``(e_x, e_y)`` of ``e`` with the physics columns alone, ``W_phys theta_phys - a_m``
+    (the paper's eight, :data:`vtoladapt.bases.N_PHYSICS`), body m/s^2.
+
+    The unseen-flow detector and the blind weathervane judge this one: the force the physics model
+    leaves unexplained. A basis's extra columns (a learned block) may explain part of an unseen
+    flow's drag away, and would make the detector and the weathervane depend on the basis (issue
+    #34, defect 2). With the paper's basis it is ``e``'s first two entries, bit for bit.
+    """
+    n = int(params[A_N])
+    if n == N_PHYSICS:
+        e = prediction_error(params, state)
+        return (e[0], e[1])
+    w, th, am = int(params[A_W]), int(params[A_THETA]), int(params[A_A_M])
+    e0 = -state[am]
+    e1 = -state[am + 1]
+    for j in range(N_PHYSICS):
+        e0 += state[w + j] * state[th + j]
+        e1 += state[w + n + j] * state[th + j]
+    return (e0, e1)
 
 
 @njit(cache=True)
@@ -263,7 +290,7 @@ def probe_usable(params, state, meas) -> bool:
     V_probe = np.sqrt(v_i[0] * v_i[0] + v_i[1] * v_i[1] + v_i[2] * v_i[2])
     probe_ok = meas[L.MEAS_V_I_VALID] == 1.0 and all_finite and V_probe <= params[P_VPROBE_MAX]
     if state[S_FILT_INIT] > 0.0:
-        e_prev = prediction_error(params, state)
+        e_prev = physics_horizontal_error(params, state)
         e_h = np.sqrt(e_prev[0] * e_prev[0] + e_prev[1] * e_prev[1])
         if e_h > params[P_UNSEEN_ACCEL + 1]:
             state[S_UNSEEN_FLOW] = 1.0
@@ -442,9 +469,17 @@ def regressor_and_filters(fns, params, state, meas, accel_ok) -> None:
         state[S_VALID_TIME] += state[t + T_DT]
     else:
         state[S_VALID_TIME] = 0.0
+    if accel_ok:
+        state[S_ACCEL_VALID_TIME] += state[t + T_DT]
+    else:
+        state[S_ACCEL_VALID_TIME] = 0.0
     may_adapt = (state[S_FILT_INIT] > 0.0 and probe_ok and accel_ok
                  and state[S_VALID_TIME] >= params[P_HOLDOFF_S] - 1e-12)
     state[t + T_MAY_ADAPT] = 1.0 if may_adapt else 0.0
+    # a law built on the accelerometer alone (INDI) needs the filter flushed, not the probe
+    accel_usable = (state[S_FILT_INIT] > 0.0 and accel_ok
+                    and state[S_ACCEL_VALID_TIME] >= params[P_HOLDOFF_S] - 1e-12)
+    state[t + T_ACCEL_OK] = 1.0 if accel_usable else 0.0
     put3(state, t + T_E, prediction_error(params, state))
 
 

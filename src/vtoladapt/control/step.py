@@ -247,7 +247,8 @@ def controller_params(config, vehicle, theta_0=None, P0_diag=None, theta_lower=N
         Prior mean (adaptation scaling); default the basis's (Table I for the paper's).
     P0_diag : array (n,) or (n, n), optional
         Initial gain P0: its diagonal, or a full SPD matrix (a fitted posterior covariance);
-        default the basis's (Table III for the paper's).
+        default the basis's (Table III for the paper's). An adaptive law's ``adaptation_gain_scale``
+        multiplies it.
     theta_lower, theta_upper : array (n,), optional
         Bounds of theta-hat; default :func:`default_theta_bounds`.
     theta_init : array (n,), optional
@@ -264,6 +265,10 @@ def controller_params(config, vehicle, theta_0=None, P0_diag=None, theta_lower=N
     n = spec.n
     th0 = spec.theta_scaled.copy() if theta_0 is None else _vector("theta_0", theta_0, n)
     P0 = initial_gain(spec.P0_diag if P0_diag is None else P0_diag, n)
+    # an adaptive law's adaptation gain multiplier (its ``adaptation_gain_scale``; 1: P0 as given, bit for bit)
+    gain_scale = float(getattr(config.law_settings, "adaptation_gain_scale", 1.0))
+    if gain_scale != 1.0:
+        P0 = P0 * gain_scale
     Gamma0 = np.linalg.inv(P0)
     Gamma0 = 0.5 * (Gamma0 + Gamma0.T)
     lo_d, hi_d = default_theta_bounds(vehicle, th0, basis=spec)

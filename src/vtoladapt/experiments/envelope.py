@@ -11,7 +11,7 @@ The targets (issue #11, "Must show"):
 
 ``pred_err_every_bin``
     The composite controller's 95th-percentile prediction error is below
-    :data:`PRED_ERR_BOUND_G` in every true-airspeed bin of ``pred_err_p95_g_by_airspeed``
+    :data:`~vtoladapt.sim.run_metrics.PRED_ERR_BOUND_G` in every true-airspeed bin of ``pred_err_p95_g_by_airspeed``
     (bins with no sample are skipped). A diverged run fails.
 ``alpha_protect_brief`` / ``alpha_stall_brief``
     The true angle of attack goes past the vehicle's protected angle
@@ -31,6 +31,12 @@ The targets (issue #11, "Must show"):
     paper's tracking metric, eq:wr, from the true state, whole run) than both PID and PD. Each
     controller's own fraction is reported too (nominal and INDI included).
 
+Beside the targets, every run's log is scored by the prediction yardstick (:mod:`.yardstick`, issue
+#34): the prediction error on probe-valid samples one tick and ``horizon_s`` ahead, the no-model hold
+at both, the blind time, and the constant-weights ceiling of the basis fitted on this run's own log
+(:mod:`vtoladapt.learn.ceiling`, true and measured inputs); per controller the summary reports the
+fraction of draws where each passes in every airspeed bin (:data:`YARDSTICK_KEYS`).
+
 Per airspeed bin the prediction-error target is judged on that bin, the tracking target on the
 RMS velocity error of the samples in that bin (bins with less than :data:`MIN_BIN_TIME_S` of
 flight in any of the compared runs are skipped), the alpha target on the samples in that bin.
@@ -43,11 +49,9 @@ from typing import Iterable, Optional, Sequence
 import numpy as np
 
 from ..control.registry import adaptive_ids, composite_ids, paper_baseline_ids
-from ..sim.run_metrics import AIRSPEED_BINS_MPS, airspeed_bin_labels, run_metrics
+from ..sim.run_metrics import AIRSPEED_BINS_MPS, PRED_ERR_BOUND_G, airspeed_bin_labels, run_metrics
 from ..stats import fraction_holding, median_iqr
 
-PRED_ERR_BOUND_G = 0.05
-"""The paper's prediction-error bound (g), judged as the 95th percentile in every airspeed bin."""
 ALPHA_EXCURSION_MAX_S = 0.5
 """Longest allowed excursion of ``|alpha|`` past the protected (or stall) angle (s)."""
 ALPHA_TIME_FRACTION_MAX = 0.01
@@ -56,6 +60,12 @@ MIN_BIN_TIME_S = 1.0
 """Least flight time in an airspeed bin for a per-bin RMS velocity error (s)."""
 TARGET_FRACTION = 0.95
 """Each target should hold in at least this fraction of the draws."""
+YARDSTICK_KEYS = ("pred_valid_pass", "pred_horizon_pass", "hold_pass", "hold_horizon_pass", "ceiling_pass",
+                  "ceiling_measured_pass")
+"""Per run, 1/0 (NaN: not judged): the yardstick's one-tick and horizon predictions on probe-valid samples,
+the hold baseline at both, the ceiling on the run's own log with true and with measured inputs, each
+p95 < :data:`~vtoladapt.sim.run_metrics.PRED_ERR_BOUND_G` in every airspeed bin; beside them ``blind_fraction`` and each one's
+worst-bin p95 (``<key>_worst_g``, the ``_pass`` replaced)."""
 HEADLINE_CONTROLLER = "composite"
 """The controller the prediction-error and alpha targets are judged on (others in the per-controller table)."""
 
@@ -155,6 +165,8 @@ def envelope_run_metrics(result, scenario) -> dict:
         for lab, v in metrics.get("pred_err_p95_g_by_airspeed", {}).items():
             row[_bin_key("pred_err_p95_g", lab)] = nan if v is None else float(v)
 
+    row.update(yardstick_columns(result, scenario, vehicle))
+
     dt = scenario.dt_control_s
     airspeed = result["airspeed_mps"]
     alpha_abs = np.abs(result["alpha_rad"])
@@ -179,6 +191,42 @@ def envelope_run_metrics(result, scenario) -> dict:
             row[_bin_key("alpha_over_protect_fraction", lab)] = f
             row[_bin_key("alpha_over_protect_longest_s", lab)] = longest
     return row
+
+
+def _worst_key(key: str) -> str:
+    return key[:-len("_pass")] + "_worst_g"
+
+
+def yardstick_columns(result, scenario, vehicle) -> dict:
+    """The run's :data:`YARDSTICK_KEYS`, their worst-bin p95 and ``blind_fraction`` (NaN where not judged)."""
+    from ..bases import describe_basis
+    from ..learn.ceiling import ceiling_fit, measured_ceiling_fit
+    from .yardstick import prediction_yardstick, worst_bin
+
+    nan = float("nan")
+    out = {"blind_fraction": nan, **{k: nan for k in YARDSTICK_KEYS}, **{_worst_key(k): nan for k in YARDSTICK_KEYS}}
+    if not all(c in result for c in ("probe_valid_used", "pred_err_x_mps2", "a_m_x_mps2")):
+        return out
+    spec = describe_basis(vehicle, scenario.controller.basis)
+    cutoff = scenario.controller.lowpass_cutoff_hz
+    with np.errstate(invalid="ignore"):
+        y = prediction_yardstick(result, vehicle, spec, cutoff)
+        ceilings = {"ceiling_pass": ceiling_fit(result, vehicle, spec),
+                    "ceiling_measured_pass": measured_ceiling_fit(result, vehicle, spec, cutoff)}
+    out["blind_fraction"] = nan if y["blind_fraction"] is None else y["blind_fraction"]
+    for key, name in (("pred_valid_pass", "one_tick"), ("pred_horizon_pass", "horizon"),
+                      ("hold_pass", "hold_one_tick"), ("hold_horizon_pass", "hold_horizon")):
+        judged = y.get(name)
+        if judged and judged["pass"] is not None:
+            out[key] = float(judged["pass"])
+            w = worst_bin(judged)
+            out[_worst_key(key)] = nan if w is None else float(w)
+    for key, c in ceilings.items():
+        vals = [v for v in c["p95_g"].values() if v is not None]
+        if vals:
+            out[key] = float(c["pass"])
+            out[_worst_key(key)] = float(max(vals))
+    return out
 
 
 # --- judging the targets over draws --------------------------------------------------------------
@@ -313,6 +361,12 @@ def envelope_summary(columns: dict[str, Sequence], campaign: Optional[dict] = No
         }
         if cid not in paper_baseline_ids():
             entry["beats_pid_pd"] = frac(f"beats_pid_pd:{cid}")
+        # the yardstick (issue #34), where the table has its columns (older campaigns have not)
+        if own and "pred_valid_pass" in own[0]:
+            entry["blind_fraction"] = median_iqr(r["blind_fraction"] for r in own).as_dict()
+            for key in YARDSTICK_KEYS:
+                entry[key] = fraction_holding(bool(r[key]) if _finite(r[key]) else None for r in own).as_dict()
+                entry[_worst_key(key)] = median_iqr(r[_worst_key(key)] for r in own).as_dict()
         if cid in composite_ids():
             entry["pred_err_p95_g_worst_bin"] = median_iqr(
                 max((r[_bin_key("pred_err_p95_g", lab)] for lab in labels

@@ -616,11 +616,21 @@ def bases_section(m: dict):
                             ("target", *names), tuple(rows)))
         if env.get("ceiling"):
             bases = list(env["ceiling"])
-            tables.append(table("Constant-weights ceiling over the same draws: least squares on the true force with "
-                                "the true inputs; in the columns 'measured inputs', on the accelerometer with the "
-                                "controller's own inputs, both filtered as the controller filters them.",
-                                ("draws", *bases), tuple((k, *[_fraction_cell(env["ceiling"][b].get(k)) for b in bases])
-                                                         for k in env["ceiling"][bases[0]])))
+            first = env["ceiling"][bases[0]]
+            if all(isinstance(v, dict) and "true inputs" in v for v in first.values()):
+                # per law, on its own flights (learn.evaluate since issue #34): {row: {law: {inputs: fraction}}}
+                keys = [(cid, inp) for cid, v in first.items() for inp in v]
+                rows = tuple((f"{cid}, {inp}", *[_fraction_cell(env["ceiling"][b].get(cid, {}).get(inp))
+                                                 for b in bases]) for cid, inp in keys)
+                caption = ("Constant-weights ceiling over the same draws, fitted on each law's own flights: least "
+                           "squares on the true force with the true inputs; 'measured inputs': on the accelerometer "
+                           "with the controller's own inputs, both filtered as the controller filters them.")
+            else:
+                rows = tuple((k, *[_fraction_cell(env["ceiling"][b].get(k)) for b in bases]) for k in first)
+                caption = ("Constant-weights ceiling over the same draws: least squares on the true force with "
+                           "the true inputs; in the columns 'measured inputs', on the accelerometer with the "
+                           "controller's own inputs, both filtered as the controller filters them.")
+            tables.append(table(caption, ("draws", *bases), rows))
     return Section("Force-model bases compared", paragraphs=tuple(paras), tables=tuple(tables))
 
 

@@ -18,8 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..frames import GRAVITY_MPS2
-from ..experiments.envelope import PRED_ERR_BOUND_G
-from ..sim.run_metrics import PRED_ERR_SKIP_S, pred_err_p95_by_airspeed
+from ..sim.run_metrics import PRED_ERR_BOUND_G, PRED_ERR_SKIP_S, pred_err_p95_by_airspeed
 
 
 def true_inputs(result, vehicle) -> tuple[np.ndarray, np.ndarray]:

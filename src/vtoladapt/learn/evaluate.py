@@ -20,10 +20,16 @@ whole run, by least squares on the aircraft's true specific force with the true 
 the throttles the rotors actually had (the lift collective as the RMS of the four rotors: the
 same total thrust) and the true attitude and rates, judged by the same target (p95 < 0.05 g in
 every true-airspeed bin, after the first 2 s). It is what any estimator of that basis could do at
-best, with no sensor and no adaptation lag; the log it is fitted on is the composite law's with
-the paper's basis (the same flight for every basis). Beside it, each basis's ceiling with the
-controller's own inputs and accelerometer, filtered as it filters them
-(:func:`.ceiling.measured_ceiling_fit`): the gap between the two is what sensing costs.
+best, with no sensor and no adaptation lag. It is fitted on each law's *own* flight with that basis
+(the campaign computes it per run, :func:`vtoladapt.experiments.envelope.yardstick_columns`): a law
+that flies differently meets different conditions, so a ceiling from another law's flight (until
+issue #34 every basis's was fitted on the composite law's flights with the paper's basis) is not
+its ceiling. Beside it, the ceiling with the controller's own inputs and accelerometer, filtered as
+it filters them (:func:`.ceiling.measured_ceiling_fit`): the gap between the two is what sensing costs.
+
+**The yardstick** (:mod:`vtoladapt.experiments.yardstick`): per law and row, the fraction of draws
+whose prediction error on probe-valid samples passes one tick and ``horizon_s`` ahead, the no-model
+hold's at both (the baseline every model must beat), and the median blind time.
 """
 from __future__ import annotations
 
@@ -33,13 +39,12 @@ import dataclasses
 import json
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from ..stats import fraction_holding
-from .ceiling import ceiling_fit, measured_ceiling_fit, true_inputs  # noqa: F401  (true_inputs: part of this module's interface)
+from .ceiling import ceiling_fit, measured_ceiling_fit, true_inputs  # noqa: F401  (part of this module's interface)
 
 CAMPAIGN = Path(__file__).resolve().parents[3] / "scenarios" / "envelope.toml"
 BASES = ("paper", "extended", "learned")
@@ -101,37 +106,20 @@ def specs_for(specs, basis: str, vehicle_files: dict | None = None, controllers=
     return out
 
 
-def run_ceilings(specs, bases_specs: dict, workers: int = 2) -> list[dict]:
-    """Fly each draw once (composite, paper basis) and fit every basis's constant weights to it."""
-    from ..sim.driver import simulate
-    from ..sim.scenario import scenario_from_mapping
-
-    draws = [s for s in specs if s.controller == "composite"]
-
-    def one(s):
-        m = copy.deepcopy(s.mapping)
-        m["controller"] = {**m.get("controller", {}), "kind": "composite", "basis": "paper"}
-        sc = scenario_from_mapping(m, s.source, source_path=s.source)
-        res = simulate(sc)
-        veh = sc.load_vehicle()
-        row = {"run": s.index, **{f"group.{k}": v for k, v in s.groups.items()}}
-        cutoff = sc.controller.lowpass_cutoff_hz
-        for name, by_vehicle in bases_specs.items():
-            row[name] = ceiling_fit(res, veh, by_vehicle[veh.name])
-            row[f"{name}, measured inputs"] = measured_ceiling_fit(res, veh, by_vehicle[veh.name], cutoff)
-        return row
-
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        return sorted(pool.map(one, draws), key=lambda r: r["run"])
-
-
 def _frac(outcomes) -> dict:
     f = fraction_holding(outcomes)
     return {"fraction": f.fraction, "ci95": list(f.ci95), "successes": f.successes, "n": f.n}
 
 
-def compare(out: Path, rows: dict[str, Path], ceilings: list[dict]) -> dict:
-    """comparison.json and comparison.md from each row's summary.json and the ceilings."""
+YARDSTICK = (("pred_valid_pass", "one tick, probe valid"), ("pred_horizon_pass", "horizon, probe valid"),
+             ("hold_pass", "hold, one tick"), ("hold_horizon_pass", "hold, horizon"),
+             ("ceiling_pass", "ceiling (own flights)"), ("ceiling_measured_pass", "ceiling, measured inputs"))
+"""The yardstick's per-controller entries of a row's summary (:data:`vtoladapt.experiments.envelope.YARDSTICK_KEYS`)
+and their column labels."""
+
+
+def compare(out: Path, rows: dict[str, Path]) -> dict:
+    """comparison.json and comparison.md from each row's summary.json (the ceilings: each law's own flights)."""
     table: dict = {"rows": {}, "ceiling": {}, "held_out": HELD_OUT}
     for name, folder in rows.items():
         s = json.loads((folder / "summary.json").read_text())
@@ -141,17 +129,18 @@ def compare(out: Path, rows: dict[str, Path], ceilings: list[dict]) -> dict:
                  "groups": {f"{g}: {lab}": {k: v[k] for k in ("pred_err_every_bin", "beats_pid_pd")}
                             for g, labs in s["groups"].items() for lab, v in labs.items()},
                  "controllers": {c: {k: v.get(k) for k in ("beats_pid_pd", "vel_err_rms_mps",
-                                                          "pred_err_p95_g_worst_bin")}
+                                                          "pred_err_p95_g_worst_bin", "blind_fraction",
+                                                          *(y for y, _ in YARDSTICK)) if k in v}
                                  for c, v in s["controllers"].items()},
                  "campaign": s["campaign"]}
         table["rows"][name] = entry
     table["paired"] = paired(rows)
-    # in the rows' order: each basis with the true inputs, then with the controller's
-    for basis in (k for k in (ceilings[0] if ceilings else {}) if k != "run" and not k.startswith("group.")):
-        table["ceiling"][basis] = {"all": _frac(r[basis]["pass"] for r in ceilings)}
-        for g in sorted({k for r in ceilings for k in r if k.startswith("group.")}):
-            for lab in sorted({r[g] for r in ceilings}):
-                table["ceiling"][basis][f"{g[6:]}: {lab}"] = _frac(r[basis]["pass"] for r in ceilings if r[g] == lab)
+    # the ceilings per row and law, each on that law's own flights with the row's basis
+    for name, entry in table["rows"].items():
+        for cid, c in entry["controllers"].items():
+            if "ceiling_pass" in c:
+                table["ceiling"].setdefault(name, {})[cid] = {"true inputs": c["ceiling_pass"],
+                                                             "measured inputs": c["ceiling_measured_pass"]}
     (out / "comparison.json").write_text(json.dumps(table, indent=1))
     (out / "comparison.md").write_text(markdown(table))
     return table
@@ -246,22 +235,30 @@ def markdown(table: dict) -> str:
             e = d["worst_bin_p95_g_minus_paper"]
             est = "–" if e["estimate"] is None else f"{e['estimate']:+.4f} [{e['ci95'][0]:+.4f}, {e['ci95'][1]:+.4f}]"
             lines.append(f"| {n} | {est} | {d['pass_only_here']}/{d['draws']} | {d['pass_only_with_paper']}/{d['draws']} |")
-    if table["ceiling"]:
-        bases = list(table["ceiling"])
-        lines += ["", "Constant-weights ceiling (least squares on the true specific force with the true flow, "
-                      "throttles, attitude and rates; in the columns 'measured inputs', on the accelerometer with the "
-                      "controller's own inputs, both through its 10 Hz filter; the same target):", "",
-                  "| draws | " + " | ".join(bases) + " |", "|---|" + "---|" * len(bases)]
-        for key in table["ceiling"][bases[0]]:
-            lines.append(f"| {key} | " + " | ".join(_cell(table["ceiling"][b].get(key)) for b in bases) + " |")
+    if any("pred_valid_pass" in c for n in names for c in rows[n]["controllers"].values()):
+        lines += ["", "The yardstick (issue #34; `vtoladapt.experiments.yardstick`): per law, the fraction of draws "
+                      "whose p95 prediction error is below 0.05 g in every airspeed bin, scored on probe-valid samples "
+                      "(0.5 s after the probe is used again) one tick ahead and with θ̂ frozen 0.5 s before the "
+                      "sample; the no-model hold (the filtered accelerometer held from one tick / 0.5 s earlier) on "
+                      "the same samples; the constant-weights ceiling fitted on the law's own flights (true inputs; "
+                      "measured inputs through the 10 Hz filter); and the median share of the run flown blind:", ""]
+        for n in names:
+            ctrl = {c: v for c, v in rows[n]["controllers"].items() if "pred_valid_pass" in v}
+            if not ctrl:
+                continue
+            lines += [f"**{n}**", "", "| law | " + " | ".join(lab for _, lab in YARDSTICK) + " | blind, median |",
+                      "|---|" + "---|" * (len(YARDSTICK) + 1)]
+            for cid, v in ctrl.items():
+                b = (v.get("blind_fraction") or {}).get("median")
+                lines.append(f"| {cid} | " + " | ".join(_cell(v.get(k)) for k, _ in YARDSTICK)
+                             + f" | {'–' if b is None else f'{100 * b:.1f} %'} |")
+            lines.append("")
     return "\n".join(lines) + "\n"
 
 
 def main(argv=None) -> int:
     """``python -m vtoladapt.learn.evaluate``: every row's campaign, the ceilings, comparison.json/.md."""
-    from ..bases import describe_basis
     from ..campaign.runner import plan_campaign_file, run_campaign
-    from ..vehicle import load_vehicle
 
     p = argparse.ArgumentParser(prog="python -m vtoladapt.learn.evaluate", description=__doc__.split("\n\n")[0])
     p.add_argument("--campaign", type=Path, default=CAMPAIGN)
@@ -270,7 +267,6 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--bases", default=",".join(BASES))
     p.add_argument("--no-cross", action="store_true", help="skip the held-out-airframe row")
-    p.add_argument("--no-ceiling", action="store_true")
     p.add_argument("--controllers", default="", help="comma-separated subset (default: the file's)")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--keep", action="store_true", help="reuse a row whose summary.json exists in --out")
@@ -307,16 +303,7 @@ def main(argv=None) -> int:
         run_campaign(specs_for(specs, basis, vfiles, controllers), folder, scheduler="none", n_workers=args.workers,
                      show_progress=False, campaign=dict(info, basis=basis, cross=vfiles is not None))
         print(f"{name}: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
-    ceilings = []
-    if args.keep and (args.out / "ceilings.json").is_file():
-        ceilings = json.loads((args.out / "ceilings.json").read_text())
-    elif not args.no_ceiling:
-        t0 = time.perf_counter()
-        by = {b: {v: describe_basis(load_vehicle(v), b) for v in FAMILIES} for b in args.bases.split(",")}
-        ceilings = run_ceilings(specs, by, args.workers)
-        (args.out / "ceilings.json").write_text(json.dumps(ceilings, indent=1))
-        print(f"ceilings: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
-    table = compare(args.out, rows, ceilings)
+    table = compare(args.out, rows)
     print(markdown(table))
     return 0
 

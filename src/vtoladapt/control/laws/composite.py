@@ -73,12 +73,17 @@ class CompositeSettings(Validated):
         "-", "weight the prediction-error term and the information increment by the model's validity "
         "(measured alpha against the vehicle's believed stall angle), and drop the tracking term while "
         "the mixer saturates; false: the paper's law", default=False)
+    adaptation_gain_scale: float = setting(
+        "-", "multiplier of the adaptation gain P0 (the vehicle's prior or a posterior): k P0 adapts every "
+        "direction k times faster (in the Kalman view, the measurement noise R divided by k); 1: P0 as given",
+        default=1.0, gt=0.0, le=1e6)
 
 
 Settings = CompositeSettings
 """The law interface's name for the settings class."""
 
-TUNABLE = (("forgetting_lambda", 0.05, 20.0, True), ("sigma", 1e-6, 1.0, True))
+TUNABLE = (("forgetting_lambda", 0.05, 20.0, True), ("sigma", 1e-6, 1.0, True),
+           ("adaptation_gain_scale", 1e-2, 1e3, True))
 """The gains ``vtoladapt tune`` searches (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale)."""
 
 

@@ -26,14 +26,18 @@ class CompositePConstSettings(Validated):
 
     sigma: float = setting("adaptation units", "sigma-modification toward theta_0 (eq:th_adapt)",
                            default=1e-4, ge=0.0, le=100.0)
+    adaptation_gain_scale: float = setting(
+        "-", "multiplier of the adaptation gain P0 (the vehicle's prior or a posterior): k P0 adapts every "
+        "direction k times faster (in the Kalman view, the measurement noise R divided by k); 1: P0 as given",
+        default=1.0, gt=0.0, le=1e6)
 
 
 Settings = CompositePConstSettings
 """The law interface's name for the settings class."""
 
-TUNABLE = (("sigma", 1e-6, 1.0, True),)
+TUNABLE = (("sigma", 1e-6, 1.0, True), ("adaptation_gain_scale", 1e-2, 1e3, True))
 """The gains ``vtoladapt tune`` searches (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale).
-Its adaptation gain is P0 itself, the vehicle's prior (Table III), not a setting of the law."""
+Its adaptation gain is P0 itself, the vehicle's prior (Table III), times ``adaptation_gain_scale``."""
 
 
 PARAMS = BlockLayout("composite_pconst parameters", [

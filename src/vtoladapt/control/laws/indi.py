@@ -56,11 +56,13 @@ state (a start-up transient of ~0.3 s when the motors start elsewhere).
 Fault handling, start-up and saturation
 ---------------------------------------
 * **Start-up and sensor faults.** The increment is used only while the front end's
-  ``may_adapt`` holds: the filters have their first sample, the accelerometer (and the probe) are
-  valid, and have been for ``adaptation_holdoff_s`` so that the filter has flushed a stale or
-  frozen value. The front end tells the laws about the accelerometer only through this flag, so
-  a probe outage counts as well (the interface offers no accelerometer-only flag). While it does
-  not hold, the last increment is kept and fades toward zero with ``fault_fade_s`` -- a one-tick
+  ``accel_ok`` holds: the filters have their first sample, the accelerometer is valid, and has
+  been for ``adaptation_holdoff_s`` so that the filter has flushed a stale or frozen value. The
+  probe is not needed (Smeur's INDI uses only the accelerometer and the actuator state): while it
+  is out, ``W theta`` is the model's force at the fallback incident flow and the increment carries
+  that error too, as it carries any other. (Gated on the adaptive laws' ``may_adapt``, which also
+  needs the probe, INDI flew its nominal command whenever the probe was out: issue #34.) While it
+  does not hold, the last increment is kept and fades toward zero with ``fault_fade_s`` -- a one-tick
   dropout keeps the disturbance estimate, a long outage flies the nominal model-based command
   ``nu - g_vec``. When it holds again (and at start-up, from zero) the increment blends toward
   ``R e`` with a weight rising linearly from 0 to 1 over ``reentry_blend_s``; after that it is
@@ -100,7 +102,7 @@ from ...config import ConfigError, Validated, setting
 from ...layout import BlockLayout, Field
 from .. import adaptation as ad
 from ...frames import rows_times
-from ..blocks import D_LAW, P_K_V, P_LAW, S_LAW, T_DT, T_E, T_MAY_ADAPT, T_NEW_DT, T_V_R_DOT, T_V_TILDE, law_offsets
+from ..blocks import D_LAW, P_K_V, P_LAW, S_LAW, T_ACCEL_OK, T_DT, T_E, T_NEW_DT, T_V_R_DOT, T_V_TILDE, law_offsets
 from ..tracking import force_command, limit_norm
 from . import LawContext, finish, law_update, tick3, tick_R
 
@@ -116,7 +118,7 @@ class IndiSettings(Validated):
         "m/s^2", "limit on |R (W theta - a_m)|, the increment added to the nominal command",
         default=5.0, gt=0.0)
     fault_fade_s: float = setting(
-        "s", "while the accelerometer (or probe) is invalid the last increment fades toward zero "
+        "s", "while the accelerometer is invalid the last increment fades toward zero "
         "with this time constant", default=1.0, gt=0.0)
     reentry_blend_s: float = setting(
         "s", "at start-up and when the sensors are valid again the increment blends in over this time "
@@ -202,7 +204,7 @@ def update(params, state, tick, diag):
         state[S_FADE] = np.exp(-dt / params[P_FADE_S])
         blend_s = params[P_BLEND_S]
         state[S_BLEND_STEP] = min(1.0, dt / blend_s) if blend_s > 0.0 else 1.0
-    inc = indi_increment(params, state, tick[T_MAY_ADAPT] > 0.0, tick_R(tick), tick3(tick, T_E))
+    inc = indi_increment(params, state, tick[T_ACCEL_OK] > 0.0, tick_R(tick), tick3(tick, T_E))
     K_v = (params[P_K_V], params[P_K_V + 1], params[P_K_V + 2])
     nominal = force_command(tick3(tick, T_V_R_DOT), tick3(tick, T_V_TILDE), K_v)
     for i in range(3):

@@ -57,12 +57,16 @@ class TrackingOnlySettings(Validated):
                              choices=("routh", "paper"))
     loop_gain_margin: float = setting("-", "gain margin of the 'routh' rule: k_I <= min(K_v) / (margin * "
                                       "max motor time constant)", default=2.0, ge=1.0, le=100.0)
+    adaptation_gain_scale: float = setting(
+        "-", "multiplier of the adaptation gain P0 (the vehicle's prior or a posterior): k P0 adapts every "
+        "direction k times faster (in the Kalman view, the measurement noise R divided by k); 1: P0 as given",
+        default=1.0, gt=0.0, le=1e6)
 
 
 Settings = TrackingOnlySettings
 """The law interface's name for the settings class."""
 
-TUNABLE = (("loop_gain_margin", 1.0, 8.0, True), ("sigma", 1e-6, 1.0, True))
+TUNABLE = (("loop_gain_margin", 1.0, 8.0, True), ("sigma", 1e-6, 1.0, True), ("adaptation_gain_scale", 1e-2, 1e3, True))
 """The gains ``vtoladapt tune`` searches (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale).
 The margin sets the gain ``k P0`` (``k <= 1``) of the Routh rule."""
 
