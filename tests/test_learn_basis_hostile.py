@@ -173,3 +173,17 @@ def test_a_drawn_plant_has_one_effectiveness_per_surface_and_the_same_numbers():
     d = draw_physical_parameters(veh, 3)
     assert len(d["surface_effectiveness"]) == len(veh.surfaces) == len(d["servo_time_constant_factors"])
     assert np.all(np.isfinite(d["surface_effectiveness"]))
+
+
+def test_an_out_that_is_a_pipe_or_a_file_that_is_no_log_is_refused(log, tmp_path, capsys):
+    """A pipe (or a device) as --out would be replaced by the renamed file even with --force; a LOG that is
+    neither .parquet nor .ulg was read as a PX4 log."""
+    import os
+
+    shutil.copy2(log, tmp_path / "a.parquet")
+    os.mkfifo(tmp_path / "fifo")
+    err = refused(["learn-basis", tmp_path / "a.parquet", "--out", tmp_path / "fifo", "--force"], capsys, tmp_path)
+    assert "is not a regular file" in err
+    (tmp_path / "notes.toml").write_text("x = 1\n")
+    err = refused(["learn-basis", tmp_path / "notes.toml", "--out", tmp_path / "n.npz"], capsys, tmp_path)
+    assert "notes.toml: not a log file" in err

@@ -45,6 +45,9 @@ def folder_state(folder) -> dict:
         for name in files:
             p = os.path.join(root, name)
             st = os.stat(p)
+            if not os.path.isfile(p):  # a pipe: opening it would wait for a writer
+                out[p] = ("not a file", st.st_mtime_ns)
+                continue
             with open(p, "rb") as fh:
                 out[p] = (fh.read(), st.st_mtime_ns)
     return out
@@ -229,3 +232,12 @@ def test_write_net_refuses_what_read_net_would_refuse(tmp_path):
     with pytest.raises(ConfigError, match="theta_mean holds 1e"):
         write_net(tmp_path / "n.npz", net)
     assert not list(tmp_path.iterdir())
+
+
+def test_a_member_twice_is_refused(tmp_path):
+    """Which copy counts would be the reader's guess (numpy's np.load takes the last)."""
+    path = save_npz(tmp_path / "net.npz")
+    with zipfile.ZipFile(path, "a") as zf, zf.open("W1.npy", "w") as fh:
+        np.lib.format.write_array(fh, np.zeros((7, N_FEATURES)))
+    with pytest.raises(ConfigError, match=r"net\.npz: member 'W1\.npy' twice"):
+        read_net(path)

@@ -298,7 +298,9 @@ def read_net(path: str | Path) -> NetFile:
 def _read_members(zf: zipfile.ZipFile, where: str) -> NetFile:
     infos = {}
     for info in zf.infolist():
-        infos.setdefault(info.filename, info)
+        if info.filename in infos:  # which copy counts would be the reader's guess
+            raise ConfigError(f"{where}: member {_shown(info.filename)} twice; allowed: each member once")
+        infos[info.filename] = info
     foreign = sorted(set(infos) - {f"{k}.npy" for k in ARRAYS + ("meta",)})
     if foreign:
         raise ConfigError(f"{where}: member {_shown(foreign[0])}: not a member of a learned basis file; allowed: "

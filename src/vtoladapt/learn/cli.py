@@ -60,6 +60,8 @@ def _check(args) -> None:
         raise ConfigError(f"--adversarial = {args.adversarial}: out of range; allowed: 0 to 1000")
     if args.out.is_dir():
         raise ConfigError(f"--out {args.out}: is a folder; allowed: a file name (.npz), not replaced by --force")
+    if args.out.exists() and not args.out.is_file():   # a device or a pipe: replacing it is no user's wish
+        raise ConfigError(f"--out {args.out}: exists and is not a regular file; allowed: a file name (.npz)")
     if args.out.exists() and not args.force:
         raise ConfigError(f"{args.out}: exists; allowed: a new file, or --force to replace it")
     if not args.out.parent.is_dir():
@@ -80,7 +82,7 @@ def _check(args) -> None:
 def cmd_learn_basis(args: argparse.Namespace) -> int:
     """Read (or fly) the flights, train, write the basis file; one summary line on stderr."""
     from ..vehicle import load_vehicle
-    from .basis import learn_basis, save
+    from .basis import MIN_SAMPLES, learn_basis, save
     from .data import log_files, read_flight, shipped_vehicle
     from .flights import HoldOut, fly_draws, parse_sector, plan_flights
     from .meta import MetaSettings
@@ -122,7 +124,10 @@ def cmd_learn_basis(args: argparse.Namespace) -> int:
         if len(sys.argv) > 1 and sys.argv[1] == "learn-basis" else ""
     net, summary = learn_basis(flights, vehicle, settings, command=command, extra_meta=extra)
     save(net, args.out, force=args.force)
-    print(f"learn-basis: {args.out}: {summary['flights']} flights, {summary['samples']} samples, "
+    left_out = summary.get("left_out") or []
+    left_note = (f" ({len(left_out)} left out: fewer than {MIN_SAMPLES} usable samples, e.g. {left_out[0]})"
+                 if left_out else "")
+    print(f"learn-basis: {args.out}: {summary['flights']} flights{left_note}, {summary['samples']} samples, "
           f"loss {summary['loss_physics_only']:.4g} (physics columns alone) -> {summary['loss_final']:.4g} "
           f"(with {args.h} learned columns) in {summary['train_seconds']:.0f} s" + _condition_note(summary),
           file=sys.stderr)

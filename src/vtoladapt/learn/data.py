@@ -77,12 +77,14 @@ def _select(t_s: np.ndarray, skip_s: float, stride: int) -> np.ndarray:
 def flight_from_result(result, vehicle, source: str = "", skip_s: float = 1.0, stride: int = 5,
                        info: Optional[dict] = None) -> Flight:
     """A :class:`Flight` from a simulator log (``SimulationResult``) flown by ``vehicle``."""
-    missing = [c for cols in SIM_COLUMNS.values() for c in cols if c not in result]
+    missing = [c for cols in (("t_s",), *SIM_COLUMNS.values()) for c in cols if c not in result]
     if missing:
         raise ConfigError(f"{source or 'log'}: not a controller log: missing columns {', '.join(missing[:4])}")
     t = result.time_s
     if len(t) == 0:
         raise ConfigError(f"{source or 'log'}: 0 rows; allowed: a log of a flight (at least one row)")
+    if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0.0)):
+        raise ConfigError(f"{source or 'log'}: t_s is not finite and increasing; allowed: a log's tick times")
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.004
     cols = {k: result.columns_like(v) for k, v in SIM_COLUMNS.items()}
     act = vehicle.actuators
@@ -136,6 +138,8 @@ def log_files(paths) -> list[Path]:
         if p.is_dir():
             out += sorted(q for q in p.iterdir() if q.suffix in LOG_SUFFIXES and q.is_file())
         elif p.is_file():
+            if p.suffix not in LOG_SUFFIXES:
+                raise ConfigError(f"{p}: not a log file; allowed: {' or '.join(LOG_SUFFIXES)} files, or folders of them")
             out.append(p)
         else:
             raise ConfigError(f"{p}: no such log file or folder")
