@@ -189,9 +189,12 @@ def _meta() -> dict:
 
 def _write_members(path: Path, members: dict, compression=zipfile.ZIP_STORED) -> None:
     """An .npz by hand: each value an array (written as npy) or raw bytes; duplicates allowed as (name, n)."""
+    import warnings
+
     import numpy as np
 
-    with zipfile.ZipFile(path, "w", compression=compression) as zf:
+    with zipfile.ZipFile(path, "w", compression=compression) as zf, warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # "Duplicate name": the duplicate is the point
         for name, value in members.items():
             name = name[0] if isinstance(name, tuple) else name
             with zf.open(name, "w", force_zip64=True) as fh:
