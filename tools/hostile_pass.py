@@ -1,9 +1,9 @@
 #!/usr/bin/env python
 """A hostile pass over vtoladapt, re-runnable: what issue #27's reviewer did, as a script.
 
-    python tools/hostile_pass.py                 # about seven minutes on two cores
+    python tools/hostile_pass.py                 # about four minutes on two cores (1101 cases)
     python tools/hostile_pass.py --scale 5 --seed 3
-    python tools/hostile_pass.py --only files    # the file classes alone (about two minutes)
+    python tools/hostile_pass.py --only files    # the file classes of issue #33 alone (550 cases)
 
 It tries, as an attacker would: hand-made bad scenario, vehicle and campaign files (and a planted
 manifest with a link out of the folder, a user's file named like an output, files that are not
