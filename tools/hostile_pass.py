@@ -1,8 +1,9 @@
 #!/usr/bin/env python
 """A hostile pass over vtoladapt, re-runnable: what issue #27's reviewer did, as a script.
 
-    python tools/hostile_pass.py                 # about four minutes on two cores
+    python tools/hostile_pass.py                 # about four minutes on two cores (1101 cases)
     python tools/hostile_pass.py --scale 5 --seed 3
+    python tools/hostile_pass.py --only files    # the file classes of issue #33 alone (550 cases)
 
 It tries, as an attacker would: hand-made bad scenario, vehicle and campaign files (and a planted
 manifest with a link out of the folder, a user's file named like an output, files that are not
@@ -10,7 +11,11 @@ files), a seeded fuzzer over the shipped scenario and vehicle files (values repl
 deleted as text), the Python API (every settings class given values outside and inside its
 range, then flown), the Gymnasium environments (actions and seeds of every wrong kind), and
 signals (Ctrl-C and SIGTERM at random moments of a run and of a local-cluster campaign, two runs
-into one folder). Every command case runs into a copy of an earlier output folder that also
+into one folder), and the files of issue #33 (:mod:`hostile_files`): tampered learned-basis files
+(every dtype, shape, value and meta of the wrong kind, decompression bombs, truncated and foreign
+archives), tampered flight logs (empty, 0 rows, metadata of the wrong type, vehicle names that are
+paths, ``.ulg`` files that are no ULog) and ``learn-basis`` argument abuse (the output an input or a
+folder, the same log twice, missing folders). Every command case runs into a copy of an earlier output folder that also
 holds a file of the user's, beside a file outside the folder that nothing may touch.
 
 Each case ends as one of: a clean refusal (exit 2 or the API's ConfigError/ValueError, one line,
@@ -46,6 +51,8 @@ OUTCOMES = ("refused", "ok", "diverged", "internal", "hang", "silent_nan", "dama
 HEADERS = ("cases tried", "clean refusals", "ok", "diverged", "internal errors", "hangs", "silent NaN",
            "outputs damaged")
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the file classes' module beside this one
+from hostile_files import file_cases, prepare_assets, run_file_case  # noqa: E402
 SCENARIOS = REPO / "src" / "vtoladapt" / "scenarios"
 VEHICLES = REPO / "src" / "vtoladapt" / "vehicles"
 BASE_TEXT = (SCENARIOS / "gym_hold.toml").read_text().replace("duration_s = 20.0", "duration_s = 0.3")
@@ -542,6 +549,8 @@ def worker(case_file: Path, start: int, fd: int, work: Path, baseline: Path) -> 
                     outcome, detail = run_cli_case(case, work, baseline)
                 elif case["kind"] == "api":
                     outcome, detail = run_api_case(case, base)
+                elif case["kind"] == "file":
+                    outcome, detail = run_file_case(case, work, baseline)
                 else:
                     if not envs:
                         from vtoladapt.gym.env import HoldEnv
@@ -708,6 +717,8 @@ def main() -> int:
     ap.add_argument("--scale", type=float, default=1.0, help="multiply the number of drawn cases (default 1)")
     ap.add_argument("--timeout", type=float, default=180.0, help="seconds a case may take before it is a hang")
     ap.add_argument("--keep", action="store_true", help="keep the working folder (printed)")
+    ap.add_argument("--only", choices=("all", "files"), default="all",
+                    help="'files': only the file classes (network files, logs, learn-basis arguments)")
     ap.add_argument("--worker", nargs=5, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
@@ -723,8 +734,10 @@ def main() -> int:
         subprocess.run([sys.executable, "-m", "vtoladapt.cli", "run", str(work / "s.toml"), "--out", str(baseline),
                         "--quiet"], check=True)
         k = args.scale
-        cases = (handmade_cases() + fuzz_cases(rng, int(90 * k), int(45 * k)) + api_cases(rng, int(250 * k))
-                 + gym_cases(rng, int(120 * k)))
+        prepare_assets(work, sys.executable)
+        cases = [] if args.only == "files" else (handmade_cases() + fuzz_cases(rng, int(90 * k), int(45 * k))
+                                                 + api_cases(rng, int(250 * k)) + gym_cases(rng, int(120 * k)))
+        cases += file_cases(random.Random(f"{args.seed}-files"), k)  # its own stream: the others' draws stay
         results = run_cases(cases, work, baseline, args.timeout)
         rows: dict[str, dict] = {}
         bad = []
@@ -737,18 +750,19 @@ def main() -> int:
         latencies = []
         sig_rows: dict[str, int] = {}
         for what, sig in [("run", signal.SIGINT), ("run", signal.SIGTERM), ("campaign", signal.SIGINT)] * \
-                max(1, int(round(3 * k))):
+                (max(1, int(round(3 * k))) if args.only == "all" else 0):
             outcome, detail, latency = signal_case(rng, work, what, sig, args.timeout)
             sig_rows[outcome] = sig_rows.get(outcome, 0) + 1
             if outcome == "refused":
                 latencies.append((what, signal.Signals(sig).name, latency))
             if outcome in ("internal", "hang", "silent_nan", "damaged"):
                 bad.append(f"  [{outcome}] signals: {detail}")
-        outcome, detail = two_runs_case(work, args.timeout)
-        sig_rows[outcome] = sig_rows.get(outcome, 0) + 1
-        if outcome not in ("ok", "refused"):
-            bad.append(f"  [{outcome}] two runs into one folder: {detail}")
-        rows["signals (Ctrl-C, SIGTERM, two runs)"] = sig_rows
+        if args.only == "all":
+            outcome, detail = two_runs_case(work, args.timeout)
+            sig_rows[outcome] = sig_rows.get(outcome, 0) + 1
+            if outcome not in ("ok", "refused"):
+                bad.append(f"  [{outcome}] two runs into one folder: {detail}")
+            rows["signals (Ctrl-C, SIGTERM, two runs)"] = sig_rows
         print(table(rows))
         print("\n(signals: a clean refusal is a command that stopped with its one line and status 130/143)")
         for what in ("run", "campaign"):

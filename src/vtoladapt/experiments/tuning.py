@@ -444,8 +444,8 @@ def _cmd_tune(args) -> int:
     for cid in ids:
         if cid not in known:
             raise ConfigError(f"--controller {cid!r}: allowed: {', '.join(known)} or all")
-    evaluations = int(check_flag("--evaluations", args.evaluations, ge=1, le=10000))
-    draws = int(check_flag("--draws", args.draws, ge=1, le=1000))
+    evaluations = check_flag("--evaluations", args.evaluations, ge=1, le=10000, integer=True)
+    draws = check_flag("--draws", args.draws, ge=1, le=1000, integer=True)
     scenario = load_scenario(args.scenario)
     scenario = _replace(scenario, experiment=_replace(scenario.experiment, kind="single"))
     check_run_size(scenario, f"{scenario.source_path}")

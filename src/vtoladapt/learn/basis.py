@@ -53,9 +53,12 @@ def learn_basis(flights: Sequence[Flight], vehicle, settings: MetaSettings, comm
                 extra_meta: Optional[dict] = None, progress: Optional[Callable] = None) -> tuple[NetFile, dict]:
     """Train the network on ``flights`` (all of ``vehicle``'s family) and return the basis file's
     content and a summary (losses, time). The physics columns are the extended basis's for ``vehicle``."""
+    short = [f for f in flights if len(f.f) < MIN_SAMPLES]
     flights = [f for f in flights if len(f.f) >= MIN_SAMPLES]
     if not flights:
-        raise ConfigError(f"no flight with at least {MIN_SAMPLES} usable samples to train on")
+        counts = ", ".join(f"{f.source or 'flight'}: {len(f.f)}" for f in short[:3]) + (", ..." if len(short) > 3 else "")
+        raise ConfigError(f"no flight with at least {MIN_SAMPLES} usable samples (finite inputs and force) to train on "
+                          f"({counts}); allowed: longer logs, or a smaller --stride")
     others = sorted({f.vehicle for f in flights} - {vehicle.name})
     if others:
         raise ConfigError(f"flights of {others} given to train a basis for {vehicle.name!r}; allowed: one vehicle "
@@ -80,6 +83,7 @@ def learn_basis(flights: Sequence[Flight], vehicle, settings: MetaSettings, comm
                "loss_initial": result.loss[0] if result.loss else None, "iterations": result.iterations,
                "evaluations": len(result.loss), "train_seconds": round(seconds, 2),
                "samples": int(sum(len(f.f) for f in flights)), "flights": len(flights),
+               "left_out": [f.source for f in short],
                "conditions": len({t.condition for t in tasks}),
                "condition_accuracy": _finite_or_none(result.condition_accuracy),
                "condition_chance": _finite_or_none(result.condition_chance)}

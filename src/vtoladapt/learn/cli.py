@@ -49,17 +49,30 @@ def register_cli(subparsers) -> argparse.ArgumentParser:
 
 
 def _check(args) -> None:
-    for name, lo, hi in (("h", 1, 30), ("hidden", 2, 256), ("iterations", 1, 100_000), ("stride", 1, 10_000),
+    from ..bases.netfile import MAX_H, MAX_HIDDEN
+
+    for name, lo, hi in (("h", 1, MAX_H), ("hidden", 2, MAX_HIDDEN), ("iterations", 1, 100_000), ("stride", 1, 10_000),
                          ("runs", 1, 100_000), ("workers", 1, 256), ("adversarial_rounds", 1, 1000)):
         v = getattr(args, name)
         if not lo <= v <= hi:
             raise ConfigError(f"--{name.replace('_', '-')} = {v}: out of range; allowed: {lo} to {hi}")
     if not (args.adversarial >= 0.0 and args.adversarial <= 1e3):   # also refuses nan
         raise ConfigError(f"--adversarial = {args.adversarial}: out of range; allowed: 0 to 1000")
+    if args.out.is_dir():
+        raise ConfigError(f"--out {args.out}: is a folder; allowed: a file name (.npz), not replaced by --force")
+    if args.out.exists() and not args.out.is_file():   # a device or a pipe: replacing it is no user's wish
+        raise ConfigError(f"--out {args.out}: exists and is not a regular file; allowed: a file name (.npz)")
     if args.out.exists() and not args.force:
         raise ConfigError(f"{args.out}: exists; allowed: a new file, or --force to replace it")
     if not args.out.parent.is_dir():
-        raise ConfigError(f"--out {args.out}: folder {args.out.parent} does not exist")
+        raise ConfigError(f"--out {args.out}: folder {args.out.parent} does not exist; allowed: a file in an "
+                          "existing folder")
+    named = [("--fly", args.fly), ("--vehicle", Path(args.vehicle) if args.vehicle else None),
+             ("--logs-dir", args.logs_dir)]
+    for flag, p in named:
+        if p is not None and _same(p, args.out):
+            raise ConfigError(f"--out {args.out}: is the {flag} input {p}; allowed: a file no input is read from "
+                              "(--force never replaces an input)")
     if args.fly is None and not args.logs:
         raise ConfigError("no logs: give LOG files or folders, or --fly CAMPAIGN")
     if args.fly is not None and args.logs:
@@ -69,8 +82,8 @@ def _check(args) -> None:
 def cmd_learn_basis(args: argparse.Namespace) -> int:
     """Read (or fly) the flights, train, write the basis file; one summary line on stderr."""
     from ..vehicle import load_vehicle
-    from .basis import learn_basis, save
-    from .data import log_files, read_flight
+    from .basis import MIN_SAMPLES, learn_basis, save
+    from .data import log_files, read_flight, shipped_vehicle
     from .flights import HoldOut, fly_draws, parse_sector, plan_flights
     from .meta import MetaSettings
 
@@ -95,12 +108,13 @@ def cmd_learn_basis(args: argparse.Namespace) -> int:
         paths = log_files(args.logs)
         if not paths:
             raise ConfigError(f"{', '.join(map(str, args.logs))}: no .parquet or .ulg logs")
+        _distinct_inputs(paths, args.out)
     flights = [read_flight(p, vehicle, stride=args.stride) for p in paths]
     if vehicle is None:
         names = sorted({f.vehicle for f in flights})
         if len(names) != 1:
             raise ConfigError(f"the logs fly {names}; allowed: one vehicle family per basis (--vehicle NAME)")
-        vehicle = load_vehicle(names[0])
+        vehicle = shipped_vehicle(names[0], str(paths[0]))
     else:
         flights = [f for f in flights if f.vehicle == vehicle.name or not f.source.endswith(".parquet")]
     settings = MetaSettings(h=args.h, hidden=(args.hidden, args.hidden), max_iter=args.iterations,
@@ -110,11 +124,44 @@ def cmd_learn_basis(args: argparse.Namespace) -> int:
         if len(sys.argv) > 1 and sys.argv[1] == "learn-basis" else ""
     net, summary = learn_basis(flights, vehicle, settings, command=command, extra_meta=extra)
     save(net, args.out, force=args.force)
-    print(f"learn-basis: {args.out}: {summary['flights']} flights, {summary['samples']} samples, "
+    left_out = summary.get("left_out") or []
+    left_note = (f" ({len(left_out)} left out: fewer than {MIN_SAMPLES} usable samples, e.g. {left_out[0]})"
+                 if left_out else "")
+    print(f"learn-basis: {args.out}: {summary['flights']} flights{left_note}, {summary['samples']} samples, "
           f"loss {summary['loss_physics_only']:.4g} (physics columns alone) -> {summary['loss_final']:.4g} "
           f"(with {args.h} learned columns) in {summary['train_seconds']:.0f} s" + _condition_note(summary),
           file=sys.stderr)
     return 0
+
+
+def _identity(p: Path):
+    try:
+        st = p.stat()
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
+
+
+def _same(a: Path, b: Path) -> bool:
+    """Whether two paths are one file or folder (links and hard links included); False if either is missing."""
+    ia = _identity(a)
+    return ia is not None and ia == _identity(b)
+
+
+def _distinct_inputs(paths: list[Path], out: Path) -> None:
+    """Each log once (a flight counted twice would weigh twice in the loss: refused, not warned, since the
+    file then records flights it did not see) and never the output."""
+    seen: dict = {}
+    out_id = _identity(out)
+    for p in paths:
+        ident = _identity(p)
+        if ident is not None and ident == out_id:
+            raise ConfigError(f"--out {out}: is the log {p}; allowed: a file no input is read from (--force never "
+                              "replaces an input)")
+        if ident in seen:
+            raise ConfigError(f"{p}: the same log as {seen[ident]} (given twice, directly or in a folder); allowed: "
+                              "each flight once")
+        seen[ident] = p
 
 
 def _condition_note(summary: dict) -> str:

@@ -68,6 +68,8 @@ def lagged_throttles(u_cmd: np.ndarray, dt: float, tau_x: float, tau_z: float) -
 
 
 def _select(t_s: np.ndarray, skip_s: float, stride: int) -> np.ndarray:
+    if len(t_s) == 0:
+        return np.zeros(0, dtype=np.intp)
     idx = np.flatnonzero(t_s >= t_s[0] + skip_s)
     return idx[::stride]
 
@@ -75,10 +77,14 @@ def _select(t_s: np.ndarray, skip_s: float, stride: int) -> np.ndarray:
 def flight_from_result(result, vehicle, source: str = "", skip_s: float = 1.0, stride: int = 5,
                        info: Optional[dict] = None) -> Flight:
     """A :class:`Flight` from a simulator log (``SimulationResult``) flown by ``vehicle``."""
-    missing = [c for cols in SIM_COLUMNS.values() for c in cols if c not in result]
+    missing = [c for cols in (("t_s",), *SIM_COLUMNS.values()) for c in cols if c not in result]
     if missing:
         raise ConfigError(f"{source or 'log'}: not a controller log: missing columns {', '.join(missing[:4])}")
     t = result.time_s
+    if len(t) == 0:
+        raise ConfigError(f"{source or 'log'}: 0 rows; allowed: a log of a flight (at least one row)")
+    if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0.0)):
+        raise ConfigError(f"{source or 'log'}: t_s is not finite and increasing; allowed: a log's tick times")
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.004
     cols = {k: result.columns_like(v) for k, v in SIM_COLUMNS.items()}
     act = vehicle.actuators
@@ -105,6 +111,8 @@ def quaternion_rates(q: np.ndarray, dt: float) -> np.ndarray:
 
 def flight_from_flightlog(log, vehicle, skip_s: float = 1.0, stride: int = 5) -> Flight:
     """A :class:`Flight` from a PX4 log read by :mod:`vtoladapt.replay` (samples on the ground left out)."""
+    if len(log.t_s) == 0:
+        raise ConfigError(f"{log.source}: 0 samples; allowed: a log of a flight (at least one sample)")
     dt = 1.0 / log.rate_hz
     u_cmd = np.column_stack([log.throttle_x_pct, log.throttle_z_pct]) / 100.0
     act = vehicle.actuators
@@ -130,32 +138,74 @@ def log_files(paths) -> list[Path]:
         if p.is_dir():
             out += sorted(q for q in p.iterdir() if q.suffix in LOG_SUFFIXES and q.is_file())
         elif p.is_file():
+            if p.suffix not in LOG_SUFFIXES:
+                raise ConfigError(f"{p}: not a log file; allowed: {' or '.join(LOG_SUFFIXES)} files, or folders of them")
             out.append(p)
         else:
             raise ConfigError(f"{p}: no such log file or folder")
     return out
 
 
-def read_flight(path: Path, vehicle=None, skip_s: float = 1.0, stride: int = 5) -> Flight:
-    """One log file as a :class:`Flight`; ``vehicle`` defaults to the one a simulator log names."""
-    from ..vehicle import load_vehicle
+def shipped_vehicle(name, where: str):
+    """The shipped vehicle a log's metadata names: only a registered name resolves (a log's text is never
+    opened as a path: ``../../etc/passwd`` is refused, not read)."""
+    from ..vehicle import available_vehicles, load_vehicle
 
+    names = available_vehicles()
+    if not isinstance(name, str) or name not in names:
+        shown = repr(name) if len(repr(name)) <= 80 else repr(name)[:60] + "..."
+        raise ConfigError(f"{where}: metadata vehicle = {shown}: not a shipped vehicle; allowed: one of {names}, "
+                          "or --vehicle NAME or PATH (the vehicle file the log was flown with)")
+    return load_vehicle(name)
+
+
+def log_metadata(res, where: str) -> dict:
+    """A simulator log's metadata, checked where training reads it: ``vehicle`` text, ``draw`` a table,
+    ``seed`` a whole number (or absent)."""
+    meta = res.metadata
+    if not isinstance(meta, dict):
+        raise ConfigError(f"{where}: metadata is JSON {type(meta).__name__}; allowed: a JSON object")
+    for key, ok, allowed in (("vehicle", lambda v: isinstance(v, str), "the vehicle's name (text)"),
+                             ("draw", lambda v: isinstance(v, dict), "a table of the draw's values"),
+                             ("seed", lambda v: isinstance(v, int) and not isinstance(v, bool), "a whole number")):
+        if key in meta and meta[key] is not None and not ok(meta[key]):
+            shown = repr(meta[key]) if len(repr(meta[key])) <= 80 else repr(meta[key])[:60] + "..."
+            raise ConfigError(f"{where}: metadata {key} = {shown}; allowed: {allowed}")
+    return meta
+
+
+# what reading a file that is not a simulator log raises (pyarrow's errors are ValueError and OSError
+# subclasses; a metadata entry missing or nested beyond the parser's stack; a column of text)
+_LOG_ERRORS = (ValueError, OSError, KeyError, TypeError, RecursionError, UnicodeDecodeError)
+
+
+def read_flight(path: Path, vehicle=None, skip_s: float = 1.0, stride: int = 5) -> Flight:
+    """One log file as a :class:`Flight`; ``vehicle`` defaults to the one a simulator log names (a shipped
+    vehicle's name only: :func:`shipped_vehicle`). A file that is not such a log is a one-line ConfigError."""
     if path.suffix == ".parquet":
         from ..sim.results import SimulationResult
 
         try:
             res = SimulationResult.from_parquet(path)
-        except (ValueError, OSError) as exc:
-            raise ConfigError(f"{path}: not a vtoladapt simulator log ({str(exc).splitlines()[0]})") from None
-        veh = vehicle or load_vehicle(res.metadata.get("vehicle", ""))
-        info = dict(res.metadata.get("draw", {})) or {"seed": res.metadata.get("seed")}
+            if res.data.dtype.kind not in "fiub":
+                raise TypeError(f"columns of {res.data.dtype} values; allowed: numbers")
+        except _LOG_ERRORS as exc:
+            text = " ".join(str(exc).split())[:200] or type(exc).__name__
+            raise ConfigError(f"{path}: not a vtoladapt simulator log ({text})") from None
+        meta = log_metadata(res, str(path))
+        veh = vehicle or shipped_vehicle(meta.get("vehicle"), str(path))
+        info = dict(meta.get("draw") or {}) or {"seed": meta.get("seed")}
         return flight_from_result(res, veh, str(path), skip_s, stride, info=info)
     if vehicle is None:
         raise ConfigError(f"{path}: a PX4 log does not name its vehicle; allowed: --vehicle NAME or PATH")
     from ..replay.cli import read_flight_log
-    from ..replay.flightlog import ReadSettings
+    from ..replay.flightlog import ReadSettings, ReplayError
 
-    return flight_from_flightlog(read_flight_log(path, ReadSettings()), vehicle, skip_s, stride)
+    try:
+        log = read_flight_log(path, ReadSettings())
+    except ReplayError as exc:  # its message names the file and what is wrong: bad input, exit 2
+        raise ConfigError(" ".join(str(exc).split())) from None
+    return flight_from_flightlog(log, vehicle, skip_s, stride)
 
 
 def physics_columns(spec, flight: Flight) -> np.ndarray:

@@ -111,7 +111,10 @@ def prepare(scenario: Scenario) -> PreparedRun:
     from ..control.step import controller_functions, function_table
 
     vehicle = scenario.load_vehicle()
-    plant = scenario.plant.resolved(vehicle, scenario.seed)
+    try:
+        plant = scenario.plant.resolved(vehicle, scenario.seed)
+    except ConfigError as exc:  # a per-surface list of another length than the vehicle's surfaces
+        raise ConfigError(f"{scenario.source_path or f'scenario {scenario.name!r}'}: {exc}") from None
     rng = np.random.default_rng(scenario.seed)
     ctrl_vehicle, theta0, P0_diag, lower, upper, prior_description = controller_prior(scenario, vehicle)
     basis = controller_basis(scenario, ctrl_vehicle)
@@ -142,8 +145,10 @@ def prepare(scenario: Scenario) -> PreparedRun:
     wind_state = wind_parts.initial_state(rng)
     for i, f in enumerate(scenario.faults):
         if f.kind in SURFACE_KINDS and f.surface > len(vehicle.surfaces):
+            n = len(vehicle.surfaces)
+            allowed = f"1 to {n}" if n else "no surface fault (the vehicle has no [[surfaces]])"
             raise ConfigError(f"{where}: [faults][{i}] {f.kind}: surface = {f.surface}: {vehicle.name} has "
-                              f"{len(vehicle.surfaces)} control surfaces; allowed: 1 to {len(vehicle.surfaces)}")
+                              f"{n} control surfaces; allowed: {allowed}")
     fault_schedule, fault_state = faults_to_kernel(scenario.faults, scenario.dt_control_s)
     # the plant's truth in the controller's basis, for the logged Lyapunov function only (empty where the
     # basis has none: the function's parameter term is then left out)

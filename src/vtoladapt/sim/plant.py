@@ -121,11 +121,11 @@ class PlantConfig(Validated):
     servo_lag: bool = setting("-", "control-surface servos lag and slew-limit (else surfaces follow commands "
                               "instantly)", default=True)
     servo_time_constant_factors: Optional[tuple[float, ...]] = setting(
-        "-", "each servo's true time constant over the vehicle file's, surface order (default: all 1)",
-        default=None, gt=0.0, le=10.0, length=N_SURFACES)
+        "-", "each servo's true time constant over the vehicle file's, one per [[surfaces]] entry of the vehicle, "
+        "surface order (default: all 1)", default=None, gt=0.0, le=10.0, max_items=N_SURFACES)
     surface_effectiveness: Optional[tuple[float, ...]] = setting(
-        "-", "each surface's true effectiveness over the vehicle file's derivatives, surface order (default: "
-        "all 1)", default=None, ge=0.0, le=3.0, length=N_SURFACES)
+        "-", "each surface's true effectiveness over the vehicle file's derivatives, one per [[surfaces]] entry "
+        "of the vehicle, surface order (default: all 1)", default=None, ge=0.0, le=3.0, max_items=N_SURFACES)
     physical_from: str = setting(
         "-", "where the physical parameters not set here come from (stall angle, motor and servo lags, mass, "
         "inertia, air density, surface effectiveness): 'vehicle' (the file's values, the controller's "
@@ -146,6 +146,11 @@ class PlantConfig(Validated):
         Likewise ``physical_from = 'draw'``: the drawn physical parameters written into the fields left
         unset, and ``physical_from = 'vehicle'``. A config without a draw comes back unchanged."""
         out = self
+        for name in ("surface_effectiveness", "servo_time_constant_factors"):
+            value = getattr(out, name)
+            if value is not None and len(value) != len(vehicle.surfaces):
+                raise ConfigError(f"[plant] {name} = {list(value)}: {len(value)} entries; allowed: "
+                                  f"{len(vehicle.surfaces)} (one per [[surfaces]] entry of {vehicle.name}) or unset")
         if out.physical_from == "draw":
             from .truth import draw_physical_parameters
 

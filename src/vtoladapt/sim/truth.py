@@ -44,6 +44,7 @@ def draw_physical_parameters(vehicle: Vehicle, seed: int) -> dict:
         return float(value * np.exp(frac * z[name]))
 
     inertia = vehicle.mass.inertia_kgm2
+    surfaces = range(len(vehicle.surfaces))  # normals were drawn for every slot; the vehicle's surfaces use theirs
     return {
         "stall_angle_deg": float(vehicle.envelope.stall_angle_deg + u.stall_angle_deg * z["stall_angle_deg"]),
         "lift_motor_time_constant_s": scaled(vehicle.actuators.lift_motor_time_constant_s,
@@ -51,11 +52,11 @@ def draw_physical_parameters(vehicle: Vehicle, seed: int) -> dict:
         "pusher_motor_time_constant_s": scaled(vehicle.actuators.pusher_motor_time_constant_s,
                                                u.pusher_motor_time_constant_frac, "pusher_motor_time_constant_s"),
         "servo_time_constant_factors": tuple(scaled(1.0, u.servo_time_constant_frac,
-                                                    f"servo_time_constant_factor_{j + 1}") for j in range(N_SURFACES)),
+                                                    f"servo_time_constant_factor_{j + 1}") for j in surfaces),
         "mass_kg": scaled(vehicle.mass.mass_kg, u.mass_frac, "mass_kg"),
         "inertia_kgm2": tuple(scaled(inertia[i], u.inertia_frac, f"inertia_{a}") for i, a in
                               enumerate(("xx", "yy", "zz"))),
         "air_density_kgpm3": scaled(vehicle.envelope.air_density_kgpm3, u.air_density_frac, "air_density_kgpm3"),
         "surface_effectiveness": tuple(scaled(1.0, u.surface_effectiveness_frac, f"surface_effectiveness_{j + 1}")
-                                       for j in range(N_SURFACES)),
+                                       for j in surfaces),
     }
