@@ -21,3 +21,68 @@ def test_cache_cleared_when_any_source_changes(tmp_path):
     assert ensure_fresh_kernel_cache(pkg)
     assert not any(c.exists() for c in cached)
     assert (pkg / "__pycache__" / STAMP_NAME).read_text() == source_digest(pkg)
+
+
+USER_LAW_MODULE = '''
+from vtoladapt import _numba_abi
+from numba import types
+
+OFFSET = {offset}  # a layout constant the kernel bakes in, as a user's law reads the package's offsets
+
+def _kernel(x):
+    return x + OFFSET
+
+
+kernel = _numba_abi.c_kernel(types.float64(types.float64), _kernel)
+'''
+
+
+def _load_user_module(path, name, monkeypatch):
+    """Import ``path`` as module ``name``, as a user's ``import`` would (a fresh import every call)."""
+    import importlib.util
+    import sys
+
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, name, module)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_a_users_cached_kernels_are_rebuilt_when_the_package_changes(tmp_path, monkeypatch):
+    """A user's kernel cached against one version of the package is not run against another: it
+    bakes the package's offsets in, and Numba only watches the user's own file."""
+    import ctypes
+
+    import vtoladapt._kernel_cache as kc
+    from vtoladapt._numba_abi import kernel_cache_dir
+
+    source = tmp_path / "users_law.py"
+    source.write_text(USER_LAW_MODULE.format(offset=1.0))
+    module = _load_user_module(source, "users_law", monkeypatch)
+    assert ctypes.CFUNCTYPE(ctypes.c_double, ctypes.c_double)(module.kernel.address)(1.0) == 2.0
+    cache_dir = kernel_cache_dir(module._kernel)
+    cached = sorted(cache_dir.glob("users_law.*.nb[ic]"))
+    assert cached, "the kernel was cached"
+    stamp = cache_dir / f"users_law.vtoladapt-{kc.STAMP_NAME}"
+    assert stamp.read_text() == kc.package_digest()
+
+    # same package: the cache is kept (the file is not recompiled)
+    mtimes = [p.stat().st_mtime_ns for p in cached]
+    _load_user_module(source, "users_law", monkeypatch)
+    assert [p.stat().st_mtime_ns for p in cached] == mtimes
+
+    # another version of the package: the user's cached kernels are deleted before Numba looks
+    monkeypatch.setitem(kc._DIGESTS, kc.PACKAGE_DIR, "another version")
+    assert kc.ensure_fresh_module_kernels(source, cache_dir)
+    assert not list(cache_dir.glob("users_law.*.nb[ic]"))
+    assert stamp.read_text() == "another version"
+    assert not kc.ensure_fresh_module_kernels(source, cache_dir)  # stamped: done once
+
+
+def test_the_packages_own_kernels_are_left_to_the_package_guard(tmp_path):
+    import vtoladapt._kernel_cache as kc
+
+    own = kc.PACKAGE_DIR / "frames.py"
+    assert not kc.ensure_fresh_module_kernels(own, tmp_path)
+    assert not list(tmp_path.iterdir())

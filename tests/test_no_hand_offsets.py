@@ -52,6 +52,8 @@ NOT_OFFSETS: dict[str, str] = {
     "ANALYSIS_TRANSIENT_COLUMNS": "memory model: values per tick the analysis creates and drops",
     "STREAM_ROW_GROUP_ROWS": "memory model: rows of a streamed log's row group",
     "MAX_WAYPOINTS": "capacity: rows of [reference] waypoints",
+    "MAX_H": "cap: learned columns a network file may have (learn-basis --h's)",
+    "MAX_HIDDEN": "cap: width of a network file's hidden layer (learn-basis --hidden's)",
 }
 
 

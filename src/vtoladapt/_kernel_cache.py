@@ -6,6 +6,12 @@ running the old callees after they are edited. So at import we hash every source
 package and, when the hash differs from the one the cache was built with, delete the package's
 cache files: the next run recompiles (about a minute) instead of silently running stale code.
 A fresh install has no cache and is unaffected; a read-only install is left alone.
+
+A kernel of a file outside the package (a user's law, basis, wind part or sensor channel) reads
+the package's layouts and offsets as compile-time constants too, so its cache goes stale the same
+way when the package changes: :func:`ensure_fresh_module_kernels` deletes that file's cached kernels
+when the package's digest differs from the one they were built with (the compile-once adapter,
+:func:`vtoladapt._numba_abi.c_kernel`, calls it before Numba looks in the cache).
 """
 from __future__ import annotations
 
@@ -25,11 +31,21 @@ def source_digest(package_dir: Path = PACKAGE_DIR) -> str:
     return h.hexdigest()
 
 
+_DIGESTS: dict[Path, str] = {}
+
+
+def package_digest(package_dir: Path = PACKAGE_DIR) -> str:
+    """:func:`source_digest` of ``package_dir``, computed once per process."""
+    if package_dir not in _DIGESTS:
+        _DIGESTS[package_dir] = source_digest(package_dir)
+    return _DIGESTS[package_dir]
+
+
 def ensure_fresh_kernel_cache(package_dir: Path = PACKAGE_DIR) -> bool:
     """Delete stale Numba cache files of the package; True if any cleaning was done."""
     stamp = package_dir / "__pycache__" / STAMP_NAME
     try:
-        digest = source_digest(package_dir)
+        digest = _DIGESTS[package_dir] = source_digest(package_dir)
         if stamp.exists() and stamp.read_text().strip() == digest:
             return False
         for cached in list(package_dir.rglob("__pycache__/*.nbi")) + list(package_dir.rglob("__pycache__/*.nbc")):
@@ -39,3 +55,25 @@ def ensure_fresh_kernel_cache(package_dir: Path = PACKAGE_DIR) -> bool:
         return True
     except OSError:
         return False  # read-only or racing install: leave the cache as it is
+
+
+def ensure_fresh_module_kernels(source_file: Path, cache_dir: Path, package_dir: Path = PACKAGE_DIR) -> bool:
+    """Delete the cached kernels of ``source_file`` (a module outside the package) in ``cache_dir``
+    (where Numba caches them) if they were built against another version of the package's source;
+    True if any cleaning was done. A stamp beside them records the package digest they match."""
+    source_file, cache_dir = Path(source_file), Path(cache_dir)
+    try:
+        if source_file.resolve().is_relative_to(package_dir):
+            return False  # the package's own: ensure_fresh_kernel_cache keeps them
+        stamp = cache_dir / f"{source_file.stem}.vtoladapt-{STAMP_NAME}"
+        digest = package_digest(package_dir)
+        if stamp.exists() and stamp.read_text().strip() == digest:
+            return False
+        # Numba names a file's cached kernels "<file stem>.<function>-<line>.pyXY.nbi/.nbc"
+        for cached in list(cache_dir.glob(f"{source_file.stem}.*.nbi")) + list(cache_dir.glob(f"{source_file.stem}.*.nbc")):
+            cached.unlink(missing_ok=True)
+        cache_dir.mkdir(parents=True, exist_ok=True)
+        stamp.write_text(digest)
+        return True
+    except OSError:
+        return False  # a read-only folder: Numba cannot cache there either

@@ -19,6 +19,7 @@ other private one.
 """
 from __future__ import annotations
 
+import inspect
 import warnings
 from pathlib import Path
 from typing import Any, Callable, Optional
@@ -29,6 +30,8 @@ from llvmlite.binding import llvm_version_info
 from numba import cfunc, types
 from numba.core import cgutils
 from numba.extending import intrinsic
+
+from . import _kernel_cache
 
 NUMBA_CHECKED = ("0.61.2", "0.68.1")
 """The Numba releases this module's functions were checked on (the whole suite: 0.68.1)."""
@@ -48,7 +51,43 @@ def c_kernel(signature: Any, fn: Callable, **options: Any) -> Any:
     API apart from ``_nrt``, a private option of Numba's ``jit``; it has no public equivalent per
     function (only the process-wide ``NUMBA_DISABLE_NRT``).
     """
+    try:
+        source = Path(inspect.getfile(fn)).resolve()
+    except TypeError:
+        source = None
+    if source is not None and not source.is_relative_to(_kernel_cache.PACKAGE_DIR):
+        # a user's module: its kernels hold the package's offsets, so its cache must match this version
+        cache_dir = kernel_cache_dir(fn)
+        if cache_dir is not None:
+            _kernel_cache.ensure_fresh_module_kernels(source, cache_dir)
     return cfunc(signature, **{"cache": True, "_nrt": False, "error_model": "numpy", **options})(fn)
+
+
+def kernel_cache_dir(fn: Callable) -> Optional[Path]:
+    """The folder where Numba caches the compiled kernels of ``fn``'s source file, or ``None`` if it
+    cannot cache them (no source file, no writable place).
+
+    Private API: Numba's cache locators (``numba.core.caching.CacheImpl._locator_classes``, named
+    ``_CacheImpl`` before 0.62; each
+    ``from_function(py_func, source_path).get_cache_path()``), the same search a cached function
+    makes (``NUMBA_CACHE_DIR``, then beside the source, then the user-wide cache). Checked on 0.68.1;
+    Numba has no public way to ask where a function will be cached before compiling it.
+    """
+    from numba.core import caching
+
+    impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl")
+    try:
+        source = inspect.getfile(fn)
+    except TypeError:
+        return None
+    for locator_class in impl._locator_classes:
+        try:
+            locator = locator_class.from_function(fn, source)
+        except Exception:  # a locator that cannot handle this file
+            locator = None
+        if locator is not None:
+            return Path(locator.get_cache_path())
+    return None
 
 
 def signature_of(fn: Any) -> Optional[Any]:

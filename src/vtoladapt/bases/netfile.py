@@ -117,17 +117,17 @@ MAX_H = 30
 MAX_HIDDEN = 256
 """Width a hidden layer may have: ``learn-basis --hidden``'s cap (a 2000-wide file made a 2 s run take 4 s)."""
 FEATURE_BOUND = 1e3
-"""|x_mean| and x_std at most this: the features are speeds (m/s), rates (rad/s) and numbers within +-1;
+"""``|x_mean|`` and ``x_std`` at most this: the features are speeds (m/s), rates (rad/s) and numbers within +-1;
 a mean or spread of a thousand m/s or rad/s is no flight's."""
 X_STD_MIN = 1e-6
 """x_std at least this (training floors it at 1e-3, :data:`vtoladapt.learn.basis.FEATURE_STD_FLOOR`): a
 smaller spread turns any input into an overflow of the normalised feature."""
 WEIGHT_BOUND = 1e3
-"""|W1|, |b1|, |W2|, |b2|, |W3|, |b3| at most this: weight decay keeps trained weights of order one (the
+"""``|W1|``, ``|b1|``, ``|W2|``, ``|b2|``, ``|W3|``, ``|b3|`` at most this: weight decay keeps trained weights of order one (the
 shipped files' largest is 0.9); the tanh layers saturate long before. With it the network's every output
 is within ``(H2 + 1) WEIGHT_BOUND``."""
 THETA_BOUND = 1e3
-"""|theta_mean| and theta_std at most this (m/s^2 per unit of the network's output; the shipped files'
+"""``|theta_mean|`` and ``theta_std`` at most this (m/s^2 per unit of the network's output; the shipped files'
 largest is 2.7): the learned block's force stays finite at every step of the adaptation (``theta_mean`` x
 1e300 passed the old check and divided by zero inside the compiled loop)."""
 BOUNDS = {"x_mean": (-FEATURE_BOUND, FEATURE_BOUND), "x_std": (X_STD_MIN, FEATURE_BOUND),
