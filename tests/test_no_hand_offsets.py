@@ -54,6 +54,8 @@ NOT_OFFSETS: dict[str, str] = {
     "MAX_WAYPOINTS": "capacity: rows of [reference] waypoints",
     "MAX_H": "cap: learned columns a network file may have (learn-basis --h's)",
     "MAX_HIDDEN": "cap: width of a network file's hidden layer (learn-basis --hidden's)",
+    "MAX_JSON_DEPTH": "cap: nesting of a network file's meta JSON",
+    "MAX_NPY_HEADER": "cap: bytes of a network file member's npy header",
 }
 
 
