@@ -34,6 +34,11 @@ def source_digest(package_dir: Path = PACKAGE_DIR) -> str:
 _DIGESTS: dict[Path, str] = {}
 
 
+def is_package_file(source_file: Path, package_dir: Path = PACKAGE_DIR) -> bool:
+    """Whether ``source_file`` is one of the package's own (kept by :func:`ensure_fresh_kernel_cache`)."""
+    return Path(source_file).resolve().is_relative_to(package_dir)
+
+
 def package_digest(package_dir: Path = PACKAGE_DIR) -> str:
     """:func:`source_digest` of ``package_dir``, computed once per process."""
     if package_dir not in _DIGESTS:
@@ -63,14 +68,14 @@ def ensure_fresh_module_kernels(source_file: Path, cache_dir: Path, package_dir:
     True if any cleaning was done. A stamp beside them records the package digest they match."""
     source_file, cache_dir = Path(source_file), Path(cache_dir)
     try:
-        if source_file.resolve().is_relative_to(package_dir):
-            return False  # the package's own: ensure_fresh_kernel_cache keeps them
+        if is_package_file(source_file, package_dir):
+            return False  # ensure_fresh_kernel_cache keeps them
         stamp = cache_dir / f"{source_file.stem}.vtoladapt-{STAMP_NAME}"
         digest = package_digest(package_dir)
         if stamp.exists() and stamp.read_text().strip() == digest:
             return False
         # Numba names a file's cached kernels "<file stem>.<function>-<line>.pyXY.nbi/.nbc"
-        for cached in list(cache_dir.glob(f"{source_file.stem}.*.nbi")) + list(cache_dir.glob(f"{source_file.stem}.*.nbc")):
+        for cached in cache_dir.glob(f"{source_file.stem}.*.nb[ic]"):
             cached.unlink(missing_ok=True)
         cache_dir.mkdir(parents=True, exist_ok=True)
         stamp.write_text(digest)

@@ -52,10 +52,11 @@ def c_kernel(signature: Any, fn: Callable, **options: Any) -> Any:
     function (only the process-wide ``NUMBA_DISABLE_NRT``).
     """
     try:
-        source = Path(inspect.getfile(fn)).resolve()
+        source = Path(inspect.getfile(fn))
     except TypeError:
         source = None
-    if source is not None and not source.is_relative_to(_kernel_cache.PACKAGE_DIR):
+    # the package's own kernels are kept by its own guard; looking for a user's cache costs a file-system search
+    if source is not None and not _kernel_cache.is_package_file(source):
         # a user's module: its kernels hold the package's offsets, so its cache must match this version
         cache_dir = kernel_cache_dir(fn)
         if cache_dir is not None:
