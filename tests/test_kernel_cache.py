@@ -86,3 +86,61 @@ def test_the_packages_own_kernels_are_left_to_the_package_guard(tmp_path):
     own = kc.PACKAGE_DIR / "frames.py"
     assert not kc.ensure_fresh_module_kernels(own, tmp_path)
     assert not list(tmp_path.iterdir())
+
+
+_SAVER = r'''
+import os, pathlib, sys, time
+import vtoladapt, numba  # the package makes Numba's disk cache process-safe once Numba is imported
+from numba.core import caching
+cache_dir, key, go = sys.argv[1:4]
+cache_file = caching.IndexDataCacheFile(cache_dir, "kernel", "stamp")
+read_index = cache_file._load_index
+def read_index_slowly():
+    index = read_index()
+    time.sleep(0.5)  # widen the window between reading the index and writing it
+    return index
+cache_file._load_index = read_index_slowly
+pathlib.Path(go + "." + key).touch()
+while not os.path.exists(go):
+    time.sleep(0.01)
+cache_file.save(key, ("the code of", key))
+'''
+
+
+def test_two_processes_caching_different_signatures_at_once_keep_both(tmp_path):
+    """Two processes saving different signatures of one kernel into a cold cache at the same time
+    (the two workers of ``make test`` from a fresh clone): each signature keeps its own code.
+
+    Numba's own save picks the same data file for both (numba/numba#4807): one entry is lost or
+    names the other's code, which a later load links with the wrong types."""
+    import subprocess
+    import sys
+    import time
+
+    from numba.core import caching
+
+    go = tmp_path / "go"
+    keys = ("signature_a", "signature_b")
+    savers = [subprocess.Popen([sys.executable, "-c", _SAVER, str(tmp_path), key, str(go)]) for key in keys]
+    deadline = time.monotonic() + 120
+    while not all((tmp_path / f"go.{key}").exists() for key in keys):
+        assert time.monotonic() < deadline and all(s.poll() is None for s in savers), "a saver did not start"
+        time.sleep(0.02)
+    go.touch()
+    assert [s.wait(timeout=120) for s in savers] == [0, 0]
+    cache_file = caching.IndexDataCacheFile(str(tmp_path), "kernel", "stamp")
+    assert [cache_file.load(key) for key in keys] == [("the code of", key) for key in keys]
+    assert len(list(tmp_path.glob("kernel.*.nbc"))) == 2
+
+
+def test_the_process_safe_cache_is_installed_whichever_is_imported_first():
+    import subprocess
+    import sys
+
+    check = ("from numba.core import caching; import sys; "
+             "sys.exit(0 if caching.IndexDataCacheFile._vtoladapt_process_safe else 1)")
+    for first in ("import vtoladapt; import numba", "import numba; import vtoladapt"):
+        assert subprocess.run([sys.executable, "-c", f"{first}; {check}"]).returncode == 0, first
+    # importing the package alone does not import Numba (the command line takes over Ctrl-C first)
+    assert subprocess.run([sys.executable, "-c", "import sys, vtoladapt; sys.exit('numba' in sys.modules)"]
+                          ).returncode == 0

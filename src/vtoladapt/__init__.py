@@ -3,9 +3,15 @@
 Start with :func:`load_vehicle`, :func:`load_scenario` and :func:`simulate`; the force model is in :mod:`vtoladapt.models`; frames and
 rotation conventions in :mod:`vtoladapt.frames`.
 """
-from ._kernel_cache import ensure_fresh_kernel_cache
+from ._kernel_cache import ensure_fresh_kernel_cache, when_imported
+
+
+def _process_safe_disk_cache() -> None:
+    from . import _numba_abi  # noqa: F401  (makes Numba's disk cache safe for several processes)
+
 
 ensure_fresh_kernel_cache()
+when_imported("numba", _process_safe_disk_cache)
 
 from ._version import __version__  # noqa: E402
 

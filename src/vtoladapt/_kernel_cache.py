@@ -82,3 +82,38 @@ def ensure_fresh_module_kernels(source_file: Path, cache_dir: Path, package_dir:
         return True
     except OSError:
         return False  # a read-only folder: Numba cannot cache there either
+
+
+def when_imported(module_name: str, callback) -> None:
+    """Call ``callback()`` once ``module_name`` is imported: now if it is, else right after its import.
+
+    The package makes Numba's disk cache safe for several processes
+    (:func:`vtoladapt._numba_abi.make_disk_cache_process_safe`) before any kernel is loaded from it,
+    without importing Numba when the package is imported (the command line takes over Ctrl-C first).
+    """
+    import importlib.abc
+    import importlib.util
+    import sys
+
+    if module_name in sys.modules:
+        callback()
+        return
+
+    class _AfterImport(importlib.abc.MetaPathFinder):
+        def find_spec(self, fullname, path=None, target=None):
+            if fullname != module_name:
+                return None
+            sys.meta_path.remove(self)
+            spec = importlib.util.find_spec(fullname)  # the finders after this one
+            if spec is None or spec.loader is None or not hasattr(spec.loader, "exec_module"):
+                return spec
+            exec_module = spec.loader.exec_module
+
+            def exec_then_call(module):
+                exec_module(module)
+                callback()
+
+            spec.loader.exec_module = exec_then_call
+            return spec
+
+    sys.meta_path.insert(0, _AfterImport())

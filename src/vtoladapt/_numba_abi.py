@@ -187,6 +187,89 @@ def has_disk_cache(dispatcher: Any) -> bool:
         return True  # unknown: behave as if cached (compile in this process only)
 
 
+def _cache_lock(index_path: str, exclusive: bool):
+    """An advisory lock (``flock``) on ``<index>.lock`` beside a kernel's cache index, exclusive
+    for writing and shared for reading; a no-op where the folder is read-only or the platform has
+    no ``fcntl`` (a single process cannot race with itself there)."""
+    import contextlib
+    import os
+
+    try:
+        import fcntl
+    except ImportError:  # not POSIX
+        return contextlib.nullcontext()
+
+    @contextlib.contextmanager
+    def held():
+        try:
+            fd = os.open(index_path + ".lock", os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError:  # read-only cache folder: nobody can write it, nothing to race with
+            yield
+            return
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
+            yield
+        finally:
+            os.close(fd)  # closing releases the lock
+
+    return held()
+
+
+def make_disk_cache_process_safe() -> None:
+    """Make Numba's on-disk cache safe for several processes compiling the same kernels at once.
+
+    Numba's cache (``numba.core.caching.IndexDataCacheFile``) keeps, per source function, an index
+    mapping each compiled signature to a numbered data file. ``save`` reads the index, picks the
+    first free number, writes the index, then the data, with no lock between processes: two
+    processes compiling *different* signatures of one kernel on a cold cache (the two workers of
+    ``make test`` from a fresh clone, the worker processes of a campaign on a local cluster) both
+    pick ``.1.nbc``; the last writer's index and data win, so one signature's entry is lost or,
+    interleaved the other way, names the other signature's code, which a later load links and
+    calls with the wrong types (a crash inside LLVM or in the kernel). Numba reports this as
+    numba/numba#4807, open. Here every save and load takes a lock on ``<index>.lock``, and a save
+    writes its data file before the index that names it, so a reader never sees an index entry
+    whose file is not yet written.
+
+    Private API: ``IndexDataCacheFile`` and its ``_index_path``, ``_load_index``, ``_save_index``,
+    ``_save_data``, ``_data_name`` (the same in 0.59-0.68; checked on 0.68.1). Missing publicly: a
+    cache that locks. Installed once at import of this module; idempotent.
+    """
+    import itertools
+
+    from numba.core import caching
+
+    cls = caching.IndexDataCacheFile
+    if getattr(cls, "_vtoladapt_process_safe", False):
+        return
+    numba_load = cls.load
+
+    def save(self, key, data):
+        with _cache_lock(self._index_path, exclusive=True):
+            overloads = self._load_index()
+            data_name = overloads.get(key)
+            if data_name is None:
+                taken = set(overloads.values())
+                data_name = next(n for n in map(self._data_name, itertools.count(1)) if n not in taken)
+            self._save_data(data_name, data)
+            if overloads.get(key) != data_name:
+                overloads[key] = data_name
+                self._save_index(overloads)
+
+    def load(self, key):
+        with _cache_lock(self._index_path, exclusive=False):
+            return numba_load(self, key)
+
+    def flush(self):
+        with _cache_lock(self._index_path, exclusive=True):
+            self._save_index({})
+
+    cls.save, cls.load, cls.flush = save, load, flush
+    cls._vtoladapt_process_safe = True
+
+
+make_disk_cache_process_safe()
+
+
 # LLVM names the intrinsic by its pointer type: "p0" since pointers became opaque (LLVM 17 has
 # only those), "p0i8" for the typed i8* of the LLVM 14-15 under older Numba releases.
 _PREFETCH_INTRINSIC = "llvm.prefetch.p0" if llvm_version_info[0] >= 17 else "llvm.prefetch.p0i8"
