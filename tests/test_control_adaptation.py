@@ -9,7 +9,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from numba import njit
 from scipy.integrate import solve_ivp
 from scipy.linalg import expm
 from scipy.optimize import lsq_linear, minimize
@@ -64,38 +63,29 @@ def _drive(mode, theta, Gamma, Ws, theta_true, a_bias, n_steps, theta0, Gamma0, 
                          theta_hist)
 
 
-# Not cached: a cached test kernel keeps the adaptation compiled into it until this file changes,
-# however the package changes (the package's cache guard does not reach the tests).
-@njit
 def _drive_kernel(mode, at, x, prior, theta, Gamma, Ws, theta_true, a_bias, n_steps, lam, sigma, trace_max,
                   theta_hist):
+    """The ticks from Python, each one call of the package's compiled :func:`adaptation_step` (its
+    cached entry, shared with every other caller of that signature). A test kernel of its own would
+    compile the whole specialised adaptation into it again (two minutes per worker from a fresh clone)."""
     th, gam, wf, am = int(at[ad.AT_THETA]), int(at[ad.AT_GAMMA]), int(at[ad.AT_W]), int(at[ad.AT_A_M])
-    R = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
-    Phi = np.empty(3 * N)
-    v_t = (0.0, 0.0, 0.0)
     forget_a, forget_b = ad.forgetting_weights(lam, 0.004)
     n_p = Ws.shape[0]
-    worst = 0
-    active = 0
+    flat_W = np.ascontiguousarray(Ws.reshape(n_p, 3 * N))
+    a_ms = Ws @ theta_true + a_bias                      # the measured acceleration of each regressor
+    step, v_t, first_kept = ad.adaptation_step, (0.0, 0.0, 0.0), n_steps - theta_hist.shape[0]
+    worst = active = 0
     for k in range(n_steps):
-        W = Ws[k % n_p]
-        for i in range(3):
-            a_m = a_bias[i]
-            for j in range(N):
-                a_m += W[i, j] * theta_true[j]
-                x[wf + N * i + j] = W[i, j]
-                Phi[N * i + j] = W[i, j]
-            x[am + i] = a_m
-        r, active, e = ad.adaptation_step(mode, at, 0, x, prior, Phi, 0, R, v_t, 0.004, forget_a, forget_b, sigma,
-                                          trace_max, active)
+        p = k % n_p
+        x[wf:wf + 3 * N] = flat_W[p]
+        x[am:am + 3] = a_ms[p]
+        r, active, _ = step(mode, at, 0, x, prior, flat_W[p], 0, _IDENTITY, v_t, 0.004, forget_a, forget_b, sigma,
+                            trace_max, active)
         worst = min(worst, r)
-        if k >= n_steps - theta_hist.shape[0]:
-            for i in range(N):
-                theta_hist[k - (n_steps - theta_hist.shape[0]), i] = x[th + i]
-    for i in range(N):
-        theta[i] = x[th + i]
-        for j in range(N):
-            Gamma[i, j] = x[gam + N * i + j]
+        if k >= first_kept:
+            theta_hist[k - first_kept] = x[th:th + N]
+    theta[:] = x[th:th + N]
+    Gamma[:] = x[gam:gam + N * N].reshape(N, N)
     return worst
 
 
