@@ -61,11 +61,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..frames import rows_transpose_times
+from ..frames import GRAVITY_MPS2, rows_transpose_times
 from .adaptation import (AT_DWT, AT_GAMMA, AT_LOWER, AT_N, AT_P_DIAG, AT_Q, AT_R_MEAS, AT_S, AT_S_FACTOR, AT_SWD,
                          AT_TAU, AT_THETA, AT_THETA0, AT_UPPER, AT_W, AT_A_M, N_SLOT_0, N_SLOT_1, N_SLOT_2, flush_tiny)
 
-MICRO_G_MPS2 = 9.80665e-6
+MICRO_G_MPS2 = 1e-6 * GRAVITY_MPS2
 """One micro-g in m/s^2 (the accelerometer density's data-sheet unit)."""
 
 REFERENCE_AIRSPEEDS_FRACTION = (0.0, 0.5, 1.0, 1.5)
