@@ -1,7 +1,8 @@
 """Benchmarks of the controller step: through the Python API, and inside a compiled loop.
 
 Targets (issue 4): one ``composite`` step through ``Controller.step`` <= 10 us median; the same
-step inside an njit loop <= 2 us; with the learned basis (issue 23) <= 3 us.
+step inside an njit loop <= 2 us; with the learned basis (issue 23) <= 3 us; the composite law's Kalman form
+with the learned basis (issue 34) <= 3 us.
 
 Operating point: hover facing a 9 m/s headwind at the wing solution's attitude (adaptation, wing
 attitude and allocation all active). The accelerometer reading is made consistent with the
@@ -24,6 +25,8 @@ import vtoladapt
 from vtoladapt import forces
 from vtoladapt import layout as L
 from vtoladapt.control import Controller, ControllerConfig, Measurement, Reference
+from vtoladapt.control.laws.composite import CompositeSettings
+from vtoladapt.control.laws.composite_indi import CompositeIndiSettings
 from vtoladapt.control.step import (controller_functions, controller_initial_state, controller_params, controller_step,
                                     diagnostics_size)
 from vtoladapt.sim.allocation import ALLOC_WORK_SIZE, allocate, allocator_params
@@ -78,8 +81,10 @@ def _median_per_call(fn, n_inner: int, repeats: int, clock=time.perf_counter) ->
     return float(np.median(times))
 
 
-def _settled_state(veh, kind, meas, ref, n=1000, basis=None):
-    params = controller_params(ControllerConfig(kind=kind, basis=basis), veh)
+def _settled_state(veh, kind, meas, ref, n=1000, basis=None, law=None):
+    config = ControllerConfig(kind=kind, basis=basis) if law is None else ControllerConfig(kind=kind, basis=basis,
+                                                                                           **{kind: law})
+    params = controller_params(config, veh)
     state = controller_initial_state(params)
     cmd = np.zeros(L.CMD_SIZE)
     diag = np.zeros(diagnostics_size(params))
@@ -131,6 +136,19 @@ def run() -> list[tuple[str, float, str]]:
         rows.append((f"composite_{basis}_basis_step_njit_loop_median", 1e6 * _median_per_call(loop, 20000, 15), "us"))
         rows.append((f"composite_{basis}_basis_step_njit_loop_median_cpu",
                      1e6 * _median_per_call(loop, 20000, 15, time.process_time), "us"))
+
+    # issue #34: the composite law's Kalman form (3 x 3 innovation update, no n x n factorisation; target <= 3 us
+    # with the learned basis) and composite_indi on top of it
+    for kind, settings in (("composite", CompositeSettings(estimator="kalman")),
+                           ("composite_indi", CompositeIndiSettings(estimator="kalman"))):
+        for basis in ("paper", "learned"):
+            fns, params, state, cmd, diag = _settled_state(veh, kind, meas, ref, basis=basis, law=settings)
+
+            def loop(n, fns=fns, params=params, state=state, cmd=cmd, diag=diag):
+                _loop(fns, params, state, m, r, 0.004, cmd, diag, n)
+
+            rows.append((f"{kind}_kalman_{basis}_basis_step_njit_loop_median_cpu",
+                         1e6 * _median_per_call(loop, 20000, 15, time.process_time), "us"))
 
     # the flight computer's step: the controller and the allocator that realises its moment, at 9 m/s,
     # surfaces on against off (the controller's law is the same; only the allocation differs)

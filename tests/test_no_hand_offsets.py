@@ -25,6 +25,7 @@ NOT_OFFSETS: dict[str, str] = {
     "N_SPECIALISED_SLOTS": "count: basis sizes the adaptation's kernels are compiled for with constant loops",
     "ADAPT_COMPOSITE": "enum: adaptation mode", "ADAPT_PCONST": "enum: adaptation mode",
     "ADAPT_TRACKING": "enum: adaptation mode", "ADAPT_NONE": "enum: adaptation mode",
+    "ADAPT_KALMAN": "enum: adaptation mode",
     "PROJECTION_MAX_ITER": "iteration cap of the projection",
     "MAX_ITERATIONS": "iteration cap of the airflow estimate",
     "MAX_ITERATIONS_COLD": "iteration cap of the airflow estimate from a cold start",

@@ -136,7 +136,9 @@ class BasisSpec:
     the parameter is known to be positive (negative) by its physics, 0 where either sign is
     possible; ``wing``: the column is the wing's (zero with the wing off in a wind tunnel);
     ``block``: the constants the compiled regressor reads; ``work_size``: its scratch;
-    ``physics``: one paragraph on what the columns encode; ``source``: where the prior came from.
+    ``physics``: one paragraph on what the columns encode; ``source``: where the prior came from;
+    ``trained_spread``: per column, True if its prior std is the spread of the per-flight weights a training
+    found (the learned block; the Kalman form's P0 and Q of that weight come from it).
     """
 
     id: str
@@ -156,9 +158,17 @@ class BasisSpec:
     physics: str = ""
     source: str = ""
     scaled_units: tuple[str, ...] = ()
+    trained_spread: Any = ()
 
     def __post_init__(self) -> None:
         n = len(self.names)
+        # which columns' prior std is the spread of per-flight weights found in training (the learned block):
+        # the Kalman form takes their P0 and Q from it (vtoladapt.control.kalman); default none
+        ts = np.zeros(n, dtype=bool) if len(self.trained_spread) == 0 else np.array(self.trained_spread, dtype=bool)
+        if ts.shape != (n,):
+            raise ValueError(f"basis {self.id!r}: trained_spread must be {n} booleans, got {ts.tolist()}")
+        ts.setflags(write=False)
+        object.__setattr__(self, "trained_spread", ts)
         if not 1 <= n <= MAX_PARAMETERS:
             raise ValueError(f"basis {self.id!r}: {n} parameters; allowed: 1 to {MAX_PARAMETERS}")
         for name in self.names:

@@ -179,6 +179,7 @@ def describe(vehicle, settings: Settings) -> BasisSpec:
         P0_diag=np.append(p.P0_diag, np.full(h, settings.net_P0)), bound_fraction=np.append(p.bound_fraction,
                                                                                         np.ones(h)),
         bound_sigmas=p.bound_sigmas, sign=np.append(p.sign, np.zeros(h)), wing=np.append(p.wing, np.zeros(h, bool)),
+        trained_spread=np.append(np.zeros(p.n, bool), np.ones(h, bool)),
         block=pack_block(p.block, net), regressor=regressor, work_size=N_FEATURES + sum(net.hidden),
         physics=p.physics + f" A learned block of {h} columns (a {N_FEATURES}-{net.hidden[0]}-{net.hidden[1]}-{3 * h} "
         "tanh network of the measured flow, throttles, attitude and rates).",

@@ -110,6 +110,8 @@ ADAPT_COMPOSITE = 0
 ADAPT_PCONST = 1
 ADAPT_TRACKING = 2
 ADAPT_NONE = 3
+ADAPT_KALMAN = 4
+"""The Kalman form (Neural-Fly's Eqs. 7-9, :mod:`.kalman`): the GAMMA slot holds the covariance P, not P^-1."""
 
 PROJECTION_MAX_ITER = 32
 
@@ -147,6 +149,8 @@ def prior_layout(n: int) -> BlockLayout:
         Field("UPPER", n, "adaptation units", "upper bounds of theta-hat"),
         Field("GAMMA0", n * n, "adaptation units", "P_0^-1, row-major"),
         Field("P0", n * n, "adaptation units", "initial gain P_0, row-major"),
+        Field("Q", n, "adaptation units^2/s", "Kalman form: process-noise density per weight (zeros otherwise)"),
+        Field("R_MEAS", 3, "(m/s^2)^2 s", "Kalman form: measurement-noise density per body axis (zeros otherwise)"),
     ])
 
 
@@ -182,33 +186,36 @@ def work_layout(n: int) -> BlockLayout:
 
 AT = BlockLayout("adaptation offsets", [
     Field("N", 1, "-", "number of parameters n (the basis's)"),
+    Field("COVARIANCE", 1, "-", "1: the GAMMA slot holds the covariance P (the Kalman form), 0: P^-1"),
     *(Field(name, 1, "-", f"offset of the memory's {name} in the memory array")
       for name in ("THETA", "GAMMA", "W", "A_M")),
     *(Field(name, 1, "-", f"offset of the prior's {name} in the prior array")
-      for name in ("THETA0", "THETA_INIT", "LOWER", "UPPER", "GAMMA0", "P0")),
+      for name in ("THETA0", "THETA_INIT", "LOWER", "UPPER", "GAMMA0", "P0", "Q", "R_MEAS")),
     *(Field(name, 1, "-", f"offset of the scratch's {name} in the memory array")
       for name in ("WTW", "M", "L", "K", "TAU", "D0", "D", "P_DIAG", "SYSTEM", "FACTOR", "RHS", "MU",
                    "DWT", "SWD", "S", "S_FACTOR", "EXACT")),
 ])
 """Where the blocks sized by n are: one slot per offset (absolute, in the arrays the kernels get)."""
-(AT_N, AT_THETA, AT_GAMMA, AT_W, AT_A_M, AT_THETA0, AT_THETA_INIT, AT_LOWER, AT_UPPER, AT_GAMMA0, AT_P0,
- AT_WTW, AT_M, AT_L, AT_K, AT_TAU, AT_D0, AT_D, AT_P_DIAG, AT_SYSTEM, AT_FACTOR, AT_RHS, AT_MU, AT_DWT,
- AT_SWD, AT_S, AT_S_FACTOR, AT_EXACT) = AT.offsets(*(f.name for f in AT.fields))
+(AT_N, AT_COVARIANCE, AT_THETA, AT_GAMMA, AT_W, AT_A_M, AT_THETA0, AT_THETA_INIT, AT_LOWER, AT_UPPER, AT_GAMMA0,
+ AT_P0, AT_Q, AT_R_MEAS, AT_WTW, AT_M, AT_L, AT_K, AT_TAU, AT_D0, AT_D, AT_P_DIAG, AT_SYSTEM, AT_FACTOR, AT_RHS,
+ AT_MU, AT_DWT, AT_SWD, AT_S, AT_S_FACTOR, AT_EXACT) = AT.offsets(*(f.name for f in AT.fields))
 
 
-def standalone_arrays(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def standalone_arrays(n: int, covariance: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(at, x, prior)`` for one adaptation of n parameters outside the controller (replay, tests): the
     offsets table, the memory followed by the scratch in ``x`` and the prior in ``prior`` (zeros; fill them
     through :func:`memory_layout` and :func:`prior_layout`, e.g. ``memory_layout(n).view(x, "THETA")``)."""
     memory, work, prior = memory_layout(n), work_layout(n), prior_layout(n)
-    return offsets_table(n, 0, 0, memory.size), np.zeros(memory.size + work.size), np.zeros(prior.size)
+    return (offsets_table(n, 0, 0, memory.size, covariance), np.zeros(memory.size + work.size),
+            np.zeros(prior.size))
 
 
-def offsets_table(n: int, memory_at: int, prior_at: int, work_at: int) -> np.ndarray:
+def offsets_table(n: int, memory_at: int, prior_at: int, work_at: int, covariance: bool = False) -> np.ndarray:
     """The :data:`AT` table of n parameters whose memory starts at ``memory_at`` and scratch at
-    ``work_at`` (of the memory array) and prior at ``prior_at`` (of the prior array)."""
+    ``work_at`` (of the memory array) and prior at ``prior_at`` (of the prior array); ``covariance``:
+    the GAMMA slot holds P (the Kalman form, :mod:`.kalman`), not P^-1."""
     mem, prior, work = memory_layout(n), prior_layout(n), work_layout(n)
-    values = {"N": n}
+    values = {"N": n, "COVARIANCE": float(covariance)}
     values.update({f.name: memory_at + mem.offset(f.name) for f in mem.fields})
     values.update({f.name: prior_at + prior.offset(f.name) for f in prior.fields})
     values.update({f.name: work_at + work.offset(f.name) for f in work.fields})
@@ -766,8 +773,10 @@ def lyapunov_at(v0, v1, v2, q0_tilde, theta_buf, i_theta, P_inv_buf, i_P_inv, th
     return V + 0.5 * q
 
 
-__all__ = ["ADAPT_COMPOSITE", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "AT", "N_SLOT_0", "N_SLOT_1", "N_SLOT_2",
+__all__ = ["ADAPT_COMPOSITE", "ADAPT_KALMAN", "ADAPT_NONE", "ADAPT_PCONST", "ADAPT_TRACKING", "AT", "N_SLOT_0",
+           "N_SLOT_1", "N_SLOT_2",
            "N_SPECIALISED_SLOTS", "SPECIALISED_N", "AT_A_M",
+           "AT_COVARIANCE", "AT_Q", "AT_R_MEAS",
            "AT_D", "AT_D0", "AT_DWT", "AT_FACTOR", "AT_GAMMA", "AT_GAMMA0", "AT_K", "AT_L", "AT_LOWER", "AT_M",
            "AT_MU", "AT_N", "AT_P0", "AT_P_DIAG", "AT_RHS", "AT_S", "AT_SWD", "AT_SYSTEM", "AT_S_FACTOR", "AT_TAU",
            "AT_THETA", "AT_THETA0", "AT_THETA_INIT", "AT_UPPER", "AT_W", "AT_WTW", "TINY", "adaptation_step",

@@ -117,9 +117,10 @@ SHARED_PARAMS = BlockLayout("controller parameters (shared)", [
  P_WIND_FADE, P_DT_NOMINAL, P_MOTOR_LAG_ON, P_MOTOR_TAU, P_WV_AIRSPEED, P_HEADING_TAU, P_HEADING_RATE, P_ALIGN_COS,
  P_AP_GAIN, P_AP_TAU, P_AP_TRIM_MAX, P_AP_SIGMAS, P_AP_SPREAD_TAU, P_UNSEEN_ACCEL,
  P_LIFT_RESERVE, P_FLOW_EST_ON, P_FLOW_EST_TAU) = SHARED_PARAMS.offsets(*(f.name for f in SHARED_PARAMS.fields))
-(A_N, A_THETA, A_GAMMA, A_W, A_A_M, A_THETA0, A_THETA_INIT, A_LOWER, A_UPPER, A_GAMMA0, A_P0, A_WK_WTW, A_WK_M,
- A_WK_L) = (SHARED_PARAMS.offset("AT") + CONTROL_AT.offset("ADAPTATION") + o for o in ad.AT.offsets(
-    "N", "THETA", "GAMMA", "W", "A_M", "THETA0", "THETA_INIT", "LOWER", "UPPER", "GAMMA0", "P0", "WTW", "M", "L"))
+(A_N, A_COVARIANCE, A_THETA, A_GAMMA, A_W, A_A_M, A_THETA0, A_THETA_INIT, A_LOWER, A_UPPER, A_GAMMA0, A_P0, A_WK_WTW,
+ A_WK_M, A_WK_L) = (SHARED_PARAMS.offset("AT") + CONTROL_AT.offset("ADAPTATION") + o for o in ad.AT.offsets(
+    "N", "COVARIANCE", "THETA", "GAMMA", "W", "A_M", "THETA0", "THETA_INIT", "LOWER", "UPPER", "GAMMA0", "P0", "WTW",
+    "M", "L"))
 """Where, in ``params``, the adaptation's offsets table says n and where its blocks are (read them with ``int``)."""
 (A_PHI, A_INFO_SUM, A_BASIS, A_BASIS_SIZE, A_BASIS_WORK, A_BASIS_WORK_SIZE, A_D_THETA_HAT, A_D_P_DIAG,
  A_STATE_SIZE, A_DIAG_SIZE) = SHARED_PARAMS.nested("AT", CONTROL_AT, "PHI", "INFO_SUM", "BASIS", "BASIS_SIZE",

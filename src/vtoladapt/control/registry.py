@@ -77,6 +77,11 @@ CONTROLLERS: Registry = Registry("law", check_law, (
     ControllerInfo("l1", "L1 adaptive", "C6", True, False,
                    "L1 adaptive control: eq:f_ctrl with theta-hat = theta_0 minus the low-passed estimate of a "
                    "velocity predictor's piecewise-constant adaptation (Hovakimyan & Cao 2010)", "l1"),
+    # after the laws of the shipped comparison, so their places (figure styles) do not move
+    ControllerInfo("composite_indi", "C. Adapt + INDI", "C8", True, True,
+                   "the composite law with INDI's measured residual on top of the adapted model: theta-hat carries "
+                   "the model, the increment rejects force outside span(Phi) at the accelerometer's bandwidth",
+                   "composite_indi", adapts_theta=True),
 ), package=f"{__package__}.laws")
 
 

@@ -36,12 +36,13 @@ from . import adaptation as ad
 from .linalg import spd_inverse
 from .backend import back_end, default_law_diagnostics
 from .blocks import (
-    A_A_M, A_BASIS, A_BASIS_SIZE, A_BASIS_WORK_SIZE, A_D_THETA_HAT, A_DIAG_SIZE, A_GAMMA, A_GAMMA0, A_INFO_SUM, A_N,
-    A_STATE_SIZE, A_THETA, A_THETA_INIT, A_W, DIAG_Q_TILDE, DIAG_V_TILDE, P_BASIS_KEY, P_HOLDOFF_S, P_LAW_KEY,
-    S_LAW, S_Q_D_PREV, S_Q_LAST, S_TICK, S_U_PREV, S_VALID_TIME, S_WIND_EST, SHARED_PARAMS, TICK_SIZE,
-    ControllerLayout, controller_layout,
+    A_A_M, A_BASIS, A_BASIS_SIZE, A_BASIS_WORK_SIZE, A_COVARIANCE, A_D_THETA_HAT, A_DIAG_SIZE, A_GAMMA, A_GAMMA0,
+    A_INFO_SUM, A_N, A_P0, A_STATE_SIZE, A_THETA, A_THETA_INIT, A_W, CONTROL_AT, DIAG_Q_TILDE, DIAG_V_TILDE,
+    P_BASIS_KEY, P_HOLDOFF_S, P_LAW_KEY, S_LAW, S_Q_D_PREV, S_Q_LAST, S_TICK, S_U_PREV, S_VALID_TIME, S_WIND_EST,
+    SHARED_PARAMS, TICK_SIZE, ControllerLayout, controller_layout,
 )
 from .frontend import front_end
+from .kalman import kalman_prior
 from .laws import UPDATE_SIGNATURE, LawContext
 from .registry import ControllerInfo, law_key, law_of_key
 
@@ -264,11 +265,21 @@ def controller_params(config, vehicle, theta_0=None, P0_diag=None, theta_lower=N
     spec = describe_basis(vehicle, config.basis) if basis is None else basis
     n = spec.n
     th0 = spec.theta_scaled.copy() if theta_0 is None else _vector("theta_0", theta_0, n)
-    P0 = initial_gain(spec.P0_diag if P0_diag is None else P0_diag, n)
-    # an adaptive law's adaptation gain multiplier (its ``adaptation_gain_scale``; 1: P0 as given, bit for bit)
-    gain_scale = float(getattr(config.law_settings, "adaptation_gain_scale", 1.0))
-    if gain_scale != 1.0:
-        P0 = P0 * gain_scale
+    kalman = getattr(config.law_settings, "estimator", "paper") == "kalman"
+    Q = np.zeros(n)
+    R_meas = np.zeros(3)
+    if kalman:
+        # the Kalman form (vtoladapt.control.kalman): P0, Q and R from the basis, the vehicle model and the
+        # accelerometer the controller believes; a P0 given here is taken as the covariance itself
+        kp = kalman_prior(spec, vehicle, config.law_settings, config.lowpass_cutoff_hz, 1.0 / config.loop_rate_hz)
+        P0 = kp["P0"] if P0_diag is None else initial_gain(P0_diag, n)
+        Q, R_meas = kp["Q"], kp["R"]
+    else:
+        P0 = initial_gain(spec.P0_diag if P0_diag is None else P0_diag, n)
+        # an adaptive law's adaptation gain multiplier (its ``adaptation_gain_scale``; 1: P0 as given, bit for bit)
+        gain_scale = float(getattr(config.law_settings, "adaptation_gain_scale", 1.0))
+        if gain_scale != 1.0:
+            P0 = P0 * gain_scale
     Gamma0 = np.linalg.inv(P0)
     Gamma0 = 0.5 * (Gamma0 + Gamma0.T)
     lo_d, hi_d = default_theta_bounds(vehicle, th0, basis=spec)
@@ -283,7 +294,11 @@ def controller_params(config, vehicle, theta_0=None, P0_diag=None, theta_lower=N
 
     law = config.info.law
     layout = controller_layout(n, law, spec.names, spec.block.size, spec.work_size)
-    shared = _shared_params(config, vehicle, layout.at, law_key(config.kind), basis_key(spec.id))
+    at = layout.at.copy()
+    if kalman:
+        # the GAMMA slot holds P (read by controller_initial_state, state_P, state_P_inv, controller_lyapunov)
+        at[CONTROL_AT.offset("ADAPTATION") + ad.AT_COVARIANCE] = 1.0
+    shared = _shared_params(config, vehicle, at, law_key(config.kind), basis_key(spec.id))
     ctx = LawContext(config=config, vehicle=vehicle, theta_0=th0, P0=P0, dt_nominal_s=1.0 / config.loop_rate_hz,
                      basis=spec)
     own = np.asarray(law.fill_params(config.law_settings, ctx), dtype=float)
@@ -291,7 +306,7 @@ def controller_params(config, vehicle, theta_0=None, P0_diag=None, theta_lower=N
         raise ValueError(f"{law.__name__}.fill_params returned shape {own.shape}, its PARAMS need "
                          f"({law.PARAMS.size},)")
     prior = layout.prior.pack(THETA0=th0, THETA_INIT=init, LOWER=lo, UPPER=hi, GAMMA0=Gamma0.ravel(),
-                              P0=P0.ravel())
+                              P0=P0.ravel(), Q=Q, R_MEAS=R_meas)
     return layout.params.pack(SHARED=shared, LAW=own, PRIOR=prior, BASIS=spec.block)
 
 
@@ -353,7 +368,11 @@ def controller_initial_state(params) -> np.ndarray:
     th, init = int(params[A_THETA]), int(params[A_THETA_INIT])
     gam, gam0 = int(params[A_GAMMA]), int(params[A_GAMMA0])
     s[th:th + n] = params[init:init + n]
-    s[gam:gam + n * n] = params[gam0:gam0 + n * n]
+    if params[A_COVARIANCE] > 0.0:
+        # the Kalman form starts from P = P0
+        s[gam:gam + n * n] = params[int(params[A_P0]):int(params[A_P0]) + n * n]
+    else:
+        s[gam:gam + n * n] = params[gam0:gam0 + n * n]
     s[S_Q_D_PREV] = 1.0
     s[S_Q_LAST] = 1.0
     # the filters start from the first sample, so no settling time is needed at start-up
@@ -396,17 +415,26 @@ def information_sum(params, state) -> np.ndarray:
 
 @njit(cache=True)
 def state_P_inv(params, state) -> np.ndarray:
-    """The information matrix ``P^-1`` (n, n) (a view into ``state``)."""
+    """The information matrix ``P^-1`` (n, n): a view into ``state``, or, for the Kalman form (which holds P),
+    its inverse by Cholesky (a new array)."""
     n, _, gam = estimate_offsets(params)
+    if params[A_COVARIANCE] > 0.0:
+        G = np.empty(n * n)
+        if not spd_inverse(state, gam, G, 0, np.empty(2 * n * n), 0, n):
+            G[:] = np.nan
+        return G.reshape((n, n))
     return state[gam:gam + n * n].reshape((n, n))
 
 
 @njit(cache=True)
 def state_P(params, state) -> np.ndarray:
-    """The adaptation gain ``P`` (n, n), from the information matrix by Cholesky (a new array)."""
+    """The adaptation gain ``P`` (n, n), from the information matrix by Cholesky, or the Kalman form's
+    covariance (a new array either way)."""
     n, _, gam = estimate_offsets(params)
     P = np.empty(n * n)
-    if not spd_inverse(state, gam, P, 0, np.empty(2 * n * n), 0, n):
+    if params[A_COVARIANCE] > 0.0:
+        P[:] = state[gam:gam + n * n]
+    elif not spd_inverse(state, gam, P, 0, np.empty(2 * n * n), 0, n):
         P[:] = np.nan
     return P.reshape((n, n))
 
@@ -451,6 +479,10 @@ def controller_lyapunov(params, state, diag, theta_true, gamma) -> float:
     from ``diag`` and theta-hat, ``P^-1`` from ``state``; ``theta_true`` (the plant's, in the basis; empty for
     a basis without a plant truth, which leaves the parameter term out) comes from the simulator only."""
     _, th, gam = estimate_offsets(params)
+    if params[A_COVARIANCE] > 0.0:
+        # the Kalman form holds P, not P^-1: V's parameter term is left out (V of the tracking terms only)
+        return ad.lyapunov_at(diag[DIAG_V_TILDE], diag[DIAG_V_TILDE + 1], diag[DIAG_V_TILDE + 2], diag[DIAG_Q_TILDE],
+                              state, th, state, gam, theta_true[:0], gamma)
     return ad.lyapunov_at(diag[DIAG_V_TILDE], diag[DIAG_V_TILDE + 1], diag[DIAG_V_TILDE + 2], diag[DIAG_Q_TILDE],
                           state, th, state, gam, theta_true, gamma)
 

@@ -80,10 +80,12 @@ less: DIRECT samples the centres of thirds, so after two refinements its points 
 DIVERGED_PENALTY_MPS = 10.0
 """A tuning draw that leaves the envelope counts as this RMS velocity error (m/s)."""
 OPTIMISER = "DIRECT-L (scipy.optimize.direct, locally_biased=True)"
-NOT_IN_SHIPPED_FILES = ("adaptation_gain_scale",)
+NOT_IN_SHIPPED_FILES = ("adaptation_gain_scale", "measurement_noise_scale", "process_noise_scale",
+                        "kalman_time_scale_s", "regularisation_lambda")
 """Gains declared after the shipped tuned files (``scenarios/tuned/``) were searched: the adaptive laws'
-adaptation gain (issue #34, defect 5). Those files fly them at their defaults (P0 as given) until the
-adaptive laws are tuned again (``make tune``, issue #34's fair re-tuning)."""
+adaptation gain (issue #34, defect 5) and the composite law's Kalman form's noise weights, time scale and
+regularisation (issue #34; the shipped files fly the paper form, which ignores them). Those files fly them at
+their defaults until the adaptive laws are tuned again (``make tune``, issue #34's fair re-tuning)."""
 TUNED_DIR = SCENARIO_DIR / "tuned"
 
 _NAME = re.compile(r"^(controller\.)?([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)(?::(\d+))?\])?$")

@@ -17,6 +17,7 @@ from .. import adaptation as ad
 from .. import linalg
 from ..blocks import (A_D_P_DIAG, A_GAMMA, A_INFO_SUM, A_N, A_P0, A_PHI, A_W, A_WK_L, A_WK_M, A_WK_WTW, FAULT_ADAPTATION,
                       P_AD, P_V_LO, S_INPUT, S_SAT_PREV, T_DT, T_E, T_MAY_ADAPT, T_V_TILDE)
+from ..kalman import kalman_step
 from . import tick3, tick_R
 
 DIAG = BlockLayout("adaptive law diagnostics", [
@@ -124,7 +125,13 @@ def _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forge
     p_diag = int(params[P_AD + ad.AT_P_DIAG])
     may_adapt = tick[T_MAY_ADAPT] > 0.0
     dt = tick[T_DT]
-    if may_adapt:
+    if may_adapt and mode == ad.ADAPT_KALMAN:
+        # the Kalman form (forget_a, forget_b: a^2 and the process noise's factor over the tick)
+        if kalman_step(params, P_AD, state, params, state, int(params[A_PHI]), tick_R(tick), tick3(tick, T_V_TILDE),
+                       dt, forget_a, forget_b, w_track, w_pred) < 0:
+            faults |= FAULT_ADAPTATION
+        accumulate_information(params, state, w_pred, dt, n)
+    elif may_adapt:
         n_active, active_set = ad.adaptation_step_with_error(
             mode, params, P_AD, state, params, state, int(params[A_PHI]), tick_R(tick), tick3(tick, T_V_TILDE),
             dt, forget_a, forget_b, sigma, trace_max, int(state[s_active]), w_track, w_pred, directional, gain_scale,
@@ -138,6 +145,11 @@ def _estimate(mode, params, state, tick, diag, s_active, d_proj, forget_a, forge
             accumulate_information(params, state, w_pred, dt, n)
         if n_active < 0:
             faults |= FAULT_ADAPTATION
+    elif mode == ad.ADAPT_KALMAN:
+        # the GAMMA slot holds P itself
+        gam = int(params[A_GAMMA])
+        for i in range(n):
+            state[p_diag + i] = state[gam + n * i + i]
     else:
         if not (mode == ad.ADAPT_COMPOSITE
                 and linalg.cholesky_lower(state, int(params[A_GAMMA]), state, int(params[A_WK_L]), n)):

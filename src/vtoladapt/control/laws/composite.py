@@ -42,6 +42,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ...config import Validated, setting
 from ...layout import BlockLayout, Field
@@ -77,14 +78,41 @@ class CompositeSettings(Validated):
         "-", "multiplier of the adaptation gain P0 (the vehicle's prior or a posterior): k P0 adapts every "
         "direction k times faster (in the Kalman view, the measurement noise R divided by k); 1: P0 as given",
         default=1.0, gt=0.0, le=1e6)
+    estimator: str = setting(
+        "-", "'paper': the paper's eq:th_adapt and eq:P_adapt (information form, forgetting toward P0); 'kalman': "
+        "Neural-Fly's Kalman form (vtoladapt.control.kalman: P a covariance, measurement noise R from the "
+        "accelerometer, process noise Q per weight, regularisation toward the prior; forgetting_lambda, sigma, "
+        "forgetting, information_trace_max and adaptation_gain_scale are then unused)", default="paper",
+        choices=("paper", "kalman"))
+    regularisation_lambda: float = setting(
+        "1/s", "Kalman form: rate at which the weights relax toward the prior (Neural-Fly's lambda; their "
+        "correlation time is 1/lambda)", default=0.1, gt=0.0, le=100.0)
+    kalman_time_scale_s: float = setting(
+        "s", "Kalman form: every physics column adapts with this time constant at its reference excitation "
+        "(sets its Q and P0; the default was chosen on tuning draws 150-155 of the envelope campaign)",
+        default=0.3, gt=0.0, le=1e4)
+    accel_noise_density_ug_rtHz: float = setting(
+        "ug/sqrt(Hz)", "Kalman form: the accelerometer's white-noise density the controller believes (the data "
+        "sheet's, ICM-20689 / BMI088 class; never the plant's setting): R", default=175.0, gt=0.0, le=1e6)
+    measurement_noise_scale: float = setting(
+        "-", "Kalman form: multiplier of R (1: the accelerometer's noise only; larger: an unmodelled force the "
+        "estimator should not chase; the default was chosen on tuning draws 150-155 of the envelope campaign)",
+        default=1000.0, gt=0.0, le=1e9)
+    process_noise_scale: float = setting(
+        "-", "Kalman form: multiplier of Q and P0 (every weight's drift and prior variance)", default=1.0,
+        gt=0.0, le=1e9)
 
 
 Settings = CompositeSettings
 """The law interface's name for the settings class."""
 
 TUNABLE = (("forgetting_lambda", 0.05, 20.0, True), ("sigma", 1e-6, 1.0, True),
-           ("adaptation_gain_scale", 1e-2, 1e3, True))
-"""The gains ``vtoladapt tune`` searches (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale)."""
+           ("adaptation_gain_scale", 1e-2, 1e3, True), ("measurement_noise_scale", 1e-2, 1e6, True),
+           ("process_noise_scale", 1e-3, 1e3, True), ("kalman_time_scale_s", 0.05, 20.0, True),
+           ("regularisation_lambda", 1e-3, 5.0, True))
+"""The gains ``vtoladapt tune`` searches (:mod:`vtoladapt.experiments.tuning`): (setting, low, high, log scale).
+The paper form's gains (lambda, sigma, the P0 multiplier) and the Kalman form's (R and Q multipliers, the time
+scale, the regularisation) are all listed; each form ignores the other's."""
 
 
 PARAMS = BlockLayout("composite parameters", [
@@ -96,46 +124,66 @@ PARAMS = BlockLayout("composite parameters", [
     Field("TOWARD_PRIOR", 1, "-", "1: forgetting toward P0; 0: the paper's pure forgetting"),
     Field("ALPHA_TRUST", 1, "rad", "model fully trusted up to this |alpha| (believed stall - margin)"),
     Field("ALPHA_STALL", 1, "rad", "model not trusted from this |alpha| on (believed stall)"),
+    Field("KALMAN", 1, "-", "1: the Kalman form (vtoladapt.control.kalman)"),
+    Field("KF_LAMBDA", 1, "1/s", "Kalman form: regularisation toward the prior"),
 ])
 STATE = BlockLayout("composite state", [
     Field("ACTIVE_SET", 1, "-", "bit mask of the bounds the last projection held"),
-    Field("FORGET", 2, "-", "forgetting weights (a, b) for the current dt"),
+    Field("FORGET", 2, "-", "forgetting weights (a, b) for the current dt (Kalman form: a^2 and the process "
+          "noise's factor (1 - a^2)/(2 lambda))"),
 ])
-P_LAMBDA, P_SIGMA, P_TRACE_MAX, P_DIRECTIONAL, P_GATING, P_TOWARD_PRIOR, P_ALPHA_TRUST, P_ALPHA_STALL = law_offsets(
-    PARAMS, P_LAW, "LAMBDA", "SIGMA", "TRACE_MAX", "DIRECTIONAL", "GATING", "TOWARD_PRIOR", "ALPHA_TRUST",
-    "ALPHA_STALL")
+(P_LAMBDA, P_SIGMA, P_TRACE_MAX, P_DIRECTIONAL, P_GATING, P_TOWARD_PRIOR, P_ALPHA_TRUST, P_ALPHA_STALL, P_KALMAN,
+ P_KF_LAMBDA) = law_offsets(PARAMS, P_LAW, "LAMBDA", "SIGMA", "TRACE_MAX", "DIRECTIONAL", "GATING", "TOWARD_PRIOR",
+                            "ALPHA_TRUST", "ALPHA_STALL", "KALMAN", "KF_LAMBDA")
 S_ACTIVE_SET, S_FORGET = law_offsets(STATE, S_LAW, "ACTIVE_SET", "FORGET")
 (D_PROJ_ACTIVE,) = law_offsets(DIAG, D_LAW, "PROJ_ACTIVE")
 
 
 def fill_params(settings: CompositeSettings, ctx: LawContext) -> np.ndarray:
     """The law's parameter block; ``ValueError`` if sigma makes the explicit sigma step unstable."""
-    check_sigma_step(settings.sigma, ctx, "controller.composite")
+    kalman = settings.estimator == "kalman"
+    if not kalman:
+        # the Kalman form has no sigma step (its regularisation is part of the exact predict step)
+        check_sigma_step(settings.sigma, ctx, "controller.composite")
     env = ctx.vehicle.envelope
     return PARAMS.pack(LAMBDA=settings.forgetting_lambda, SIGMA=settings.sigma,
                        TRACE_MAX=settings.information_trace_max,
                        DIRECTIONAL=float(settings.forgetting == "directional"),
                        GATING=float(settings.validity_gating), TOWARD_PRIOR=float(settings.forgetting != "paper"),
-                       ALPHA_TRUST=np.radians(env.alpha_protect_deg), ALPHA_STALL=np.radians(env.stall_angle_deg))
+                       ALPHA_TRUST=np.radians(env.alpha_protect_deg), ALPHA_STALL=np.radians(env.stall_angle_deg),
+                       KALMAN=float(kalman), KF_LAMBDA=settings.regularisation_lambda)
 
 
 def init_state(params: np.ndarray, state: np.ndarray) -> None:
     """Nothing beyond the shared start (theta-hat = theta_init, P = P0): no bound held yet."""
 
 
-@law_update
-def update(params, state, tick, diag):
-    """Adapt theta-hat and P, then the force command (eq:f_ctrl); see the law interface."""
+@njit(cache=True, inline="always")
+def composite_estimate(params, state, tick, diag) -> tuple:
+    """The composite law's estimator for this tick (the paper's form or the Kalman form): theta-hat and P updated,
+    ``(adapt_active, faults)`` returned. Shared with :mod:`.composite_indi`, whose parameter, state and
+    diagnostics blocks begin with this law's."""
+    kalman = params[P_KALMAN] > 0.0
     if tick[T_NEW_DT] > 0.0:
-        state[S_FORGET], state[S_FORGET + 1] = ad.forgetting_weights(params[P_LAMBDA], tick[T_DT])
+        if kalman:
+            # a^2 = exp(-2 lambda dt) and (1 - a^2)/(2 lambda): the covariance's decay and the process noise's factor
+            state[S_FORGET], state[S_FORGET + 1] = ad.forgetting_weights(2.0 * params[P_KF_LAMBDA], tick[T_DT])
+        else:
+            state[S_FORGET], state[S_FORGET + 1] = ad.forgetting_weights(params[P_LAMBDA], tick[T_DT])
     w_pred = 1.0
     w_track = 1.0
     if params[P_GATING] > 0.0:
         w_pred = model_validity(params, state, params[P_ALPHA_TRUST], params[P_ALPHA_STALL])
         w_track = 0.0 if saturated(state) else w_pred
-    adapt_active, faults = adaptive_estimate(
-        ad.ADAPT_COMPOSITE, params, state, tick, diag, S_ACTIVE_SET, D_PROJ_ACTIVE, state[S_FORGET],
-        state[S_FORGET + 1], params[P_SIGMA], params[P_TRACE_MAX], w_track, w_pred, params[P_DIRECTIONAL] > 0.0, 1.0,
-        params[P_TOWARD_PRIOR])
+    return adaptive_estimate(
+        ad.ADAPT_KALMAN if kalman else ad.ADAPT_COMPOSITE, params, state, tick, diag, S_ACTIVE_SET, D_PROJ_ACTIVE,
+        state[S_FORGET], state[S_FORGET + 1], params[P_SIGMA], params[P_TRACE_MAX], w_track, w_pred,
+        params[P_DIRECTIONAL] > 0.0, 1.0, params[P_TOWARD_PRIOR])
+
+
+@law_update
+def update(params, state, tick, diag):
+    """Adapt theta-hat and P, then the force command (eq:f_ctrl); see the law interface."""
+    adapt_active, faults = composite_estimate(params, state, tick, diag)
     K_v = (params[P_K_V], params[P_K_V + 1], params[P_K_V + 2])
     finish(tick, force_command(tick3(tick, T_V_R_DOT), tick3(tick, T_V_TILDE), K_v), adapt_active, faults)

@@ -181,19 +181,26 @@ def init_state(params: np.ndarray, state: np.ndarray) -> None:
 @njit(cache=True, inline="always")
 def indi_increment(params, state, valid, R, e) -> tuple:
     """The increment (m/s^2 NED) of the module notes: blend toward ``R e`` if ``valid``, else hold and fade."""
+    return increment_at(params, state, valid, R, e, P_INC_LIMIT, S_INCREMENT, S_WEIGHT, S_FADE, S_BLEND_STEP)
+
+
+@njit(cache=True, inline="always")
+def increment_at(params, state, valid, R, e, p_limit, s_increment, s_weight, s_fade, s_blend_step) -> tuple:
+    """:func:`indi_increment` with the limit in ``params[p_limit]`` and the state's increment, weight, fade and
+    blend step at the given slots (a law whose blocks put INDI's elsewhere, :mod:`.composite_indi`)."""
     ok = valid and np.isfinite(e[0]) and np.isfinite(e[1]) and np.isfinite(e[2])
     if ok:
-        target, _ = limit_norm(rows_times(R, e), params[P_INC_LIMIT])
-        w = min(1.0, state[S_WEIGHT] + state[S_BLEND_STEP])
-        state[S_WEIGHT] = w
+        target, _ = limit_norm(rows_times(R, e), params[p_limit])
+        w = min(1.0, state[s_weight] + state[s_blend_step])
+        state[s_weight] = w
         for i in range(3):
-            state[S_INCREMENT + i] = state[S_INCREMENT + i] + w * (target[i] - state[S_INCREMENT + i])
+            state[s_increment + i] = state[s_increment + i] + w * (target[i] - state[s_increment + i])
     else:
-        state[S_WEIGHT] = 0.0
-        fade = state[S_FADE]
+        state[s_weight] = 0.0
+        fade = state[s_fade]
         for i in range(3):
-            state[S_INCREMENT + i] = ad.flush_tiny(state[S_INCREMENT + i] * fade)
-    return (state[S_INCREMENT], state[S_INCREMENT + 1], state[S_INCREMENT + 2])
+            state[s_increment + i] = ad.flush_tiny(state[s_increment + i] * fade)
+    return (state[s_increment], state[s_increment + 1], state[s_increment + 2])
 
 
 @law_update
