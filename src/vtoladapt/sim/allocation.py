@@ -105,8 +105,9 @@ ALLOC_PARAMS = BlockLayout("allocator parameters", [
 AL_SIZE = ALLOC_PARAMS.size
 METHODS = ("bounded_lsq", "px4")
 """``[allocation] method``: the weighted bounded least squares (default) or PX4's sequential desaturation."""
-METHOD_BOUNDED_LSQ = 0
-METHOD_PX4 = 1
+METHOD_BOUNDED_LSQ = METHODS.index("bounded_lsq")
+"""The kernel's code of each method: its position in :data:`METHODS` (the parameters' ``METHOD``)."""
+METHOD_PX4 = METHODS.index("px4")
 PX4_YAW_HEADROOM = 0.15
 """PX4's temporary headroom above the rotors' upper bound while yaw is desaturated (a fraction of their range)."""
 PX4_MIN_DESATURATION_ENTRY = 0.2
