@@ -167,7 +167,7 @@ def test_px4_side_force_is_the_least_squares_fit_of_rotor_drag():
         return ((math.pi / 2) ** 2 - a * a) * (a + k2)
 
     def rotor_drag(a):  # 4 rotors, F = c_rd omega V cos(alpha), per unit mass, per (% m/s)
-        return 4 * 8.06428e-5 * (1500 / 100) * math.cos(a) / 5.0
+        return 4 * 0.000106428 * (1500 / 100) * math.cos(a) / 5.0
 
     lim = math.pi / 4
     cs = quad(lambda a: basis(a) * rotor_drag(a), -lim, lim)[0] / quad(lambda a: basis(a) ** 2, -lim, lim)[0]
@@ -184,3 +184,32 @@ def test_px4_hover_check(px4):
     f = models.body_force(np.zeros(3), 0.0, u_hover_pct, px4)
     assert f[2] == pytest.approx(-thrust_N / px4.mass.mass_kg, rel=5e-4)
     assert 50.0 < u_hover_pct < 55.0  # 5 kg on a 36 m/s^2 lift system hovers at 52 %
+
+
+def test_px4_rotors_are_the_current_sdfs(px4):
+    """The plant's hover rotors are the sdf's (standard_vtol.sdf.jinja at SDF_COMMIT): rotor_n's FLU pose
+    (x, y) becomes FRD (x, -y), ccw is spin -1, and the moment constant is the sdf's 0.06 (not the 0.016 the
+    file had before issue #35)."""
+    from vtoladapt.vehicles.px4_standard_vtol import SDF_COMMIT, px4_standard_vtol_rotors
+
+    r = px4_standard_vtol_rotors()
+    assert len(SDF_COMMIT) == 40 and SDF_COMMIT in (Path(px4.source_path).read_text())
+    assert [list(p) for p in px4.geometry.lift_rotor_positions_m] == r["positions_m"]
+    assert list(px4.geometry.lift_rotor_spin) == r["spin"]
+    assert px4.actuators.yaw_torque_per_thrust_m == r["yaw_torque_per_thrust_m"] == 0.06
+    # by hand: rotor_0 at Gazebo (0.35, -0.35), ccw -> FRD front right, yawing positively about z down
+    assert r["positions_m"][0] == [0.35, 0.35] and r["spin"][0] == -1
+
+
+def test_px4_allocator_belief_is_pxs_airframe_1040(px4):
+    """[effectiveness_settings.px4_ca] is PX4's 1040 airframe's CA_* parameters, by px4_ca_settings() and by
+    hand, and the vehicle's allocator believes them by default."""
+    from vtoladapt.vehicles.px4_standard_vtol import PX4_AIRFRAME_1040, px4_ca_settings
+
+    table = px4.effectiveness_table("px4_ca")
+    derived = px4_ca_settings()
+    for key in ("rotor_px_m", "rotor_py_m", "rotor_km_m"):
+        assert table[key] == derived[key], key
+    assert [list(t) for t in table["surface_torque"]] == derived["surface_torque"]
+    assert table["rotor_py_m"] == [0.245, -0.1875, -0.245, 0.1875] and table["rotor_km_m"] == [0.05, 0.05, -0.05, -0.05]
+    assert PX4_AIRFRAME_1040["commit"][:8] in table["source"] and px4.effectiveness == "px4_ca"

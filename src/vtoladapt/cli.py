@@ -260,10 +260,12 @@ def format_vehicle(name_or_path) -> str:
         return [f"{text:<{width}}  # [{unit}] {doc}" for text, unit, doc in rows]
 
     basis_doc = next(f for f in dataclasses.fields(veh) if f.name == "basis").metadata["doc"]
+    effectiveness_doc = next(f for f in dataclasses.fields(veh) if f.name == "effectiveness").metadata["doc"]
     lines = [f"# vehicle {veh.name}" + (f" (from {veh.source_path})" if veh.source_path else ""),
              "# each value: [unit] and meaning; [-] = dimensionless",
              f"name = {value(veh.name)}", f"description = {value(veh.description)}",
-             f"basis = {value(veh.basis)}  # [-] {basis_doc}"]
+             f"basis = {value(veh.basis)}  # [-] {basis_doc}",
+             f"effectiveness = {value(veh.effectiveness)}  # [-] {effectiveness_doc}"]
     for f in dataclasses.fields(veh):
         sub = getattr(veh, f.name)
         if dataclasses.is_dataclass(sub):
@@ -273,6 +275,9 @@ def format_vehicle(name_or_path) -> str:
     for basis_id, _ in veh.basis_settings:   # a basis's own settings, as the file gave them
         table = veh.basis_table(basis_id)
         lines += ["", f"[basis_settings.{basis_id}]"] + [f"{k} = {value(v)}" for k, v in table.items()]
+    for eid, _ in veh.effectiveness_settings:   # an effectiveness's own settings (PX4's CA_* for px4_ca)
+        table = veh.effectiveness_table(eid)
+        lines += ["", f"[effectiveness_settings.{eid}]"] + [f"{k} = {value(v)}" for k, v in table.items()]
     return "\n".join(lines)
 
 

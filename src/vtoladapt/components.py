@@ -1,5 +1,5 @@
 """Registries of the package's components: one per kind (control laws, force-model bases, wind parts,
-sensor channels), and the one way to add a member from outside the package.
+sensor channels, the allocator's effectiveness), and the one way to add a member from outside the package.
 
 A member of a kind is described by an *info* object (a frozen dataclass of that kind, with at least
 ``id`` and ``module``, the dotted name of the module that implements it). Members come from three
@@ -176,6 +176,7 @@ KIND_HOMES: dict[str, str] = {
     "basis": "vtoladapt.bases",
     "wind": "vtoladapt.wind.registry",
     "sensor": "vtoladapt.sensors.registry",
+    "effectiveness": "vtoladapt.sim.allocation",
 }
 """The module that declares each kind (imported by :func:`registry` on first use of the kind)."""
 

@@ -296,10 +296,20 @@ class Vehicle(Validated):
     basis_settings: Any = setting(
         "-", "[basis_settings.<id>] tables: each basis's own settings (e.g. the prior of its extra columns), read "
         "when that basis flies", default=())
+    effectiveness: str = setting(
+        "-", "the flight computer's effectiveness for the allocator (an id of the 'effectiveness' kind, "
+        "vtoladapt.sim.allocation; a scenario's [allocation] effectiveness may name another): "
+        "'lift_rotors_surfaces' believes this file's geometry, 'px4_ca' PX4's CA_* parameters",
+        default="lift_rotors_surfaces", pattern=r"[A-Za-z_][A-Za-z0-9_]{0,63}")
+    effectiveness_settings: Any = setting(
+        "-", "[effectiveness_settings.<id>] tables: each effectiveness's own settings (e.g. PX4's CA_* airframe "
+        "parameters for 'px4_ca'), read when that effectiveness allocates", default=())
     source_path: str = setting("-", "file the vehicle was read from", default="")
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "basis_settings", _frozen_tables(self.basis_settings, self.source_path))
+        object.__setattr__(self, "effectiveness_settings",
+                           _frozen_tables(self.effectiveness_settings, self.source_path, "effectiveness_settings"))
         super().__post_init__()
 
     @cached_property
@@ -327,6 +337,13 @@ class Vehicle(Validated):
         """The vehicle file's ``[basis_settings.<basis_id>]`` table (a dict), or None if it has none."""
         for key, table in self.basis_settings:
             if key == basis_id:
+                return _thawed(table)
+        return None
+
+    def effectiveness_table(self, effectiveness_id: str) -> dict | None:
+        """The vehicle file's ``[effectiveness_settings.<effectiveness_id>]`` table (a dict), or None."""
+        for key, table in self.effectiveness_settings:
+            if key == effectiveness_id:
                 return _thawed(table)
         return None
 
@@ -368,13 +385,13 @@ def _thawed(value: Any) -> Any:
     return {k: (list(v) if isinstance(v, tuple) else v) for k, v in value}
 
 
-def _frozen_tables(tables: Any, source: str) -> tuple:
-    """``[basis_settings.<id>]`` tables as ``((id, ((key, value), ...)), ...)``; a ConfigError if not tables."""
+def _frozen_tables(tables: Any, source: str, section: str = "basis_settings") -> tuple:
+    """``[<section>.<id>]`` tables as ``((id, ((key, value), ...)), ...)``; a ConfigError if not tables."""
     if isinstance(tables, tuple) and all(isinstance(t, tuple) and len(t) == 2 for t in tables):
         return tables   # already frozen (a copy of a vehicle)
     if not isinstance(tables, Mapping) or not all(isinstance(t, Mapping) for t in tables.values()):
-        raise ConfigError(f"{source or 'Vehicle'}: basis_settings = {tables!r:.60}: must be tables "
-                          "[basis_settings.<basis id>]")
+        raise ConfigError(f"{source or 'Vehicle'}: {section} = {tables!r:.60}: must be tables "
+                          f"[{section}.<id>]")
     return tuple((str(k), _frozen(v)) for k, v in tables.items())
 LIFT_ALLOCATION_COND_MAX = 1e6
 """Largest condition number of the lift rotors' allocation matrix a vehicle may have: the mixer

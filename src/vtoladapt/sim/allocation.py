@@ -45,6 +45,7 @@ and the vehicle file's surfaces); a user's airframe registers its own module wit
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from types import ModuleType
 
@@ -85,11 +86,34 @@ ALLOC_PARAMS = BlockLayout("allocator parameters", [
     Field("TOTAL_UNIT", 1, "N", "total lift at full collective (N_LIFT x T_UNIT)"),
     Field("U_MAX", 1, "-", "throttle limit, fraction"),
     Field("RHO", 1, "kg/m^3", "air density the flight computer assumes (the vehicle file's)"),
+    Field("METHOD", 1, "-", "the solver: METHOD_BOUNDED_LSQ (0) or METHOD_PX4 (1, sequential desaturation)"),
+    Field("AIRMODE", 1, "-", "PX4's MC_AIRMODE for METHOD_PX4: 0 disabled, 1 roll/pitch, 2 roll/pitch/yaw"),
+    Field("PX4_MIX", N_LIFT * N_OUT, "-", "METHOD_PX4: the lift rotors' normalised pseudo-inverse (rotor i's "
+          "thrust fraction per normalised [T, roll, pitch, yaw] setpoint), row-major N_LIFT x N_OUT"),
+    Field("PX4_SCALE", N_OUT, "1/N, 1/(N m)", "METHOD_PX4: normalised setpoint per newton (thrust) or newton "
+          "metre (moments): PX4's control allocation scale"),
+    Field("PX4_ROTOR_MAX", N_LIFT, "N", "METHOD_PX4: each lift rotor's largest thrust (its thrust fraction's unit)"),
+    Field("PX4_SURF_MIX", N_SURFACES * 3, "rad Pa/(N m)", "METHOD_PX4: pseudo-inverse of the surfaces' moment "
+          "per pascal and radian, row-major N_SURFACES x 3 (divided by the tick's dynamic pressure)"),
+    Field("PX4_QBAR_MIN", 1, "Pa", "METHOD_PX4: below this dynamic pressure the surfaces stay neutral (the "
+          "vehicle's hover_blend_airspeed_mps[0])"),
 ])
 """The allocator's kernel parameter array (:func:`allocator_params`)."""
 (AL_B0, AL_BQ, AL_ROW_SCALE, AL_COL_RANGE, AL_LO, AL_HI, AL_PREF_SHARE, AL_EPS, AL_T_UNIT, AL_TOTAL_UNIT,
- AL_U_MAX, AL_RHO) = ALLOC_PARAMS.offsets(*(f.name for f in ALLOC_PARAMS.fields))
+ AL_U_MAX, AL_RHO, AL_METHOD, AL_AIRMODE, AL_PX4_MIX, AL_PX4_SCALE, AL_PX4_ROTOR_MAX, AL_PX4_SURF_MIX,
+ AL_PX4_QBAR_MIN) = ALLOC_PARAMS.offsets(*(f.name for f in ALLOC_PARAMS.fields))
 AL_SIZE = ALLOC_PARAMS.size
+METHODS = ("bounded_lsq", "px4")
+"""``[allocation] method``: the weighted bounded least squares (default) or PX4's sequential desaturation."""
+METHOD_BOUNDED_LSQ = METHODS.index("bounded_lsq")
+"""The kernel's code of each method: its position in :data:`METHODS` (the parameters' ``METHOD``)."""
+METHOD_PX4 = METHODS.index("px4")
+PX4_YAW_HEADROOM = 0.15
+"""PX4's temporary headroom above the rotors' upper bound while yaw is desaturated (a fraction of their range)."""
+PX4_MIN_DESATURATION_ENTRY = 0.2
+"""PX4 does not desaturate through an actuator whose normalised mix entry on the axis is below this."""
+PX4_MIX_ZERO = 1e-3
+"""Normalised mix entries below this are set to zero, as PX4 does after normalising."""
 
 ALLOC_REPORT = BlockLayout("allocation report", [
     Field("ASKED", N_OUT, "N, N m", "asked total lift and body moment",
@@ -327,7 +351,33 @@ def allocate(cmd, meas, p, act_cmd, w, o) -> bool:
         w[o + _A_P + i] = p[AL_PREF_SHARE + i] * T / r
         w[o + _A_LO + i] = p[AL_LO + i] / r
         w[o + _A_HI + i] = p[AL_HI + i] / r
-    eps = p[AL_EPS]
+    if p[AL_METHOD] == METHOD_PX4:
+        _allocate_px4(p, w, o, qbar)
+        saturated = _unmet(w, o, N_OUT) > SATURATION_TOL
+        w[rep + _R_UNMET_LA] = 1.0 if _unmet(w, o, N_OUT - 1) > SATURATION_TOL else 0.0
+    else:
+        saturated = _allocate_bounded_lsq(w, o, p[AL_EPS], rep)
+    for k in range(N_OUT):
+        y = 0.0
+        for i in range(N_ALLOC):
+            j = k * N_ALLOC + i
+            y += (p[AL_B0 + j] + qbar * p[AL_BQ + j]) * w[o + _A_A + i]
+        w[rep + _R_ACHIEVED + k] = y * p[AL_ROW_SCALE + k]
+    t_unit = p[AL_T_UNIT]
+    for i in range(N_LIFT):
+        Ti = min(max(w[o + _A_A + i] * p[AL_COL_RANGE + i], 0.0), t_unit * u_max * u_max)
+        act_cmd[i] = np.sqrt(Ti / t_unit)
+    for j in range(N_SURFACES):
+        act_cmd[ACT_SURFACE + j] = w[o + _A_A + N_LIFT + j] * p[AL_COL_RANGE + N_LIFT + j]
+    ux = cmd[CMD_U_X] if np.isfinite(cmd[CMD_U_X]) else 0.0
+    act_cmd[MOTOR_PUSHER] = min(max(ux, 0.0), u_max)
+    return saturated
+
+
+@njit(cache=True, nogil=True, _nrt=False)
+def _allocate_bounded_lsq(w, o, eps, rep) -> bool:
+    """The weighted bounded least squares in stages (module docstring) on the tick's ``w[o:]``; True when
+    stage 1 could not meet the demand."""
     solve_box_lsq(w, o, eps)
     saturated = _unmet(w, o, N_OUT) > SATURATION_TOL
     w[rep + _R_UNMET_LA] = 0.0
@@ -351,21 +401,107 @@ def allocate(cmd, meas, p, act_cmd, w, o) -> bool:
             w[o + _A_B + yaw * N_ALLOC + i] = w[o + _A_YAW_ROW + i] / HOLD_WEIGHT
         w[o + _A_Y + yaw] = w[o + _A_YAW_ROW + N_ALLOC] / HOLD_WEIGHT
         solve_box_lsq(w, o, eps)
-    for k in range(N_OUT):
-        y = 0.0
-        for i in range(N_ALLOC):
-            j = k * N_ALLOC + i
-            y += (p[AL_B0 + j] + qbar * p[AL_BQ + j]) * w[o + _A_A + i]
-        w[rep + _R_ACHIEVED + k] = y * p[AL_ROW_SCALE + k]
-    t_unit = p[AL_T_UNIT]
-    for i in range(N_LIFT):
-        Ti = min(max(w[o + _A_A + i] * p[AL_COL_RANGE + i], 0.0), t_unit * u_max * u_max)
-        act_cmd[i] = np.sqrt(Ti / t_unit)
-    for j in range(N_SURFACES):
-        act_cmd[ACT_SURFACE + j] = w[o + _A_A + N_LIFT + j] * p[AL_COL_RANGE + N_LIFT + j]
-    ux = cmd[CMD_U_X] if np.isfinite(cmd[CMD_U_X]) else 0.0
-    act_cmd[MOTOR_PUSHER] = min(max(ux, 0.0), u_max)
+        # stage 3 restored yaw's row scaled by 1/H: the achieved outputs are computed from the parameters
     return saturated
+
+
+# --- PX4's sequential desaturation ---------------------------------------------------------------------
+@njit(cache=True, nogil=True, _nrt=False)
+def _px4_gain(p, sp, so, axis, hi_extra) -> float:
+    """PX4's desaturation gain along the mix column ``axis`` for the rotor setpoints ``sp[so:so+N_LIFT]``
+    (thrust fractions, bounds ``[lo, 1 + hi_extra]``): of the gains that bring each saturated rotor back to
+    its bound, the sum of the most negative and the most positive (zero where none): a compromise
+    when rotors need opposite moves. Rotors whose entry is below :data:`PX4_MIN_DESATURATION_ENTRY` are
+    not used (a weak entry would ask a large gain)."""
+    k_min = 0.0
+    k_max = 0.0
+    for i in range(N_LIFT):
+        d = p[AL_PX4_MIX + i * N_OUT + axis]
+        if abs(d) < PX4_MIN_DESATURATION_ENTRY:
+            continue
+        lo = p[AL_LO + i] / p[AL_PX4_ROTOR_MAX + i]
+        hi = 1.0 + hi_extra
+        v = sp[so + i]
+        k = 0.0
+        if v < lo:
+            k = (lo - v) / d
+        elif v > hi:
+            k = (hi - v) / d
+        else:
+            continue
+        k_min = min(k_min, k)
+        k_max = max(k_max, k)
+    return k_min + k_max
+
+
+@njit(cache=True, nogil=True, _nrt=False)
+def _px4_desaturate(p, sp, so, axis, reduce_thrust_only, hi_extra) -> None:
+    """Move the rotor setpoints along the mix column ``axis`` by PX4's gain, then by half the gain that is
+    left (PX4's two steps). ``reduce_thrust_only`` (thrust axis): skip when the first gain would add thrust
+    (our thrust column is positive: lift is along -z, PX4's is negative)."""
+    g = _px4_gain(p, sp, so, axis, hi_extra)
+    if reduce_thrust_only and g > 0.0:
+        return
+    for i in range(N_LIFT):
+        sp[so + i] += g * p[AL_PX4_MIX + i * N_OUT + axis]
+    g = 0.5 * _px4_gain(p, sp, so, axis, hi_extra)
+    for i in range(N_LIFT):
+        sp[so + i] += g * p[AL_PX4_MIX + i * N_OUT + axis]
+
+
+@njit(cache=True, nogil=True, _nrt=False)
+def _allocate_px4(p, w, o, qbar) -> None:
+    """PX4's allocation of the tick (module docstring of :func:`allocator_params`'s ``method="px4"``): the
+    surfaces by the pseudo-inverse of their scheduled moment columns, clipped; the lift rotors by PX4's
+    sequential desaturation of what the surfaces left. Leaves the actuators, normalised as the bounded
+    least squares' (``a_i / COL_RANGE_i``), in ``A``."""
+    T0 = 0
+    YAW = N_OUT - 1
+    # the surfaces (PX4's fixed-wing allocation: pseudo-inverse and clip); neutral at low dynamic pressure
+    for j in range(N_SURFACES):
+        d = 0.0
+        if qbar >= p[AL_PX4_QBAR_MIN] and qbar > 0.0:
+            for k in range(3):
+                d += p[AL_PX4_SURF_MIX + 3 * j + k] * w[o + _A_Y + 1 + k] * p[AL_ROW_SCALE + 1 + k]
+            d /= qbar
+        i = N_LIFT + j
+        d = min(max(d, p[AL_LO + i]), p[AL_HI + i])
+        w[o + _A_A + i] = d / p[AL_COL_RANGE + i]
+    # what the rotors are asked: the demand less what the surfaces make (lift too: their CZ)
+    c = o + _A_R  # the normalised setpoint [T, roll, pitch, yaw], PX4's units
+    for k in range(N_OUT):
+        y = w[o + _A_Y + k]
+        for j in range(N_SURFACES):
+            y -= w[o + _A_B + k * N_ALLOC + N_LIFT + j] * w[o + _A_A + N_LIFT + j]
+        w[c + k] = y * p[AL_ROW_SCALE + k] * p[AL_PX4_SCALE + k]
+    sp = o + _A_TRIAL   # the rotors' thrust fractions
+    airmode = p[AL_AIRMODE]
+    for i in range(N_LIFT):
+        s = 0.0
+        for k in range(N_OUT):
+            if k == YAW and airmode != 2.0:
+                continue
+            s += p[AL_PX4_MIX + i * N_OUT + k] * w[c + k]
+        w[sp + i] = s
+    if airmode == 2.0:      # roll, pitch and yaw airmode: thrust moves either way, then yaw gives way
+        _px4_desaturate(p, w, sp, T0, False, 0.0)
+        _px4_desaturate(p, w, sp, YAW, False, 0.0)
+    else:
+        if airmode == 1.0:  # roll/pitch airmode: thrust may rise to keep roll and pitch
+            _px4_desaturate(p, w, sp, T0, False, 0.0)
+        else:               # airmode off: thrust may only fall, then roll and pitch give way
+            _px4_desaturate(p, w, sp, T0, True, 0.0)
+            _px4_desaturate(p, w, sp, 1, False, 0.0)
+            _px4_desaturate(p, w, sp, 2, False, 0.0)
+        # yaw last, with a temporary headroom above full thrust, then thrust falls back inside
+        for i in range(N_LIFT):
+            w[sp + i] += p[AL_PX4_MIX + i * N_OUT + YAW] * w[c + YAW]
+        _px4_desaturate(p, w, sp, YAW, False, PX4_YAW_HEADROOM)
+        _px4_desaturate(p, w, sp, T0, True, 0.0)
+    for i in range(N_LIFT):
+        lo = p[AL_LO + i] / p[AL_PX4_ROTOR_MAX + i]
+        x = min(max(w[sp + i], lo), 1.0)
+        w[o + _A_A + i] = x * p[AL_PX4_ROTOR_MAX + i] / p[AL_COL_RANGE + i]
 
 
 # --- effectiveness: the component kind ----------------------------------------------------------------
@@ -409,16 +545,79 @@ EFFECTIVENESS: Registry = Registry("effectiveness", _check_effectiveness_module,
     EffectivenessInfo("lift_rotors_surfaces", "four lift rotors (thrust, roll, pitch, yaw), a pass-through "
                       "pusher and the vehicle file's [[surfaces]] scheduled with dynamic pressure",
                       "effectiveness"),
+    EffectivenessInfo("px4_ca", "four lift rotors and the surfaces as PX4's CA_* airframe parameters describe "
+                      "them (the vehicle file's [effectiveness_settings.px4_ca]): a PX4 build's belief",
+                      "effectiveness_px4"),
 ), package=__package__)
 """The airframes the allocator knows (:mod:`vtoladapt.components`: register a user's with
 ``register("effectiveness", EffectivenessInfo(...))``)."""
 
 
-def allocator_params(vehicle, surfaces: bool = True, effectiveness_id: str = "lift_rotors_surfaces") -> np.ndarray:
+def px4_mix(B_rotors_per_fraction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """PX4's normalised pseudo-inverse of the lift rotors' effectiveness (``ControlAllocationPseudoInverse``).
+
+    ``B_rotors_per_fraction`` (N_OUT x N_LIFT): ``[T, tau_x, tau_y, tau_z]`` per unit thrust fraction of each
+    rotor. Returns ``(mix, scale)``: ``mix`` (N_LIFT x N_OUT) with ``mix @ (scale * y) = pinv(B) @ y`` for
+    every ``y`` up to the entries PX4 zeroes (below :data:`PX4_MIX_ZERO`). The scales are PX4's: roll and
+    pitch share one, ``sqrt(|column|^2 / (n / 2))`` over the rotors acting on the axis, the larger of the
+    two; yaw its column's largest entry; thrust the mean magnitude of the thrust column's non-zero entries.
+    They fix the units of :data:`PX4_MIN_DESATURATION_ENTRY` (a normalised quad's entries are about 1).
+    """
+    M = np.linalg.pinv(np.asarray(B_rotors_per_fraction, dtype=float))
+    scale = np.ones(N_OUT)
+    rp = []
+    for k in (1, 2):
+        n = int(np.count_nonzero(np.abs(M[:, k]) > PX4_MIX_ZERO))
+        rp.append(math.sqrt(float(M[:, k] @ M[:, k]) / (n / 2.0)) if n else 1.0)
+    scale[1] = scale[2] = max(rp)
+    yaw_max = float(M[:, 3].max())
+    scale[3] = yaw_max if yaw_max > 0.0 else 1.0
+    thrust = np.abs(M[:, 0])
+    scale[0] = float(thrust[thrust > 0.0].mean()) if np.any(thrust > 0.0) else 1.0
+    mix = M / scale[None, :]
+    mix[np.abs(mix) < PX4_MIX_ZERO] = 0.0
+    return mix, scale
+
+
+def effectiveness_of(vehicle, effectiveness_id: str | None = None) -> Effectiveness:
+    """The :class:`Effectiveness` of ``vehicle`` through ``effectiveness_id`` (default: the vehicle file's
+    ``effectiveness``)."""
+    eid = effectiveness_id or getattr(vehicle, "effectiveness", "") or "lift_rotors_surfaces"
+    eff = EFFECTIVENESS.module(eid).effectiveness(vehicle)
+    if not isinstance(eff, Effectiveness):
+        raise TypeError(f"effectiveness {eid!r}: effectiveness(vehicle) returned {type(eff).__name__}, "
+                        "not an Effectiveness")
+    for name, shape in (("B0", (N_OUT, N_ALLOC)), ("B_per_Pa", (N_OUT, N_ALLOC)), ("lower", (N_ALLOC,)),
+                        ("upper", (N_ALLOC,)), ("preferred_share", (N_ALLOC,))):
+        a = np.asarray(getattr(eff, name), dtype=float)
+        if a.shape != shape or not np.all(np.isfinite(a)):
+            raise ValueError(f"effectiveness {eid!r}: {name} has shape {a.shape} or non-finite entries; "
+                             f"allowed: finite, shape {shape}")
+    return eff
+
+
+def allocator_params(vehicle, surfaces: bool = True, effectiveness_id: str | None = None,
+                     method: str = "bounded_lsq", airmode: int = 0) -> np.ndarray:
     """The allocator's kernel parameters for ``vehicle`` (the flight computer's model), through the
-    effectiveness ``effectiveness_id``. ``surfaces=False`` flies without them: their columns are zeroed
-    and their bounds closed, so the rotors do every moment (the airframe before #24)."""
-    eff = EFFECTIVENESS.module(effectiveness_id).effectiveness(vehicle)
+    effectiveness ``effectiveness_id`` (default: the vehicle file's ``effectiveness``). ``surfaces=False``
+    flies without them: their columns are zeroed and their bounds closed, so the rotors do every moment
+    (the airframe before #24).
+
+    ``method``: ``"bounded_lsq"`` (the weighted bounded least squares of the module docstring) or ``"px4"``,
+    PX4's ``ControlAllocationSequentialDesaturation`` with ``airmode`` its ``MC_AIRMODE`` (0, 1, 2). With
+    ``"px4"`` the surfaces take the moment first, as PX4's fixed-wing allocation does (the pseudo-inverse of
+    their moment columns at the tick's dynamic pressure, clipped to their limits; neutral below the dynamic
+    pressure of the vehicle's ``hover_blend_airspeed_mps[0]``), and the lift rotors take the rest of the lift
+    and moment: PX4's multicopter allocation, the normalised pseudo-inverse (:func:`px4_mix`) desaturated
+    axis by axis -- airmode 0: thrust only down, then roll, then pitch; yaw last, with a temporary
+    :data:`PX4_YAW_HEADROOM` above full thrust, then thrust down again; airmode 1: thrust either way,
+    then yaw as in 0; airmode 2: yaw mixed with the rest, thrust either way, then yaw -- and clipped.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method = {method!r}: unknown; allowed: {', '.join(METHODS)}")
+    if airmode not in (0, 1, 2):
+        raise ValueError(f"airmode = {airmode!r}: allowed: 0, 1, 2 (PX4's MC_AIRMODE)")
+    eff = effectiveness_of(vehicle, effectiveness_id)
     B0 = np.array(eff.B0, dtype=float).reshape(N_OUT, N_ALLOC)
     Bq = np.array(eff.B_per_Pa, dtype=float).reshape(N_OUT, N_ALLOC)
     lo = np.array(eff.lower, dtype=float)
@@ -435,11 +634,21 @@ def allocator_params(vehicle, surfaces: bool = True, effectiveness_id: str = "li
     row_scale = np.abs(B0[:, :N_LIFT]) @ hi[:N_LIFT]
     row_scale[row_scale == 0.0] = 1.0
     W = 1.0 / row_scale
+    rotor_max = hi[:N_LIFT].copy()
+    if np.any(rotor_max <= 0.0):
+        raise ValueError(f"effectiveness: every lift rotor needs an upper bound > 0; got {rotor_max.tolist()}")
+    mix, scale = px4_mix(B0[:, :N_LIFT] * rotor_max[None, :])
+    surf_moment = Bq[1:, N_LIFT:].copy()
+    surf_moment[:, hi[N_LIFT:] <= lo[N_LIFT:]] = 0.0   # a surface the airframe lacks (or switched off)
+    surf_mix = np.linalg.pinv(surf_moment) if np.any(surf_moment) else np.zeros((N_SURFACES, 3))
+    v_min = vehicle.envelope.hover_blend_airspeed_mps[0]
     return ALLOC_PARAMS.pack(
         B0=(W[:, None] * B0 * col_range[None, :]).ravel(), BQ=(W[:, None] * Bq * col_range[None, :]).ravel(),
         ROW_SCALE=1.0 / W, COL_RANGE=col_range, LO=lo, HI=hi, PREF_SHARE=np.array(eff.preferred_share, dtype=float),
         EPS=ALLOCATION_EPS, T_UNIT=eff.t_unit_N, TOTAL_UNIT=N_LIFT * eff.t_unit_N, U_MAX=eff.throttle_max,
-        RHO=vehicle.envelope.air_density_kgpm3)
+        RHO=vehicle.envelope.air_density_kgpm3, METHOD=float(METHODS.index(method)), AIRMODE=float(airmode),
+        PX4_MIX=mix.ravel(), PX4_SCALE=scale, PX4_ROTOR_MAX=rotor_max, PX4_SURF_MIX=surf_mix.ravel(),
+        PX4_QBAR_MIN=0.5 * vehicle.envelope.air_density_kgpm3 * v_min * v_min)
 
 
 def allocation_problem(p: np.ndarray, asked, qbar_Pa: float) -> dict:

@@ -150,13 +150,14 @@ def prepare(scenario: Scenario) -> PreparedRun:
             raise ConfigError(f"{where}: [faults][{i}] {f.kind}: surface = {f.surface}: {vehicle.name} has "
                               f"{n} control surfaces; allowed: {allowed}")
     fault_schedule, fault_state = faults_to_kernel(scenario.faults, scenario.dt_control_s)
+    mixer = allocation_params(scenario, ctrl_vehicle, where)
     # the plant's truth in the controller's basis, for the logged Lyapunov function only (empty where the
     # basis has none: the function's parameter term is then left out)
     theta_true = truth_of(basis, plant.true_coefficients(vehicle))
     return PreparedRun(
         scenario=scenario, vehicle=vehicle, x0=x0, fault_schedule=fault_schedule, fault_state=fault_state,
         envelope=scenario.envelope.to_kernel(),
-        plant_params=plant.to_kernel(vehicle), mixer_params=mixer_params(ctrl_vehicle, scenario.allocation.surfaces),
+        plant_params=plant.to_kernel(vehicle), mixer_params=mixer,
         controller_params=ctrl_params, controller_state=ctrl_state,
         controller_fns=function_table(controller_functions(ctrl_params)),
         wind_parts=wind_parts, wind_params=wind_parts.params, wind_state=wind_state,
@@ -165,6 +166,20 @@ def prepare(scenario: Scenario) -> PreparedRun:
         gamma=scenario.controller.gamma, rng=rng, prior_description=prior_description,
         plant_coefficients=plant.true_coefficients(vehicle), log_layout=log_layout(diagnostics_columns(ctrl_params)),
         basis_id=basis.id)
+
+
+def allocation_params(scenario: Scenario, vehicle: Vehicle, where: str) -> np.ndarray:
+    """The flight computer's allocator parameters: the scenario's ``[allocation]`` (its effectiveness, else
+    the vehicle file's) on the controller's ``vehicle``; an unknown effectiveness is the file's mistake."""
+    from .allocation import EFFECTIVENESS
+
+    al = scenario.allocation
+    eid = al.effectiveness or vehicle.effectiveness
+    if eid not in EFFECTIVENESS:
+        field = "[allocation] effectiveness" if al.effectiveness else f"{vehicle.source_path or vehicle.name}: effectiveness"
+        raise ConfigError(f"{where}: {field} = {eid!r}: unknown; allowed: "
+                          + ", ".join(repr(i) for i in EFFECTIVENESS.ids()))
+    return mixer_params(vehicle, al.surfaces, eid, al.method, al.airmode)
 
 
 def controller_basis(scenario: Scenario, vehicle: Vehicle):

@@ -23,10 +23,13 @@ MX_U_MAX = AL_U_MAX
 """Where the throttle limit lies in the mixer's parameters (the actuator faults read it)."""
 
 
-def mixer_params(vehicle: Vehicle, surfaces: bool = True) -> np.ndarray:
+def mixer_params(vehicle: Vehicle, surfaces: bool = True, effectiveness: str | None = None,
+                 method: str = "bounded_lsq", airmode: int = 0) -> np.ndarray:
     """Kernel parameters of the mixer (the allocator's, :func:`vtoladapt.sim.allocation.allocator_params`)
-    from the vehicle's nominal geometry, Table I and surfaces table; ``surfaces=False``: rotors only."""
-    return allocator_params(vehicle, surfaces=surfaces)
+    from the vehicle's nominal model through the effectiveness ``effectiveness`` (default: the vehicle
+    file's); ``surfaces=False``: rotors only; ``method``/``airmode``: the solver (``[allocation]``)."""
+    return allocator_params(vehicle, surfaces=surfaces, effectiveness_id=effectiveness, method=method,
+                            airmode=airmode)
 
 
 @njit(cache=True, _nrt=False)

@@ -151,13 +151,19 @@ class AllocationConfig(Validated):
 
     surfaces: bool = setting("-", "the allocator uses the vehicle's control surfaces (false: they stay neutral "
                              "and the lift rotors make every moment, the airframe before issue #24)", default=True)
-    effectiveness: str = setting("-", "the airframe's effectiveness (a member of the 'effectiveness' kind)",
-                                 default="lift_rotors_surfaces")
+    effectiveness: str = setting("-", "the airframe's effectiveness the allocator believes (a member of the "
+                                 "'effectiveness' kind); empty: the vehicle file's effectiveness", default="")
+    method: str = setting("-", "the solver: 'bounded_lsq' (weighted bounded least squares, redistributes what "
+                          "one actuator cannot do) or 'px4' (PX4's sequential desaturation: the surfaces by "
+                          "pseudo-inverse, the lift rotors desaturated thrust, roll, pitch first and yaw last)",
+                          default="bounded_lsq", choices=("bounded_lsq", "px4"))
+    airmode: int = setting("-", "PX4's MC_AIRMODE, for method = 'px4' only: 0 disabled (thrust only falls), "
+                           "1 roll/pitch (thrust may rise to keep them), 2 roll/pitch/yaw", default=0, ge=0, le=2)
 
     def _check(self, source: str) -> None:
         from .allocation import EFFECTIVENESS  # looked up at use: a user's airframe may be registered late
 
-        if self.effectiveness not in EFFECTIVENESS:
+        if self.effectiveness and self.effectiveness not in EFFECTIVENESS:
             raise ConfigError(f"{source}: [allocation] effectiveness = {self.effectiveness!r}: unknown; allowed: "
                               + ", ".join(repr(i) for i in EFFECTIVENESS.ids()))
 

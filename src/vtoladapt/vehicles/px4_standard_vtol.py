@@ -9,46 +9,104 @@ to rotor speed linearly, ``omega = omega_max u / 100``, as the paper does for it
 Its control surfaces (:func:`px4_standard_vtol_surfaces`) are the model's three actuated joints, each
 driving the lift-drag plugin named after it through ``control_joint_rad_to_cl``: the lift coefficient of
 that plugin's panel changes by that much per radian of the joint. Read from PX4-SITL_gazebo-classic's
-``models/standard_vtol/standard_vtol.sdf`` (commit 7ee67ba):
+``models/standard_vtol/standard_vtol.sdf.jinja`` at commit 807b67bb3007113ea52fd36ec2cefae4a5fa3f85 (the
+repository's newest, 2025; :data:`SDF_COMMIT`; the file last changed in 70683dc, March 2025):
 
-* ``left_elevon_joint``, ``right_elevon_joint``: -0.5 /rad on the wing half (``left_wing``,
-  ``right_wing``, centre of pressure at (-0.05, +-0.3, 0.05) m, Gazebo's x forward, y left, z up);
-* ``elevator_joint``: -4.0 /rad on the ``elevator`` panel of 0.01 m^2 at (-0.5, 0, 0) m;
+* ``left_elevon_joint``, ``right_elevon_joint``: -1.0 /rad on the wing half (``left_wing_lift``,
+  ``right_wing_lift``, 0.50 m^2 each, centre of pressure at (-0.05, +-0.3, 0.05) m, Gazebo's x forward,
+  y left, z up);
+* ``elevator_joint``: -12.0 /rad on the ``elevator`` panel of 0.01 m^2 at (-0.5, 0, 0) m (the panel's own
+  ``a0`` of -0.2 rad, a constant nose-up trim moment, is not modelled: our surfaces are increments);
 * joint limits +-0.53 rad (the file's comment: -30/+30 deg);
 * the ``rudder`` plugin has no control joint (its joint is limited to +-0.01 rad and not driven by the
   MAVLink interface's channels): the model has no rudder, and neither do we.
 
-That file's wing halves are 0.12 m^2 on a 1.5 kg airframe, where our vehicle file's force model is of
-the 5 kg, 0.50 m^2-per-half version; the per-radian lift changes are the same in both, so each elevon
-acts on half of our wing area. In our frame (FRD) a panel's lift change is a body-z force
-``dF_z = -q A dCL``; its moment ``r x F`` at the centre of pressure gives the derivatives, divided by
-``q S`` (forces), ``q S b`` (roll, yaw) or ``q S c`` (pitch), ``c = S / b``.
+(The 2016 file, commit 7ee67ba, had -0.5 and -4.0 on 0.12 m^2 wing halves of a 1.5 kg airframe; the
+numbers before issue #35 took those with the 5 kg model's wing and a hover-rotor moment constant of 0.016,
+which neither file says: both say 0.06.)
+
+The hover rotors (:func:`px4_standard_vtol_rotors`): ``rotor_0`` .. ``rotor_3`` at (+-0.35, +-0.35) m,
+``turningDirection`` ccw, ccw, cw, cw, ``momentConstant`` 0.06 m, ``rotorDragCoefficient`` 0.000106428.
+In our frame (FRD) a position ``(x, y)`` of Gazebo's FLU is ``(x, -y)``; a ccw rotor (spin -1 in the vehicle
+file) yaws the airframe positively about body z (down) with its drag torque.
+
+What PX4 itself believes about the rotors and surfaces (the flight computer's allocation) is not the
+sdf: it is the airframe file's ``CA_*`` parameters (:data:`PX4_AIRFRAME_1040`,
+:func:`px4_ca_settings`), which place the rotors at (+-0.1515, +-0.245 / +-0.1875) m with
+``CA_ROTORn_KM`` = +-0.05 -- truth and belief differ, as on a real PX4 build.
+
+In our frame (FRD) a panel's lift change is a body-z force ``dF_z = -q A dCL``; its moment ``r x F`` at the
+centre of pressure gives the derivatives, divided by ``q S`` (forces), ``q S b`` (roll, yaw) or ``q S c``
+(pitch), ``c = S / b``.
 """
 from __future__ import annotations
 
 import numpy as np
 
-#: PX4 Gazebo standard_vtol parameters (PX4-SITL_gazebo ``standard_vtol.sdf``).
+SDF_COMMIT = "807b67bb3007113ea52fd36ec2cefae4a5fa3f85"
+"""PX4-SITL_gazebo-classic commit whose ``models/standard_vtol/standard_vtol.sdf.jinja`` the numbers are from."""
+
+#: PX4 Gazebo standard_vtol parameters (PX4-SITL_gazebo-classic ``standard_vtol.sdf.jinja`` at :data:`SDF_COMMIT`).
 PX4_STANDARD_VTOL = {
     "mass_kg": 5.0,
     "lift_motor_constant": 2e-5,          # N/(rad/s)^2
     "lift_omega_max_radps": 1500.0,
+    "lift_moment_constant_m": 0.06,       # momentConstant of rotor_0 .. rotor_3
+    # rotor_0 .. rotor_3 link poses (Gazebo FLU, m) and turningDirection
+    "lift_rotor_positions_flu_m": ((0.35, -0.35), (-0.35, 0.35), (0.35, 0.35), (-0.35, -0.35)),
+    "lift_turning_direction": ("ccw", "ccw", "cw", "cw"),
     "pusher_motor_constant": 8.54858e-6,  # N/(rad/s)^2
     "pusher_omega_max_radps": 3500.0,
-    "rotor_drag_coefficient": 8.06428e-5, # N/((rad/s)(m/s)) per rotor
+    "rotor_drag_coefficient": 0.000106428,  # N/((rad/s)(m/s)) per rotor
     "cla_per_rad": 4.7528,
     "a0_rad": 0.05984,
     "cda_per_rad": 0.6417112299,
     "alpha_stall_rad": 0.33914,
     # control surfaces (the same file): control_joint_rad_to_cl, panel area (None: half of our wing),
     # centre of pressure in Gazebo's x forward, y left, z up
-    "elevon_rad_to_cl": -0.5,
+    "elevon_rad_to_cl": -1.0,
     "elevon_cp_m": (-0.05, 0.3, 0.05),
-    "elevator_rad_to_cl": -4.0,
+    "elevator_rad_to_cl": -12.0,
     "elevator_area_m2": 0.01,
     "elevator_cp_m": (-0.5, 0.0, 0.0),
     "surface_limit_rad": 0.53,
 }
+
+
+PX4_AIRFRAME_1040 = {
+    "file": "ROMFS/px4fmu_common/init.d-posix/airframes/1040_gazebo-classic_standard_vtol",
+    "commit": "041e5069cbe2b2978ce334aab9f33ebff0f5019d",
+    "CA_ROTOR0_PX": 0.1515, "CA_ROTOR0_PY": 0.245, "CA_ROTOR0_KM": 0.05,
+    "CA_ROTOR1_PX": -0.1515, "CA_ROTOR1_PY": -0.1875, "CA_ROTOR1_KM": 0.05,
+    "CA_ROTOR2_PX": 0.1515, "CA_ROTOR2_PY": -0.245, "CA_ROTOR2_KM": -0.05,
+    "CA_ROTOR3_PX": -0.1515, "CA_ROTOR3_PY": 0.1875, "CA_ROTOR3_KM": -0.05,
+    # CA_SV_CS0_TYPE 1 (left aileron), CS1_TYPE 2 (right aileron), CS2_TYPE 3 (elevator); unset torques are 0
+    "CA_SV_CS0_TRQ_R": -0.5, "CA_SV_CS1_TRQ_R": 0.5, "CA_SV_CS2_TRQ_P": 1.0,
+    "MC_AIRMODE": 1,
+}
+"""PX4's airframe parameters for this model (PX4-Autopilot's ``1040_gazebo-classic_standard_vtol`` at the
+commit given): the flight computer's belief about its rotors and surfaces. PX4's rotor ``n`` is the sdf's
+``rotor_n`` (``motorNumber``), its surfaces ``CS0..2`` our ``elevon_left``, ``elevon_right``, ``elevator``."""
+
+
+def px4_standard_vtol_rotors(p: dict | None = None) -> dict:
+    """The hover rotors in the vehicle file's terms: ``positions_m`` (FRD ``[x, y]``), ``spin`` (+1 cw,
+    -1 ccw seen from above) and ``yaw_torque_per_thrust_m`` (the sdf's ``momentConstant``)."""
+    p = dict(PX4_STANDARD_VTOL if p is None else p)
+    positions = [[float(x), float(-y)] for x, y in p["lift_rotor_positions_flu_m"]]
+    spin = [-1 if d == "ccw" else 1 for d in p["lift_turning_direction"]]
+    return {"positions_m": positions, "spin": spin, "yaw_torque_per_thrust_m": p["lift_moment_constant_m"]}
+
+
+def px4_ca_settings(a: dict | None = None) -> dict:
+    """The vehicle file's ``[effectiveness_settings.px4_ca]`` table from PX4's airframe parameters."""
+    a = dict(PX4_AIRFRAME_1040 if a is None else a)
+    return {
+        "rotor_px_m": [a[f"CA_ROTOR{i}_PX"] for i in range(4)],
+        "rotor_py_m": [a[f"CA_ROTOR{i}_PY"] for i in range(4)],
+        "rotor_km_m": [a[f"CA_ROTOR{i}_KM"] for i in range(4)],
+        "surface_torque": [[a.get(f"CA_SV_CS{j}_TRQ_{ax}", 0.0) for ax in "RPY"] for j in range(3)],
+    }
 
 
 def px4_standard_vtol_force_model(p: dict | None = None) -> dict[str, float]:
