@@ -91,7 +91,8 @@ def _add_vehicle(sub) -> None:
     show.set_defaults(handler=_cmd_vehicle_show)
     jsb = vsub.add_parser("jsbsim", help="write a vehicle as a JSBSim aircraft (XML, engines, actuator map)")
     jsb.add_argument("name", help="shipped name or path to a vehicle TOML")
-    jsb.add_argument("--out", required=True, type=output_path, help="folder to write (JSBSim's root: aircraft/NAME/NAME.xml, engine/)")
+    jsb.add_argument("--out", required=True, type=output_path,
+                     help="folder to write (JSBSim's root: aircraft/NAME/NAME.xml, engine/)")
     add_force_argument(jsb)
     jsb.set_defaults(handler=_cmd_vehicle_jsbsim)
 

@@ -9,8 +9,9 @@
     DIR/engine/NAME_pusher_motor.xml
     DIR/engine/direct.xml               JSBSim's direct thruster
 
-Every number comes from the plant's own parameter array (:meth:`PlantConfig.to_kernel`), so the XML is
-the native plant's truth for that scenario (a drawn plant writes its draw), expressed in JSBSim's terms:
+Every number comes from the plant's own parameter array
+(:meth:`vtoladapt.sim.plant.PlantConfig.to_kernel`), so the XML is the native plant's truth for that
+scenario (a drawn plant writes its draw), expressed in JSBSim's terms:
 
 * **mass and inertia** at a centre of gravity placed at the structural origin; JSBSim's structural frame
   is x aft, y right, z up, so a body FRD point ``(x, y, z)`` sits at ``(-x, y, -z)``.
@@ -34,8 +35,9 @@ the native plant's truth for that scenario (a drawn plant writes its draw), expr
   C_Y(beta), the rotors' side force, the surfaces and the rate damping, each the formula of
   :func:`vtoladapt.sim.plant.true_forces_moments` written as a JSBSim ``<function>``, not a table.
 * **the planet**: a sphere of Earth's mean radius that does not rotate, with ``GM = g (R + h0)^2`` so
-  that gravity at a run's origin (:data:`ORIGIN_ALTITUDE_M` up) is the native plant's ``g``: the native plant's world (flat, uniform gravity,
-  inertial) as JSBSim can express it. JSBSim still integrates over a curved surface.
+  that gravity at a run's origin (:data:`ORIGIN_ALTITUDE_M` up) is the native plant's ``g``: the native
+  plant's world (flat, uniform gravity, inertial) as JSBSim can express it. JSBSim still integrates over
+  a curved surface.
 
 The actuator map (:data:`ACTUATOR_PROPERTIES`) names, for each column of
 :data:`vtoladapt.layout.ACTUATORS`, the fcs/ property its command is written to; unused surface slots
@@ -174,7 +176,8 @@ def aircraft_documents(vehicle: Vehicle, plant: Optional[P.PlantConfig] = None, 
     # Written in JSBSim's own units: its KG*M2 conversion constant has five digits (a 1e-4 error)
     k = 1.0 / (SLUG_KG * FT_M**2)
     root.append(_el("mass_balance",
-                    _el("ixx", text=_num(J[0, 0] * k), unit="SLUG*FT2"), _el("iyy", text=_num(J[1, 1] * k), unit="SLUG*FT2"),
+                    _el("ixx", text=_num(J[0, 0] * k), unit="SLUG*FT2"),
+                    _el("iyy", text=_num(J[1, 1] * k), unit="SLUG*FT2"),
                     _el("izz", text=_num(J[2, 2] * k), unit="SLUG*FT2"), _el("ixy", text="0.0", unit="SLUG*FT2"),
                     _el("ixz", text=_num(-J[0, 2] * k), unit="SLUG*FT2"), _el("iyz", text="0.0", unit="SLUG*FT2"),
                     _el("emptywt", text=_num(p[P.P_MASS] / LB_KG), unit="LBS"),

@@ -24,9 +24,9 @@ Frames: JSBSim's local frame is NED, as ours; its body frame is FRD, as ours. Po
 latitude, longitude and altitude on the aircraft's planet (a sphere, :mod:`vtoladapt.sim.jsbsim_aircraft`)
 turned into north and east arc lengths and down from the run's origin (:func:`ned_from_geodetic`); the
 attitude is JSBSim's Euler angles (yaw, pitch, roll about its local NED) as ``q_WB``. The origin sits
-:data:`ORIGIN_ALTITUDE_M` above the planet's surface, with the terrain :data:`TERRAIN_BELOW_ORIGIN_M` below the
-origin, and JSBSim's standard atmosphere is warmed or cooled (``atmosphere/delta-T``) until its density at the
-start is the plant's.
+:data:`vtoladapt.sim.jsbsim_aircraft.ORIGIN_ALTITUDE_M` above the planet's surface, with the terrain
+:data:`TERRAIN_BELOW_ORIGIN_M` below the origin, and JSBSim's standard atmosphere is warmed or cooled
+(``atmosphere/delta-T``) until its density at the start is the plant's.
 
 This loop is Python around compiled kernels and JSBSim: the native plant stays the default and the fast path.
 """
