@@ -3,22 +3,22 @@ JSBSim integrating the aircraft.
 
 Per controller tick, in the native loop's order:
 
-0-2. compiled (:func:`sense_wind`): the envelope check on the state read from JSBSim, the tick's random
-     draws (wind parts, then sensor channels, as the native tick draws them) and the wind at the vehicle;
-     the wind goes to JSBSim's ``atmosphere/wind-{north,east,down}-fps`` properties;
-3.   the truth the sensors sample: the incident velocity ``v_i_B = R_WB^T (v_W - v_wind_W)`` from JSBSim's
-     state and this tick's wind (what JSBSim's own flow will be in its next step), and the specific force
-     from JSBSim's total non-gravitational force over the true mass. JSBSim integrates first and then
-     evaluates the forces at the new state, so that force is the one at the tick's state and actuator
-     outputs, but under the previous tick's wind (the native plant's uses this tick's: the two differ only
-     while the wind changes);
-3-4. compiled (:func:`measure_and_control`): sensors, sensor faults, and the compiled controller step
-     (:func:`vtoladapt.control.step.controller_step`, the one the native loop runs);
-5-6. compiled (:func:`allocate_and_log`): the allocator, the actuator faults, the log row (the native
-     layout);
-7.   the actuator commands go to the fcs/ properties of the actuator map (a lost surface's share and a slow
-     servo's lag and rate limit to their properties) and JSBSim runs ``plant_substeps`` steps of
-     ``dt / plant_substeps``.
+* steps 0-2, compiled (:func:`sense_wind`): the envelope check on the state read from JSBSim, the tick's
+  random draws (wind parts, then sensor channels, as the native tick draws them) and the wind at the
+  vehicle; the wind goes to JSBSim's ``atmosphere/wind-{north,east,down}-fps`` properties;
+* step 3, the truth the sensors sample: the incident velocity ``v_i_B = R_WB^T (v_W - v_wind_W)`` from
+  JSBSim's state and this tick's wind (what JSBSim's own flow will be in its next step), and the specific
+  force from JSBSim's total non-gravitational force over the true mass. JSBSim integrates first and then
+  evaluates the forces at the new state, so that force is the one at the tick's state and actuator
+  outputs, but under the previous tick's wind (the native plant's uses this tick's: the two differ only
+  while the wind changes);
+* steps 3-4, compiled (:func:`measure_and_control`): sensors, sensor faults, and the compiled controller
+  step (:func:`vtoladapt.control.step.controller_step`, the one the native loop runs);
+* steps 5-6, compiled (:func:`allocate_and_log`): the allocator, the actuator faults, the log row (the
+  native layout);
+* step 7: the actuator commands go to the fcs/ properties of the actuator map (a lost surface's share and
+  a slow servo's lag and rate limit to their properties) and JSBSim runs ``plant_substeps`` steps of
+  ``dt / plant_substeps``.
 
 Frames: JSBSim's local frame is NED, as ours; its body frame is FRD, as ours. Position is JSBSim's
 latitude, longitude and altitude on the aircraft's planet (a sphere, :mod:`vtoladapt.sim.jsbsim_aircraft`)
