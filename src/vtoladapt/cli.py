@@ -89,6 +89,12 @@ def _add_vehicle(sub) -> None:
     show = vsub.add_parser("show", help="a vehicle's validated parameters with units (TOML layout)")
     show.add_argument("name", help="shipped name or path to a vehicle TOML")
     show.set_defaults(handler=_cmd_vehicle_show)
+    jsb = vsub.add_parser("jsbsim", help="write a vehicle as a JSBSim aircraft (XML, engines, actuator map)")
+    jsb.add_argument("name", help="shipped name or path to a vehicle TOML")
+    jsb.add_argument("--out", required=True, type=output_path,
+                     help="folder to write (JSBSim's root: aircraft/NAME/NAME.xml, engine/)")
+    add_force_argument(jsb)
+    jsb.set_defaults(handler=_cmd_vehicle_jsbsim)
 
 
 def _add_listings(sub) -> None:
@@ -232,6 +238,20 @@ def _cmd_vehicle_show(args) -> int:
     """Print a vehicle's validated parameters in its file's TOML layout, each with unit and meaning."""
     print(format_vehicle(args.name))
     return 0
+
+
+def _cmd_vehicle_jsbsim(args) -> int:
+    """Write the vehicle's JSBSim aircraft (the plant's default truth) into ``--out``."""
+    from .outputs import write_text
+    from .sim.jsbsim_aircraft import write_aircraft
+    from .vehicle import load_vehicle
+
+    veh = load_vehicle(args.name)
+    target = OutputDir(args.out, "vehicle jsbsim", force=args.force)
+    with target:
+        ac = write_aircraft(veh, target.path, write_text=write_text)
+    print(f"wrote {ac.xml_path} and its engines; open it with JSBSim --root={target.path} --aircraft={ac.name}")
+    return ExitCode.OK
 
 
 def format_vehicle(name_or_path) -> str:

@@ -323,6 +323,11 @@ class RunBatch:
 
     def __init__(self, cfg: HoldEnvConfig, n: int, workers: int = 1):
         base: Scenario = cfg.scenario
+        if base.plant.engine != "native":
+            from ..config import ConfigError
+
+            raise ConfigError(f"{base.source_path or base.name}: [plant] engine = {base.plant.engine!r}: the "
+                              "Gymnasium environment steps the compiled native plant; allowed: 'native'")
         self.cfg = cfg
         self.n = n
         self.dt = base.dt_control_s

@@ -20,7 +20,7 @@ from ..frames import quat_from_euler
 from ..layout import BlockLayout
 from ..parts import Assembly
 from .mixer import mixer_params
-from .plant import hover_trim_motor
+from .plant import PlantConfig, hover_trim_motor
 from .results import SimulationResult
 from .scenario import Scenario
 from ..vehicle import Vehicle
@@ -76,6 +76,11 @@ class PreparedRun:
     plant_coefficients: dict
     log_layout: BlockLayout
     basis_id: str = "paper"
+    plant_config: Optional[PlantConfig] = None
+    """The run's resolved plant config (draws made concrete): what the JSBSim engine writes its aircraft from."""
+    jsbsim_plant: Optional[object] = None
+    """The run's :class:`vtoladapt.sim.jsbsim_engine.JSBSimPlant`, made at its first chunk (``[plant] engine =
+    "jsbsim"``); None on the native engine."""
 
     def scratch(self) -> tuple:
         """Fresh scratch of a tick: ``(truth, meas, cmd, diag, motor_cmd, work)``, zeros (the loop's
@@ -111,6 +116,10 @@ def prepare(scenario: Scenario) -> PreparedRun:
     from ..control.step import controller_functions, function_table
 
     vehicle = scenario.load_vehicle()
+    if scenario.plant.engine == "jsbsim":
+        from .jsbsim_engine import require_jsbsim
+
+        require_jsbsim(scenario.source_path or f"scenario {scenario.name!r}")
     try:
         plant = scenario.plant.resolved(vehicle, scenario.seed)
     except ConfigError as exc:  # a per-surface list of another length than the vehicle's surfaces
@@ -165,7 +174,7 @@ def prepare(scenario: Scenario) -> PreparedRun:
         reference_table=reference, theta_true=np.zeros(0) if theta_true is None else theta_true,
         gamma=scenario.controller.gamma, rng=rng, prior_description=prior_description,
         plant_coefficients=plant.true_coefficients(vehicle), log_layout=log_layout(diagnostics_columns(ctrl_params)),
-        basis_id=basis.id)
+        basis_id=basis.id, plant_config=plant)
 
 
 def allocation_params(scenario: Scenario, vehicle: Vehicle, where: str) -> np.ndarray:
@@ -230,6 +239,12 @@ def run_chunk(run: PreparedRun, x: np.ndarray, k0: int, k1: int, log: np.ndarray
 
     check_interrupt()
     sc = run.scenario
+    if sc.plant.engine == "jsbsim":
+        from .jsbsim_engine import JSBSimPlant, run_chunk_jsbsim
+
+        if run.jsbsim_plant is None:
+            run.jsbsim_plant = JSBSimPlant(run.vehicle, run.plant_config, x, sc.dt_control_s / sc.plant_substeps)
+        return run_chunk_jsbsim(run, run.jsbsim_plant, x, k0, k1, log)
     done, reason = run_closed_loop(
         x, run.scratch(), run.plant_params, run.mixer_params, run.wind(), run.sensors(),
         (run.fault_schedule, run.fault_state), run.envelope,
@@ -285,7 +300,7 @@ def run_metadata(run: PreparedRun, x: np.ndarray, n_done: int, reason: int, k_la
                                                    run.reference_table[min(n_done, k_last)])
     return {
         "scenario": scenario.name, "scenario_path": scenario.source_path, "vehicle": run.vehicle.name,
-        "controller": scenario.controller.kind, "seed": scenario.seed,
+        "controller": scenario.controller.kind, "seed": scenario.seed, "plant_engine": scenario.plant.engine,
         "basis": run.basis_id, "theta_names": list(basis_names(run.controller_params)),
         "dt_control_s": scenario.dt_control_s, "plant_substeps": scenario.plant_substeps,
         "duration_s": scenario.duration_s, "wall_time_s": wall,

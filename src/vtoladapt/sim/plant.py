@@ -88,6 +88,10 @@ class PlantConfig(Validated):
 
     config_section = "plant"
 
+    engine: str = setting(
+        "-", "what integrates the aircraft: 'native' (this module, compiled RK4; the fast path) or 'jsbsim' "
+        "(JSBSim flies the same aircraft written as JSBSim XML, vtoladapt.sim.jsbsim_engine; needs the optional "
+        "dependency jsbsim)", default="native", choices=("native", "jsbsim"))
     coefficients: PlantCoefficients = setting("-", "true coefficients (default: vehicle's Table I)",
                                               default=PlantCoefficients())
     coefficients_from: str = setting(
