@@ -77,6 +77,23 @@ def test_rerun_removes_the_earlier_runs_outputs_only(tmp_path):
     assert sorted(read_manifest(tmp_path)["files"]) == ["runs/pid.parquet"]
 
 
+def test_a_rerun_keeps_what_it_drew_again_byte_for_byte(tmp_path):
+    """A figure drawn again from the same seed (written by Matplotlib, not through this module) is the
+    earlier run's file byte for byte: the rerun's end must keep it, not delete it as the earlier
+    run's (``vtoladapt fit --force`` into its own folder lost every figure, exit 0)."""
+    import time
+
+    def run():
+        with OutputDir(tmp_path, "fit", force=True):
+            (tmp_path / "corner.png").write_bytes(b"the same pixels")   # a plain write, as savefig's
+            time.sleep(0.01)                                             # a later time stamp
+    run()
+    assert sorted(read_manifest(tmp_path)["files"]) == ["corner.png"]
+    run()
+    assert _files(tmp_path) == [MANIFEST_NAME, "corner.png"]
+    assert sorted(read_manifest(tmp_path)["files"]) == ["corner.png"]
+
+
 def test_an_output_changed_by_the_user_is_not_deleted(tmp_path):
     with OutputDir(tmp_path, "run"):
         write_text(tmp_path / "report.md", "generated")

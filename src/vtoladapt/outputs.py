@@ -357,6 +357,7 @@ class OutputDir:
         self._root = Path(os.path.abspath(self.path))
         self._files: dict[str, dict] = {}
         self._before: dict[str, list[int]] = {}
+        self._on_entry: dict[str, list[int]] = {}
         self._created: Optional[Path] = None
         self._entered = False
         self._claimed = False
@@ -469,21 +470,25 @@ class OutputDir:
         self._entered = True
         self._created = created
         stale = {rel for rel, _ in self._stale}  # the earlier run's, deleted at the claim: not foreign
-        self._before = {rel: sig for rel, sig in _walk_files(self._root).items() if rel not in stale}
+        self._on_entry = _walk_files(self._root)  # every file's signature, the earlier run's included
+        self._before = {rel: sig for rel, sig in self._on_entry.items() if rel not in stale}
         with _LOCK:
             _ACTIVE.append(self)
         return self
 
-    def claim(self) -> None:
+    def claim(self, written=frozenset()) -> None:
         """Delete the earlier run's outputs and write the manifest ("running"): done by the first
         output written through this module (or at a successful end), not on entry, so that a
-        command failing before it writes anything changes nothing on disk."""
+        command failing before it writes anything changes nothing on disk. ``written``: files this
+        run wrote itself (at a successful end), kept even where they are byte for byte the earlier
+        run's (a figure drawn again from the same seed)."""
         with _LOCK:
             if self._claimed:
                 return
             self._claimed = True
             for rel, entry in self._stale:  # an earlier run of this command: its outputs go first
-                _remove_if_ours(self._root, rel, entry)
+                if rel not in written:
+                    _remove_if_ours(self._root, rel, entry)
             self._write_manifest("running")
 
     def record(self, path) -> None:
@@ -521,7 +526,7 @@ class OutputDir:
                     _unlink_new(self._root, rel)
                     new.pop(rel)
             if exc_type is None:
-                self.claim()
+                self.claim(written=frozenset(rel for rel, sig in now.items() if self._on_entry.get(rel) != sig))
                 for rel in new:
                     if rel.endswith(".json"):
                         _repair_json(self._root / rel)
