@@ -95,6 +95,7 @@ class JSBSimAircraft:
 
     @property
     def xml_path(self) -> Path:
+        """The aircraft's main XML file, ``ROOT/aircraft/NAME/NAME.xml`` (JSBSim's own folder layout)."""
         return self.root / "aircraft" / self.name / f"{self.name}.xml"
 
 

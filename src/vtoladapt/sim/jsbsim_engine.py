@@ -62,6 +62,7 @@ RANKINE_PER_KELVIN = 1.8
 
 
 def jsbsim_available() -> bool:
+    """Whether the optional ``jsbsim`` package (the ``jsbsim`` extra) can be imported."""
     try:
         import jsbsim  # noqa: F401
     except ImportError:
@@ -237,6 +238,7 @@ class JSBSimPlant:
 
     # --- writing to JSBSim --------------------------------------------------------------------------------
     def set_wind(self, v_wind_W: np.ndarray) -> None:
+        """Give JSBSim the wind at the aircraft, ``v_wind_W`` in m/s NED (its wind properties are in ft/s)."""
         f = self.fdm
         f["atmosphere/wind-north-fps"] = v_wind_W[0] / FT_M
         f["atmosphere/wind-east-fps"] = v_wind_W[1] / FT_M
@@ -255,6 +257,7 @@ class JSBSimPlant:
             f[f"fcs/vtol/surface-{j + 1}-rate-limit-radps"] = self.servo_rate_radps[j] / slow
 
     def advance(self, n_steps: int) -> None:
+        """Integrate ``n_steps`` of JSBSim's time step; a run JSBSim stops is a RuntimeError naming the XML."""
         for _ in range(n_steps):
             if not self.fdm.run():
                 raise RuntimeError(f"{self.aircraft.xml_path}: JSBSim stopped the run")
