@@ -31,6 +31,9 @@ TEST_TIMEOUT_SLOW_S ?= 3600
 TEST_SESSION_LIMIT ?= 60m
 TEST_FLAGS = --durations=20 --durations-min=1 --timeout=$(TEST_TIMEOUT_S) --timeout-method=thread
 XDIST_FLAGS = -n $(TEST_WORKERS) --dist loadgroup --max-worker-restart=0
+# glibc reports a corrupted heap (then aborts) on the terminal, which CI has not: send it to stderr,
+# so the abort a fresh clone's run still meets (docs/explanation/testing.md) names what it found
+export LIBC_FATAL_STDERR_ = 1
 
 test: $(STAMP)
 	timeout --kill-after=30s $(TEST_SESSION_LIMIT) $(PY) -X faulthandler -m pytest $(TEST_FLAGS) \
