@@ -31,18 +31,26 @@ def effectiveness(vehicle) -> Effectiveness:
     S = vehicle.geometry.wing_area_m2
     b = vehicle.geometry.wingspan_m
     c = vehicle.wing_chord_m
+    for j, sf in enumerate(vehicle.surfaces[:N_SURFACES]):
+        _cx, _cy, cz, cl, cm, cn = sf.derivatives_per_rad
+        Bq[:, N_LIFT + j] = [-S * cz, S * b * cl, S * c * cm, S * b * cn]
+    return with_actuator_limits(vehicle, B0, Bq)
+
+
+def with_actuator_limits(vehicle, B0: np.ndarray, B_per_Pa: np.ndarray) -> Effectiveness:
+    """An :class:`Effectiveness` of the matrices ``B0`` and ``B_per_Pa`` with ``vehicle``'s actuator
+    limits (lift rotors from zero to the thrust at full throttle, surfaces within their deflection
+    limits) and the rotors' equal preferred share: what every effectiveness of the airframe shares."""
     lo = np.zeros(N_ALLOC)
     hi = np.zeros(N_ALLOC)
     u_max = vehicle.actuators.throttle_max_pct / 100.0
     t_unit = vehicle.mass.mass_kg * vehicle.theta_scaled[1] / N_LIFT
     hi[:N_LIFT] = t_unit * u_max * u_max
     for j, sf in enumerate(vehicle.surfaces[:N_SURFACES]):
-        _cx, _cy, cz, cl, cm, cn = sf.derivatives_per_rad
-        Bq[:, N_LIFT + j] = [-S * cz, S * b * cl, S * c * cm, S * b * cn]
         lim = math.radians(sf.limit_deg)
         lo[N_LIFT + j] = -lim
         hi[N_LIFT + j] = lim
     share = np.zeros(N_ALLOC)
     share[:N_LIFT] = 1.0 / N_LIFT
-    return Effectiveness(B0=B0, B_per_Pa=Bq, lower=lo, upper=hi, preferred_share=share, t_unit_N=float(t_unit),
-                         throttle_max=float(u_max))
+    return Effectiveness(B0=B0, B_per_Pa=B_per_Pa, lower=lo, upper=hi, preferred_share=share,
+                         t_unit_N=float(t_unit), throttle_max=float(u_max))

@@ -29,6 +29,7 @@ import numpy as np
 from ..config import ConfigError, Validated, build, setting
 from ..layout import N_LIFT, N_SURFACES
 from .allocation import N_ALLOC, N_OUT, Effectiveness
+from .effectiveness import with_actuator_limits
 
 SECTION = "effectiveness_settings.px4_ca"
 
@@ -88,11 +89,6 @@ def effectiveness(vehicle) -> Effectiveness:
     S = vehicle.geometry.wing_area_m2
     b = vehicle.geometry.wingspan_m
     c = vehicle.wing_chord_m
-    lo = np.zeros(N_ALLOC)
-    hi = np.zeros(N_ALLOC)
-    u_max = vehicle.actuators.throttle_max_pct / 100.0
-    t_unit = vehicle.mass.mass_kg * vehicle.theta_scaled[1] / N_LIFT
-    hi[:N_LIFT] = t_unit * u_max * u_max
     for j, sf in enumerate(surfaces):
         _cx, _cy, _cz, cl, cm, cn = sf.derivatives_per_rad
         physical = (S * b * cl, S * c * cm, S * b * cn)
@@ -105,10 +101,4 @@ def effectiveness(vehicle) -> Effectiveness:
                                   f"surface {sf.name!r} has {'no' if size == 0.0 else 'the opposite'} moment on "
                                   "that axis; allowed: PX4's sign of the file's surface, or 0")
             Bq[1 + k, N_LIFT + j] = size
-        lim = math.radians(sf.limit_deg)
-        lo[N_LIFT + j] = -lim
-        hi[N_LIFT + j] = lim
-    share = np.zeros(N_ALLOC)
-    share[:N_LIFT] = 1.0 / N_LIFT
-    return Effectiveness(B0=B0, B_per_Pa=Bq, lower=lo, upper=hi, preferred_share=share, t_unit_N=float(t_unit),
-                         throttle_max=float(u_max))
+    return with_actuator_limits(vehicle, B0, Bq)
