@@ -179,10 +179,19 @@ the same process."""
 
 
 @pytest.hookimpl(tryfirst=True)
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """Under ``--dist loadgroup``, one group per module, modules sharing a fixture of
-    :data:`SHARED_SESSION_FIXTURES` merged into one group."""
-    if not config.pluginmanager.hasplugin("xdist") or config.getoption("dist", "no") != "loadgroup":
+    :data:`SHARED_SESSION_FIXTURES` merged into one group.
+
+    First among the hooks: xdist's worker turns the ``xdist_group`` marks into node ids in its own
+    ``pytest_collection_modifyitems``, which pluggy otherwise calls before this one (the plugin registers
+    after the conftest), and marks added after it are ignored: every module was split across both
+    processes and its module fixtures (the docs site's build among them) computed in each. (Both this order
+    and the guard below had kept every module unsplit in name only; tests/test_suite_grouping.py checks it.)"""
+    # a worker sees --dist as "no" and xdist's own "loadgroup" flag instead (xdist.remote.setup_config); the
+    # guard read --dist alone, so no module was ever grouped
+    if not (getattr(config.option, "loadgroup", False) or getattr(config.option, "dist", "no") == "loadgroup"):
         return
     group = {item.module.__name__: item.module.__name__ for item in items}
 
