@@ -6,13 +6,17 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= results
 
-.PHONY: test test-slow test-hypothesis test-numba-latest reproduce tune bench docs clean
+.PHONY: venv test test-slow test-hypothesis test-numba-latest reproduce tune bench docs clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[test,docs]'
 	touch $(STAMP)
+
+# The one set-up the documentation assumes (docs/index.md): .venv with the package, then
+# `source .venv/bin/activate`. test, reproduce, docs, tune and bench run it first.
+venv: $(STAMP)
 
 # The suite in TEST_WORKERS processes (pytest-xdist; tests/conftest.py groups each module, and the
 # modules sharing a session fixture, into one process). TEST_WORKERS=0 runs it in this process.

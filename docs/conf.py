@@ -3,8 +3,10 @@
 The site is built offline and strictly (``-W --keep-going -n``): a warning, a broken cross-reference
 or a missing file fails the build. Nothing here fetches anything: no intersphinx inventories (the
 references into numpy, scipy and the standard library are listed in ``nitpick_ignore_regex`` as
-external instead), no MathJax (the pages write their formulas as text), no web fonts (furo ships its
-own CSS). The search index (``searchindex.js``) is built with the site and works from the files.
+external instead), no web fonts (furo ships its own CSS). The equations are rendered by MathJax 3
+served from the site itself (``sphinx-mathjax-offline`` copies it into ``_static/mathjax``; nothing is
+loaded from a CDN). The search index (``searchindex.js``) is built with the site and works from the
+files.
 
 Generated at build time, never written by hand (folder ``docs/_generated/``, git-ignored):
 
@@ -41,7 +43,12 @@ extensions = [
     "sphinx.ext.autosummary",
     "sphinx.ext.napoleon",
     "sphinxarg.ext",
+    "sphinx.ext.mathjax",
+    "sphinx-mathjax-offline",  # MathJax 3 bundled into _static/mathjax: the site works offline
 ]
+# the pages' numbered equations ({math} with :label:, referenced with {eq}) are numbered per page
+math_number_all = False
+math_eqref_format = "Eq. {number}"
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
@@ -214,6 +221,7 @@ def _run_examples(app) -> None:
     package (a stamp holds the SHA-256 of both): the figures are the examples' output, never pasted."""
     import hashlib
     import subprocess
+    import time
 
     package = hashlib.sha256()
     for path in sorted((ROOT / "src" / "vtoladapt").rglob("*")):
@@ -227,10 +235,16 @@ def _run_examples(app) -> None:
         if stamp.exists() and stamp.read_text() == digest:
             continue
         env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT / "src"))
+        # a line as each example starts and ends, even under -q: the examples are most of a fresh
+        # build's time (make docs ran 13 minutes without a word, issue #37)
+        print(f"docs: running examples/{name}.py ({FIGURE_EXAMPLES.index(name) + 1} of {len(FIGURE_EXAMPLES)}; "
+              f"output unchanged since the last build is reused)...", file=sys.stderr, flush=True)
+        t0 = time.perf_counter()
         done = subprocess.run([sys.executable, str(script), "--out", str(out)], cwd=ROOT, env=env,
                               capture_output=True, text=True)
         if done.returncode != 0:
             raise RuntimeError(f"examples/{name}.py failed (status {done.returncode}): {done.stderr[-2000:]}")
+        print(f"docs:   examples/{name}.py done in {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
         stamp.write_text(digest)
 
 
@@ -248,7 +262,21 @@ def _drop_stale_api_pages(app, config) -> None:
             stub.unlink()
 
 
+def _name_commands_by_command(app) -> None:
+    """Name the CLI reference's objects by their command (``vtoladapt run``) rather than by their
+    description: Sphinx HTML-escapes an object's display name into the search index and the search
+    page shows it as text, so a description's apostrophe read "the paper&#x27;s" (issue #37)."""
+    from sphinxarg.ext import ArgParseDomain
+
+    def get_objects(self):
+        for name, _description, *rest in self.data["commands"]:
+            yield (name, name, *rest)
+
+    ArgParseDomain.get_objects = get_objects
+
+
 def setup(app):
+    app.connect("builder-inited", _name_commands_by_command)
     app.connect("config-inited", _drop_stale_api_pages)
     app.connect("builder-inited", _generate)
     app.connect("builder-inited", _run_examples)

@@ -1,6 +1,6 @@
 """Your own control law: ``example_law.py`` beside this script is a complete law (eq:f_ctrl with θ̂
 held and the shared K_v scaled by a gain of its own), in a module of your own: nothing in
-``vtoladapt`` is edited. Registered by one call, it flies like a shipped law; here a hold from 0.36 m
+``vtoladapt`` is edited. Registered by one call, it flies like a shipped law; here a hold from 0.47 m
 off the setpoint, against the shipped ``nominal`` law (the same eq:f_ctrl with K_v unscaled).
 
     python examples/own_law.py --out out/own_law

@@ -49,6 +49,20 @@ def _conf():
     return module
 
 
+def test_equations_render_offline_and_the_search_shows_no_escaped_text(site):
+    """issue #37: the paper's equations were labels only (eq:f_ctrl), and the search page showed a
+    command's description as "the paper&#x27;s" (Sphinx escapes an object's display name; the CLI
+    reference's objects are now named by their command)."""
+    method = (site / "explanation" / "method.html").read_text(encoding="utf-8")
+    for label in ("f_ctrl", "th_adapt", "P_adapt"):
+        assert re.search(rf'id="equation-eq-{label.lower().replace("_", "-")}"', method, re.I), label
+    scripts = re.findall(r'<script[^>]+src="([^"]*mathjax[^"]*)"', method, re.I)
+    assert scripts and not any(s.startswith(("http:", "https:", "//")) for s in scripts), scripts
+    assert (site / "_static" / "mathjax" / "tex-chtml.js").is_file()
+    index = (site / "searchindex.js").read_text(encoding="utf-8")
+    assert "&#x27;" not in index
+
+
 def test_the_site_has_every_section_and_an_offline_search(site):
     for page in ("index.html", "tutorials/first-flight.html", "howto/index.html", "explanation/method.html",
                  "reference/cli.html", "reference/configuration.html", "reference/generated/vtoladapt.sim.driver.html",
@@ -167,6 +181,10 @@ def test_pages_lay_out_at_1300_px(site):
         assert r["viewport_px"] >= 1250, (page, r)        # the frame really was 1300 px wide
         assert not r["overflowing_tables"], (page, r["overflowing_tables"])
         assert not r["broken_images"], (page, r["broken_images"])
+        assert not r["overflowing_code"], (page, r["overflowing_code"])     # issue #37: cut code lines
+        assert not r["broken_words"], (page, r["broken_words"])             # `vehicl|e`, 3-character columns
+        assert not r["literal_entities"], (page, r["literal_entities"])     # a literal &#x27;
+    assert sum(r["code_blocks_checked"] for r in results.values()) >= 10
     assert sum(r["images_checked"] for r in results.values()) >= 2  # the home page's and the tutorial's figures
     # the site's own search page, served from loopback with nothing fetched, finds the pages
     assert check_site.search_hits(site, "composite adaptation") >= 10

@@ -6,15 +6,18 @@ SITE_DIR defaults to ``docs/_build/html`` (``make docs`` builds it); the pages d
 page, a tutorial and an API page. Each page is served from a local HTTP server on 127.0.0.1 (an
 ephemeral port, stopped at the end) and loaded in a 1300 px wide frame of a probe page; after the
 page's scripts have run, the probe reports every table wider than the box it sits in (a table the
-reader must scroll sideways) or than the window, and every image that failed to load. Chromium's
+reader must scroll sideways) or than the window, every code block whose text runs past its box
+(``scrollWidth > clientWidth``: a line cut at the right edge), every table cell narrower than one of
+its unbreakable words (a word drawn on more than one line: ``vehicl|e``, a file name over ten lines),
+every character reference shown as text (a literal ``&#x27;``) and every image that failed to load. Chromium's
 ``--dump-dom`` prints the probe's report, so nothing but the browser is needed (Debian: ``apt-get
 install chromium``); it is started with the flags that keep it off the network.
 
 ``--search QUERY`` also runs the site's own search page (``search.html?q=QUERY``, the index in
 ``searchindex.js``, nothing fetched) and reports how many pages it finds.
 
-Exit status: 0 every page passed, 1 a page has an overflowing table or a broken image, 2 no
-Chromium, no built site or a page missing.
+Exit status: 0 every page passed, 1 a page has one of the defects above (or the search page found
+nothing or shows a character reference as text), 2 no Chromium, no built site or a page missing.
 """
 from __future__ import annotations
 
@@ -30,7 +33,11 @@ import threading
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_PAGES = ("index.html", "tutorials/first-flight.html", "reference/generated/vtoladapt.sim.driver.html")
+DEFAULT_PAGES = ("index.html", "tutorials/first-flight.html", "reference/generated/vtoladapt.sim.driver.html",
+                 # the pages of issue #37's layout defects: cut code blocks, three-character columns,
+                 # key names broken mid-word, numbered equations
+                 "tutorials/own-vehicle.html", "explanation/envelope.html", "howto/adding-a-basis.html",
+                 "explanation/results.html", "reference/configuration.html", "explanation/method.html")
 WIDTH_PX = 1300
 PROBE_NAME = "_layout_probe.html"
 
@@ -53,13 +60,50 @@ function check(frame, page) {
                    first_cell: (t.querySelector("th,td") || {textContent: ""}).textContent.trim().slice(0, 60)});
     }
   });
+  // a code block whose lines run past its box: the reader loses the end of the line
+  const code = [];
+  doc.querySelectorAll("div.highlight pre, pre.literal-block").forEach((pre, i) => {
+    if (pre.scrollWidth > pre.clientWidth + 1) {
+      code.push({index: i, scroll_px: pre.scrollWidth, box_px: pre.clientWidth,
+                 first_line: pre.textContent.split("\n")[0].slice(0, 60)});
+    }
+  });
+  // a table cell narrower than one of its words: the word is drawn on more than one line
+  // (words are split at white space, hyphens and slashes, where a browser may break)
+  const cells = [];
+  doc.querySelectorAll("table td, table th").forEach(cell => {
+    const walker = doc.createTreeWalker(cell, NodeFilter.SHOW_TEXT);
+    let node;
+    while ((node = walker.nextNode())) {
+      const re = /[^\s\-\u2010-\u2014\/]+/g;
+      let m;
+      while ((m = re.exec(node.data))) {
+        if (m[0].length < 2) continue;
+        const range = doc.createRange();
+        range.setStart(node, m.index);
+        range.setEnd(node, m.index + m[0].length);
+        const tops = new Set(Array.from(range.getClientRects()).filter(r => r.width > 0)
+                                  .map(r => Math.round(r.top)));
+        if (tops.size > 1) {
+          cells.push({word: m[0].slice(0, 60), lines: tops.size, cell_px: cell.clientWidth});
+          return;
+        }
+      }
+    }
+  });
+  // a character reference shown as text (escaped twice): "the paper&#x27;s"
+  const body = doc.body.cloneNode(true);
+  body.querySelectorAll("script, style, pre, code").forEach(e => e.remove());
+  const entities = (body.textContent.match(/&(#x?[0-9a-f]+|[a-z]{2,8});/gi) || []).slice(0, 10);
   const images = [];
   doc.querySelectorAll("img").forEach(img => {
     if (!img.complete || img.naturalWidth === 0) images.push(img.getAttribute("src"));
   });
   results[page] = {viewport_px: viewport, page_px: doc.documentElement.scrollWidth,
                    tables_checked: doc.querySelectorAll("table").length, overflowing_tables: tables,
-                   images_checked: doc.querySelectorAll("img").length, broken_images: images};
+                   images_checked: doc.querySelectorAll("img").length, broken_images: images,
+                   code_blocks_checked: doc.querySelectorAll("div.highlight pre, pre.literal-block").length,
+                   overflowing_code: code, broken_words: cells, literal_entities: entities};
   if (--left === 0) document.getElementById("report").textContent = JSON.stringify(results);
 }
 pages.forEach(page => {
@@ -118,12 +162,24 @@ def _dump_dom(site: Path, path: str, chromium: str | None, timeout_s: float,
             thread.join()
 
 
+def literal_entities(dom: str) -> list[str]:
+    """The character references a serialized DOM shows as text: a page's text ``&#x27;`` is
+    serialized as ``&amp;#x27;`` (an escaped string escaped again, as the search page's object
+    results were)."""
+    import re
+
+    return [m.group(0).replace("&amp;", "&", 1) for m in re.finditer(r"&amp;(#x?[0-9a-fA-F]+|[a-zA-Z]{2,8});", dom)]
+
+
 def search_hits(site: Path, query: str, chromium: str | None = None, timeout_s: float = 120) -> int:
     """How many pages the site's own search page finds for ``query`` (its summary line)."""
     import re
     from urllib.parse import quote_plus
 
     done = _dump_dom(site, f"search.html?q={quote_plus(query)}", chromium, timeout_s)
+    shown = literal_entities(done.stdout)
+    if shown:
+        raise RuntimeError(f"the search page shows character references as text: {', '.join(shown[:5])}")
     if "did not match any documents" in done.stdout:
         return 0
     m = re.search(r"found (\d+) pages?", done.stdout)
@@ -169,12 +225,19 @@ def main(argv: list[str]) -> int:
         print(f"{'ok  ' if hits else 'FAIL'} search.html?q={query}: {hits} pages found")
     failed = False
     for page, r in results.items():
-        bad = r["overflowing_tables"] or r["broken_images"]
+        bad = (r["overflowing_tables"] or r["broken_images"] or r["overflowing_code"] or r["broken_words"]
+               or r["literal_entities"])
         failed = failed or bool(bad)
-        print(f"{'FAIL' if bad else 'ok  '} {page}: {r['tables_checked']} tables, {r['images_checked']} images at "
-              f"{r['viewport_px']} px (page {r['page_px']} px wide)")
+        print(f"{'FAIL' if bad else 'ok  '} {page}: {r['tables_checked']} tables, {r['code_blocks_checked']} code "
+              f"blocks, {r['images_checked']} images at {r['viewport_px']} px (page {r['page_px']} px wide)")
         for t in r["overflowing_tables"]:
             print(f"     table {t['index']} ('{t['first_cell']}') is {t['table_px']} px in a {t['box_px']} px box")
+        for c in r["overflowing_code"]:
+            print(f"     code block {c['index']} ('{c['first_line']}') is {c['scroll_px']} px in a {c['box_px']} px box")
+        for w in r["broken_words"]:
+            print(f"     table cell {w['cell_px']} px wide breaks '{w['word']}' over {w['lines']} lines")
+        for e in r["literal_entities"]:
+            print(f"     '{e}' shown as text")
         for src in r["broken_images"]:
             print(f"     broken image {src}")
     return 1 if failed or hits == 0 else 0

@@ -4,7 +4,7 @@ need against one budget: a campaign's plan, a virtual tunnel's design, an MCMC f
 Every size a user chooses is checked before anything runs or is written, against
 :data:`vtoladapt.config.MEMORY_BUDGET_BYTES` (6 GiB unless ``VTOLADAPT_MEMORY_BUDGET_GB`` says
 otherwise); the message says how the bytes were counted. The simulator's own (its logs) are in
-:mod:`vtoladapt.sim.limits`; README "When things go wrong" lists the resulting ceilings.
+:mod:`vtoladapt.sim.limits`; docs/reference/errors.md ("Size ceilings") lists the resulting ceilings.
 """
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Exit codes and the error classes every command shares.
 
-One convention for every ``vtoladapt`` command (README "When things go wrong"):
+One convention for every ``vtoladapt`` command (docs/reference/errors.md):
 
 ====  ==========================================================================================
 code  meaning

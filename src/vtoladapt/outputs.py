@@ -1,6 +1,6 @@
 """Output folders and files that never lose, truncate or mix anything.
 
-The rules (README "When things go wrong"):
+The rules (docs/reference/errors.md):
 
 * A command never deletes or overwrites a file it did not create. Writing into a folder that is
   not empty and is not an earlier output of the same command is refused (exit 2) unless

@@ -34,14 +34,21 @@ EXPERIMENT_WORDS = {"single": "one run", "comparison": "controller comparison",
 
 # --- progress ------------------------------------------------------------------------------------
 class _Progress:
-    """A tqdm bar over simulated seconds of all runs, or nothing when quiet."""
+    """A tqdm bar over simulated seconds of all runs, or nothing when quiet.
+
+    The bar is first drawn after ``DELAY_S`` (tqdm's ``delay``), so a stage renamed by :meth:`set`
+    before its first step, or one that ends before then, leaves no 0 % bar behind; :meth:`set`
+    replaces the label as given (tqdm's ``set_description`` would append a second ``": "`` to the
+    one the bar's format already writes: "comparison of 8 controllers: :")."""
+
+    DELAY_S = 0.5
 
     def __init__(self, total_s: float, show: bool, desc: str):
         self.bar = None
         if show:
             from ..progress import progress_bar
 
-            self.bar = progress_bar(total=round(total_s, 1), unit="sim s", desc=desc,
+            self.bar = progress_bar(total=round(total_s, 1), unit="sim s", desc=desc, delay=self.DELAY_S,
                                     bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.0f}/{total:.0f} "
                                                "sim s [{elapsed}<{remaining}]")
         self.done = 0.0
@@ -72,7 +79,7 @@ class _Progress:
 
     def set(self, desc: str):
         if self.bar is not None:
-            self.bar.set_description(desc)
+            self.bar.set_description_str(desc, refresh=False)
 
     def close(self):
         if self.bar is not None:

@@ -4,7 +4,7 @@ The simulated duration over the control period and the runs held together are ch
 anything runs or is written, against :data:`vtoladapt.config.MEMORY_BUDGET_BYTES` (6 GiB unless
 ``VTOLADAPT_MEMORY_BUDGET_GB`` says otherwise); the ceilings that have nothing to do with the
 simulator (a campaign's plan, a tunnel design, a fit) are :mod:`vtoladapt.ceilings`'. The message
-says how the bytes were counted. README "When things go wrong" lists the resulting ceilings. Also
+says how the bytes were counted. docs/reference/errors.md ("Size ceilings") lists the resulting ceilings. Also
 here: the README's table of every numeric key's range.
 """
 from __future__ import annotations
