@@ -32,7 +32,8 @@ def main(out: Path) -> float:
     print(f"{vehicle.name}: {vehicle.mass.mass_kg} kg, wing {vehicle.geometry.wing_area_m2} m^2")
 
     scenario = vtoladapt.load_scenario("gym_hold")        # hold in the fan array's wind, 250 Hz plant
-    scenario = replace(scenario, vehicle=str(path), duration_s=10.0, name="my_plane_hold")
+    # an absolute path: a relative one is read relative to the scenario file, not to where you are
+    scenario = replace(scenario, vehicle=str(path.resolve()), duration_s=10.0, name="my_plane_hold")
     result = vtoladapt.simulate(scenario).raise_if_diverged()
     p_err_m = np.linalg.norm(result.position_error_W, axis=1)
     print(f"hold for {scenario.duration_s:g} s: worst position error {p_err_m.max():.3f} m")
