@@ -76,9 +76,10 @@ tune: $(STAMP)
 # The documentation site, offline and strict: a warning, a broken cross-reference or a missing file fails
 # it (-W --keep-going -n). Runs the examples the tutorials take figures from (once per version of each
 # script) and writes docs/_build/html; open docs/_build/html/index.html. tools/check_site.py checks its
-# layout in headless Chromium.
+# layout in headless Chromium. Not quiet (no -q): Sphinx's progress through the pages shows, and
+# docs/conf.py prints a line as each example starts and ends (a fresh build is minutes of them).
 docs: $(STAMP)
-	$(PY) -m sphinx -b html -W --keep-going -n -q docs docs/_build/html
+	$(PY) -m sphinx -b html -W --keep-going -n docs docs/_build/html
 
 bench: $(STAMP)
 	$(PY) benchmarks/run_benchmarks.py
