@@ -238,7 +238,7 @@ def _run_examples(app) -> None:
         # a line as each example starts and ends, even under -q: the examples are most of a fresh
         # build's time (make docs ran 13 minutes without a word, issue #37)
         print(f"docs: running examples/{name}.py ({FIGURE_EXAMPLES.index(name) + 1} of {len(FIGURE_EXAMPLES)}; "
-              f"output unchanged since the last build is reused)...", file=sys.stderr, flush=True)
+              f"not again until it or the package changes)...", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         done = subprocess.run([sys.executable, str(script), "--out", str(out)], cwd=ROOT, env=env,
                               capture_output=True, text=True)
