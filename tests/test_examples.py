@@ -45,3 +45,13 @@ def test_example_runs(name, tmp_path):
     assert printed in done.stdout + done.stderr, done.stdout[-2000:]
     for f in files:
         assert (tmp_path / "out" / f).is_file(), f
+
+
+def test_own_vehicle_takes_a_relative_out_as_the_tutorial_types_it(tmp_path):
+    """issue #37: ``--out out/own_vehicle`` (relative, as the tutorial types it) failed: the vehicle's
+    path was read relative to the shipped scenario's folder."""
+    env = dict(os.environ, MPLBACKEND="Agg")
+    done = subprocess.run([sys.executable, str(EXAMPLES / "own_vehicle.py"), "--out", "out/own_vehicle"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert (tmp_path / "out" / "own_vehicle" / "my_plane.toml").is_file()
