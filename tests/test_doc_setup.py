@@ -92,3 +92,17 @@ def test_shipped_scenario_files_point_to_sections_that_exist():
             if not (ROOT / doc).is_file():
                 bad.append(f"{_rel(path)}: {doc} does not exist")
     assert not bad, "\n".join(bad)
+
+
+def test_the_site_css_wraps_code_and_keeps_words_whole_in_tables():
+    """issue #37's layout defects, as the stylesheet states them (tools/check_site.py measures them in
+    Chromium): code blocks wrap at the column's edge; code in a table cell never breaks mid-word
+    (`overflow-wrap: anywhere` sized the results page's file column to three characters)."""
+    css = page("docs/_static/tables.css")
+    rules = dict(re.findall(r"([^{}]+)\{([^}]*)\}", re.sub(r"/\*.*?\*/", "", css, flags=re.S)))
+    rules = {" ".join(k.split()): v for k, v in rules.items()}
+    assert "white-space: pre-wrap" in rules["div.highlight pre, .highlight pre"]
+    table_code = rules["table.docutils td code, table.docutils th code"]
+    assert "overflow-wrap: normal" in table_code and "word-break: normal" in table_code
+    assert "anywhere" not in "".join(v for k, v in rules.items() if k.startswith("table"))
+    assert '"tables.css"' in page("docs/conf.py")
