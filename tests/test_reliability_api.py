@@ -18,7 +18,9 @@ import numpy as np
 import pytest
 
 from vtoladapt.config import ConfigError, Validated, _type_hints
-from vtoladapt.sim.faults import FAULT_ROW, FaultConfig, apply_actuator_faults, faults_to_kernel
+from vtoladapt.layout import MEAS_SIZE, PLANT_INPUT_SIZE
+from vtoladapt.sim.faults import (FAULT_ROW, FAULT_STATE, FaultConfig, apply_actuator_faults, apply_measurement_faults,
+                                  faults_to_kernel)
 from vtoladapt.sim.scenario import load_scenario, scenario_from_mapping
 
 SEGFAULT_SCRIPT = """
@@ -47,14 +49,64 @@ def test_an_out_of_range_fault_motor_is_refused_not_written_through(motor):
                                    "allowed: >= 1 and <= 5")
 
 
+GUARD = 64
+"""Elements of sentinel on each side of an array handed to a kernel: a write outside the array lands there."""
+
+
+def _guarded(values) -> tuple[np.ndarray, np.ndarray]:
+    """``values`` as a view into a larger buffer of NaN sentinels, and the buffer."""
+    values = np.asarray(values, dtype=float)
+    buf = np.full(values.size + 2 * GUARD, np.nan)
+    view = buf[GUARD:GUARD + values.size]
+    view[:] = values
+    return view, buf
+
+
+def _sentinels_intact(buf) -> bool:
+    return bool(np.isnan(buf[:GUARD]).all() and np.isnan(buf[-GUARD:]).all())
+
+
 def test_the_actuator_fault_kernel_ignores_a_motor_index_outside_the_commands():
-    """A schedule made by hand (not by faults_to_kernel) with a wild motor index writes nothing."""
+    """A schedule made by hand (not by faults_to_kernel) with a wild motor index writes nothing: neither
+    the commands nor anything beside the plant input."""
     row = FAULT_ROW.pack(KIND=10, START=0.0, END=1.0, MOTOR=1e8)  # stuck_throttle, motor 100 000 001
     schedule = np.array([row])
-    state = np.zeros(1000)
-    cmd = np.array([0.1, 0.2, 0.3, 0.4, 0.5])
-    apply_actuator_faults(schedule, state, 0.5, 1.0, cmd)
-    assert cmd.tolist() == [0.1, 0.2, 0.3, 0.4, 0.5]
+    state, state_buf = _guarded(np.zeros(FAULT_STATE.size))
+    cmd = np.zeros(PLANT_INPUT_SIZE)
+    cmd[:5] = [0.1, 0.2, 0.3, 0.4, 0.5]
+    u_in, u_buf = _guarded(cmd)
+    apply_actuator_faults(schedule, state, 0.5, 1.0, u_in)
+    assert u_in.tolist() == cmd.tolist()
+    assert _sentinels_intact(u_buf) and _sentinels_intact(state_buf)
+
+
+@pytest.mark.parametrize("short", ["u_in", "fstate"])
+def test_the_actuator_fault_kernel_refuses_an_array_shorter_than_its_layout(short):
+    """Issue #32's abort: this file's test above once passed the five motor commands alone, and the kernel
+    reset the surfaces' condition rows past their end, into the heap; glibc aborted the worker minutes
+    later, in whatever test freed memory next (the crash seen in test_reliability_api, test_reports,
+    test_scenario). The kernel now refuses such an array and writes nothing, not even beside it."""
+    row = FAULT_ROW.pack(KIND=10, START=0.0, END=1.0, MOTOR=0)
+    sizes = {"u_in": PLANT_INPUT_SIZE, "fstate": FAULT_STATE.size}
+    sizes[short] = 5
+    u_in, u_buf = _guarded(np.arange(sizes["u_in"], dtype=float))
+    state, state_buf = _guarded(np.zeros(sizes["fstate"]))
+    with pytest.raises(ValueError, match="shorter than"):
+        apply_actuator_faults(np.array([row]), state, 0.5, 1.0, u_in)
+    assert _sentinels_intact(u_buf) and _sentinels_intact(state_buf)
+    assert u_in.tolist() == list(range(sizes["u_in"]))
+
+
+@pytest.mark.parametrize("short", ["meas", "fstate"])
+def test_the_measurement_fault_kernel_refuses_an_array_shorter_than_its_layout(short):
+    row = FAULT_ROW.pack(KIND=0, START=0.0, END=1.0)
+    sizes = {"meas": MEAS_SIZE, "fstate": FAULT_STATE.size}
+    sizes[short] = 5
+    meas, m_buf = _guarded(np.ones(sizes["meas"]))
+    state, state_buf = _guarded(np.zeros(sizes["fstate"]))
+    with pytest.raises(ValueError, match="shorter than"):
+        apply_measurement_faults(np.array([row]), state, 0.5, 0.004, meas)
+    assert _sentinels_intact(m_buf) and _sentinels_intact(state_buf)
 
 
 def test_faults_to_kernel_rechecks_the_motor_it_packs():

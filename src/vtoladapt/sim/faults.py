@@ -56,7 +56,9 @@ from numba import njit
 
 from ..config import ApplicableKeys, ConfigError, Validated, setting
 from ..layout import (ACT_SURFACE, IN_SERVO_SLOWDOWN, IN_SURFACE_LOSS, MEAS_ACCEL_B, MEAS_OMEGA_B, MEAS_P_W,
-                     MEAS_V_I_B, MEAS_V_I_VALID, MEAS_V_W, MOTOR_PUSHER, N_MOTORS, N_SURFACES, BlockLayout, Field)
+                     MEAS_SIZE, MEAS_V_I_B, MEAS_V_I_VALID, MEAS_V_W, MOTOR_PUSHER, N_MOTORS, N_SURFACES,
+                     PLANT_INPUT_SIZE,
+                     BlockLayout, Field)
 
 FAULT_KINDS: tuple[str, ...] = (
     "probe_dropout", "probe_stuck", "probe_nan", "probe_blocked_port", "imu_spike", "imu_nan",
@@ -128,6 +130,7 @@ FAULT_STATE = BlockLayout("fault state", [
     Field("HOLD", HOLD_ENTRY.size * MAX_FAULTS, "-", "MAX_FAULTS entries of HOLD_ENTRY"),
 ])
 _S_HEAD, _S_COUNT, _S_RING, _S_HOLD = FAULT_STATE.offsets("RING_HEAD", "RING_COUNT", "RING", "HOLD")
+_FAULT_STATE_SIZE = FAULT_STATE.size
 
 
 @dataclass(frozen=True)
@@ -213,7 +216,12 @@ def active_mask(faults, t) -> float:
 
 @njit(cache=True, nogil=True, _nrt=False)
 def apply_measurement_faults(faults, fstate, t, dt, meas) -> None:
-    """Apply the active sensor faults of the schedule to ``meas`` in place (sensors -> controller)."""
+    """Apply the active sensor faults of the schedule to ``meas`` in place (sensors -> controller).
+
+    ``meas`` must be a whole measurement and ``fstate`` a whole fault state (``ValueError`` otherwise: a
+    shorter array would be written past its end, as :func:`apply_actuator_faults` explains)."""
+    if meas.shape[0] < MEAS_SIZE or fstate.shape[0] < _FAULT_STATE_SIZE:
+        raise ValueError("apply_measurement_faults: meas or fstate shorter than a measurement / fault state")
     n = min(faults.shape[0], MAX_FAULTS)  # the hold state has room for MAX_FAULTS entries
     if n == 0:
         return
@@ -280,7 +288,14 @@ def apply_measurement_faults(faults, fstate, t, dt, meas) -> None:
 @njit(cache=True, nogil=True, _nrt=False)
 def apply_actuator_faults(faults, fstate, t, u_max, u_in) -> None:
     """Apply the active actuator faults to the plant input ``u_in`` in place (allocator -> plant): the
-    actuator commands, and the actuators' condition, reset to healthy first (:data:`vtoladapt.layout.PLANT_INPUT`)."""
+    actuator commands, and the actuators' condition, reset to healthy first (:data:`vtoladapt.layout.PLANT_INPUT`).
+
+    ``u_in`` must be a whole plant input and ``fstate`` a whole fault state: a shorter array is refused
+    (``ValueError``), since the condition rows are written every tick. Without this check a caller passing
+    the motor commands alone had the kernel write past them into the process's heap, which glibc found
+    minutes later as a corrupted heap and aborted (issue #32's abort: tests/test_reliability_api.py did so)."""
+    if u_in.shape[0] < PLANT_INPUT_SIZE or fstate.shape[0] < _FAULT_STATE_SIZE:
+        raise ValueError("apply_actuator_faults: u_in or fstate shorter than a plant input / fault state")
     for j in range(N_SURFACES):
         u_in[IN_SURFACE_LOSS + j] = 0.0
         u_in[IN_SERVO_SLOWDOWN + j] = 0.0
