@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= results
 
-.PHONY: venv test test-slow test-hypothesis test-numba-latest reproduce tune bench docs clean
+.PHONY: venv test test-boundscheck test-slow test-hypothesis test-numba-latest reproduce tune bench docs clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -51,6 +51,14 @@ test-slow: $(STAMP)
 # scheduled job beside make test, whose derandomized examples are the same every run.
 test-hypothesis: $(STAMP)
 	HYPOTHESIS_PROFILE=ci $(PY) -X faulthandler -m pytest $(TEST_FLAGS) -m 'hypothesis and not slow' $(XDIST_FLAGS)
+
+# The suite with every compiled kernel checking its indices (NUMBA_BOUNDSCHECK=1: an index outside an array
+# raises IndexError instead of reading or writing beside it), in a kernel cache of its own (Numba's cache does
+# not key on the flag). How issue #32's abort was found: a test handed a kernel an array shorter than its
+# layout, and the write past its end corrupted the heap. Slower (every kernel compiled twice as checked code);
+# run it after changing a kernel or a test that calls one directly.
+test-boundscheck: $(STAMP)
+	NUMBA_BOUNDSCHECK=1 NUMBA_CACHE_DIR=$(abspath $(VENV))/numba-cache-boundscheck $(MAKE) test TEST_TIMEOUT_S=2400
 
 # The suite on the newest Numba and llvmlite releases instead of the pinned ones (pyproject.toml), in a
 # virtual environment of its own: what the next Numba breaks shows here first (src/vtoladapt/_numba_abi.py

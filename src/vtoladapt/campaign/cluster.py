@@ -110,6 +110,7 @@ def local_cluster(n_workers: Optional[int] = None, listen: str = LOOPBACK):
         cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, host=listen,
                                dashboard_address=f"{listen}:0", silence_logs=logging.CRITICAL,
                                preload=[__name__])
+        _stop_gc_diagnosis()  # the scheduler runs in this process
         try:
             release()  # a Ctrl-C held back while the cluster started is raised here
         except KeyboardInterrupt:
@@ -228,10 +229,23 @@ def _start_resource_tracker() -> None:
 def dask_setup(worker) -> None:
     """Dask's preload hook, run in each worker process of :func:`local_cluster` as it starts:
     SIGINT is left to the campaign's own process, which shuts the cluster down."""
+    _stop_gc_diagnosis()
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # discards a Ctrl-C held pending since the start
         if hasattr(signal, "pthread_sigmask"):
             signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+def _stop_gc_diagnosis() -> None:
+    """Turn off Dask's garbage-collection timing in this process (a scheduler or worker starts it).
+
+    It only logs how long collections take, and its callback asserts that every collection's start is
+    followed by its stop; a collection that begins while another is being timed (seen during a
+    campaign whose kernels compiled as it started) printed "Exception ignored in GCDiagnosis._gc_callback
+    ... AssertionError" with a traceback into the user's terminal."""
+    from distributed.gc import disable_gc_diagnosis
+
+    disable_gc_diagnosis(force=True)
 
 
 class _SigintHeld:
