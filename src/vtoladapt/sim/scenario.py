@@ -239,11 +239,15 @@ class Scenario(Validated):
         return int(round(self.duration_s / self.dt_control_s))
 
     def load_vehicle(self) -> Vehicle:
-        """The vehicle named by the scenario (a shipped name, or a path relative to the scenario file)."""
-        path = Path(self.vehicle)
+        """The vehicle named by the scenario: a shipped name, or a path.
+
+        A relative path written in a scenario file was resolved against that file when it was read
+        (:func:`scenario_from_mapping`), so the one held here is relative to the working directory,
+        as a path given in Python (``replace(scenario, vehicle="my_plane.toml")``) or on the command
+        line (``--vehicle``) is: resolving such a path against the shipped scenario's folder made
+        ``examples/own_vehicle.py --out out/own_vehicle`` look for the vehicle inside the package
+        (issue #37)."""
         try:
-            if self.base_dir is not None and path.suffix == ".toml" and not path.is_absolute():
-                return load_vehicle(self.base_dir / path)
             return load_vehicle(self.vehicle)
         except ConfigError as exc:
             # an unknown name is the scenario file's mistake: say which file holds the key
@@ -281,6 +285,7 @@ def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | 
         data["source_path"] = str(source_path)
     else:
         data.setdefault("source_path", source)
+    data = file_relative_vehicle(data, data["source_path"])
     rate_from_dt(data, source, dt_default=SCENARIO_DT_DEFAULT_S)
     scenario = build(Scenario, data, source=source)
     scenario.load_vehicle()  # fail now, naming the file, if the vehicle is unknown
@@ -297,6 +302,18 @@ def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | 
             raise ConfigError(f"{source}: [sensors.probe] calibration_file = {calibration!r}: file not found "
                               f"({path}); allowed: a 'vtoladapt probe calibrate' calibration.json")
     return scenario
+
+
+def file_relative_vehicle(data: dict, source_path) -> dict:
+    """``data`` with a relative vehicle path (``vehicle = "my_plane.toml"``) made relative to the
+    folder of ``source_path``, the file it was written in; a shipped name or an absolute path is
+    left as it is. After this the scenario's ``vehicle`` is a path from the working directory."""
+    vehicle = data.get("vehicle")
+    if isinstance(vehicle, str) and source_path:
+        path = Path(vehicle)
+        if path.suffix == ".toml" and not path.is_absolute():
+            return {**data, "vehicle": str(Path(str(source_path)).parent / path)}
+    return data
 
 
 def shipped_scenario_names() -> list[str]:
