@@ -382,6 +382,9 @@ def read_tuned_file(path) -> tuple[str, dict, dict, dict]:
     from ..config import read_toml
     from ..control.settings import load_controller_config
 
+    from ..file_kinds import check_file_kind
+
+    check_file_kind(path, read_toml(path), "tuned settings", "--tuned")
     load_controller_config(path)                 # the file itself is a valid controller config
     data = read_toml(path)
     table = dict(data.get("controller", {}))

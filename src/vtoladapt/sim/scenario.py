@@ -20,8 +20,10 @@ from ..config import (NAME_PATTERN, PATH_PATTERN, ApplicableKeys, ConfigError, V
 from ..control.settings import (SCENARIO_DT_DEFAULT_S, SCENARIO_DT_RANGE_S, ControllerConfig,
                                 check_rate_matches_dt, rate_from_dt)
 from ..control.registry import controller_ids, theta_adaptive_ids
+from ..file_kinds import check_file_kind
 from .faults import MAX_FAULTS, FaultConfig
 from .monitor import EnvelopeConfig
+from .output import OutputConfig
 from .plant import PlantConfig
 from ..sensors import SensorsConfig
 from ..vehicle import Vehicle, load_vehicle
@@ -195,6 +197,7 @@ class Scenario(Validated):
     allocation: AllocationConfig = setting("-", "the control allocator", default=AllocationConfig())
     faults: tuple[FaultConfig, ...] = setting("-", "injected faults ([[faults]] entries, each with start_s "
                                               "and end_s)", default=(), max_items=MAX_FAULTS)
+    output: OutputConfig = setting("-", "what `vtoladapt run` keeps of the log", default=OutputConfig())
     source_path: str = setting("-", "file the scenario was read from", default="")
 
     def _check(self, source: str) -> None:
@@ -203,6 +206,7 @@ class Scenario(Validated):
                               f"judges how theta-hat converges; allowed: {', '.join(theta_adaptive_ids())} "
                               f"(the others hold theta-hat = theta_0)")
         self.check_loop_rate(source)
+        self.output.check_rate(self.dt_control_s, source)
         if self.experiment.kind == "comparison":  # each compared law flies these shared settings
             for kind in self.experiment.controllers:
                 self.controller.check_law(kind, source)
@@ -341,5 +345,6 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     if "tuning" in data:
         raise ConfigError(f"{path}: a tuned settings file ([tuning] table), not a scenario; "
                           f"fly it with: vtoladapt run SCENARIO --tuned {path} --out DIR")
+    check_file_kind(path, data, "scenario", "`vtoladapt run` (and load_scenario)")
     refuse_internal_keys(data, str(path))
     return scenario_from_mapping(data, str(path), source_path=path)
