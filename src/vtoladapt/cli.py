@@ -415,14 +415,16 @@ class _Parser(argparse.ArgumentParser):
 
 def help_description() -> str:
     """``vtoladapt --help``'s text: this module's summary and command list, without the reST markup
-    (``\`\`vtoladapt\`\``` and roles) the API documentation needs and a terminal shows raw."""
+    (double back-quotes and roles) the API documentation needs and a terminal shows raw."""
     import re
+    import textwrap
+
+    def plain(text: str) -> str:  # :class:`vtoladapt.errors.ExitCode` -> the name; ``x`` -> x
+        return re.sub(r":[a-z]+:`~?([^`]+)`", r"\1", text).replace("``", "")
 
     paragraphs = __doc__.split("\n\n")
-    text = "vtoladapt: adaptive control of fixed-wing VTOL aircraft.\n\n" + paragraphs[1] + "\n\n" + \
-        " ".join(paragraphs[2].split())
-    text = re.sub(r":[a-z]+:`~?([^`]+)`", r"\1", text)   # :class:`vtoladapt.errors.ExitCode` -> the name
-    return text.replace("``", "")
+    return ("vtoladapt: adaptive control of fixed-wing VTOL aircraft.\n\n" + plain(paragraphs[1]) + "\n\n"
+            + textwrap.fill(plain(" ".join(paragraphs[2].split())), width=100))
 
 
 def build_parser() -> argparse.ArgumentParser:
