@@ -136,3 +136,172 @@ def test_scenario_show_writes_a_file_that_loads_back_as_the_same_scenario(tmp_pa
     monkeypatch.chdir(tmp_path)
     mine, shipped = load_scenario("my.toml"), load_scenario("gym_hold")
     assert replace(mine, source_path="") == replace(shipped, source_path="")
+
+
+# --- a thinned log; export ----------------------------------------------------------------------------
+SHORT = 'name = "short"\nvehicle = "caltech_vtol"\nduration_s = 2.0\n'
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """The same 2 s run with its full log, thinned to 50 Hz (--log-rate), thinned by the file, and none."""
+    root = tmp_path_factory.mktemp("runs")
+    (root / "short.toml").write_text(SHORT)
+    (root / "short50.toml").write_text(SHORT + "\n[output]\nlog_rate_hz = 50.0\n")
+    out = {}
+    for name, argv in (("full", ["short.toml"]), ("flag", ["short.toml", "--log-rate", "50"]),
+                       ("file", ["short50.toml"]), ("none", ["short.toml", "--no-log"])):
+        assert main(["run", str(root / argv[0]), *argv[1:], "--out", str(root / name), "--quiet"]) == 0
+        out[name] = root / name
+    return out
+
+
+def _run_metrics(folder: Path) -> dict:
+    import json
+
+    metrics = json.loads((folder / "metrics.json").read_text())["run"]
+    metrics.pop("wall_time_s", None)  # the one that differs run to run
+    return metrics
+
+
+def test_metrics_use_every_tick_whatever_the_log_keeps(runs):
+    full = _run_metrics(runs["full"])
+    for name in ("flag", "file", "none"):
+        assert _run_metrics(runs[name]) == full, name
+
+
+def test_a_thinned_log_keeps_every_kth_tick_as_logged(runs):
+    import pyarrow.parquet as pq
+
+    from vtoladapt.sim.results import log_file_metadata
+
+    full = pq.read_table(runs["full"] / "log.parquet")
+    assert full.num_rows == 500  # 2 s at 250 Hz
+    for name in ("flag", "file"):
+        thin = pq.read_table(runs[name] / "log.parquet")
+        assert thin.num_rows == 100  # duration x rate
+        assert thin.equals(full.take(list(range(0, 500, 5))).replace_schema_metadata(thin.schema.metadata))
+        meta = log_file_metadata(runs[name] / "log.parquet")
+        assert meta["log_every_ticks"] == 5 and meta["log_rate_hz"] == 50.0
+
+
+def test_no_log_writes_none_and_the_manifest_lists_none(runs):
+    import json
+
+    from vtoladapt.outputs import MANIFEST_NAME
+
+    assert not (runs["none"] / "log.parquet").exists()
+    assert "log.parquet" not in json.loads((runs["none"] / MANIFEST_NAME).read_text())["files"]
+    assert "No log was kept" in (runs["none"] / "report.md").read_text()
+
+
+def test_export_mat_reads_back_as_the_logs_columns_with_units(runs, tmp_path, capsys):
+    import numpy as np
+    import pyarrow.parquet as pq
+    import scipy.io
+
+    from vtoladapt.export import matlab_name
+
+    out = tmp_path / "run.mat"
+    assert main(["export", str(runs["flag"]), "--format", "mat", "--out", str(out)]) == 0
+    table = pq.read_table(runs["flag"] / "log.parquet")
+    mat = scipy.io.loadmat(out, squeeze_me=True, struct_as_record=False)
+    taken = {"units", "columns", "vtoladapt_export"}
+    for name in table.column_names:
+        var = matlab_name(name, taken)
+        assert var.isidentifier() and len(var) <= 63
+        np.testing.assert_array_equal(np.atleast_1d(mat[var]), table.column(name).to_numpy(), err_msg=name)
+    assert list(mat["columns"]) == table.column_names
+    assert mat["units"].v_N_mps == "m/s" and mat["units"].t_s == "s"
+
+
+def test_export_csv_reads_back_exactly_and_never_replaces_a_foreign_file(runs, tmp_path, capsys):
+    import numpy as np
+    import pyarrow.parquet as pq
+
+    out = tmp_path / "run.csv"
+    assert main(["export", str(runs["full"] / "log.parquet"), "--format", "csv", "--out", str(out)]) == 0
+    table = pq.read_table(runs["full"] / "log.parquet")
+    lines = out.read_text().splitlines()
+    assert lines[0].startswith("# vtoladapt export") and lines[1].split(",") == table.column_names
+    assert lines[2].split(",")[table.column_names.index("v_N_mps")] == "m/s"
+    data = np.loadtxt(out, delimiter=",", skiprows=3)
+    for i, name in enumerate(table.column_names):
+        np.testing.assert_array_equal(data[:, i], table.column(name).to_numpy(), err_msg=name)
+    assert main(["export", str(runs["full"]), "--format", "csv", "--out", str(out)]) == 0  # its own: replaced
+    foreign = tmp_path / "mine.csv"
+    foreign.write_text("my data\n")
+    capsys.readouterr()
+    assert main(["export", str(runs["full"]), "--format", "csv", "--out", str(foreign)]) == ExitCode.BAD_INPUT
+    assert "not an output of 'vtoladapt export'" in _err_line(capsys)
+    assert foreign.read_text() == "my data\n"
+    assert main(["export", str(runs["none"]), "--format", "csv", "--out", str(tmp_path / "x.csv")]) == 2
+    assert "no log in this folder" in _err_line(capsys)
+
+
+def test_export_parquet_of_a_folder_is_its_log(runs, tmp_path):
+    import pyarrow.parquet as pq
+
+    from vtoladapt.sim.results import log_file_metadata
+
+    out = tmp_path / "copy.parquet"
+    assert main(["export", str(runs["file"]), "--format", "parquet", "--out", str(out)]) == 0
+    assert pq.read_table(out).replace_schema_metadata(None).equals(
+        pq.read_table(runs["file"] / "log.parquet").replace_schema_metadata(None))
+    assert log_file_metadata(out)["log_every_ticks"] == 5
+
+
+# --- a law of one's own -------------------------------------------------------------------------------
+@pytest.fixture
+def no_example_law():
+    from vtoladapt import components
+
+    yield
+    if "example" in components.registry("law"):
+        components.registry("law").unregister("example")
+
+
+def test_plugin_file_makes_its_law_flyable(tmp_path, capsys, no_example_law):
+    import json
+
+    (tmp_path / "short.toml").write_text(SHORT)
+    argv = ["run", str(tmp_path / "short.toml"), "--plugin", str(REPO / "examples" / "example_law.py"),
+            "--controller", "example", "--duration", "1", "--out", str(tmp_path / "o"), "--quiet"]
+    assert main(argv) == 0, capsys.readouterr().err
+    assert json.loads((tmp_path / "o" / "metrics.json").read_text())["run"]["pos_err_max_m"] < 1.0
+    assert main(["controllers", "--plugin", str(REPO / "examples" / "example_law.py")]) == 0
+    assert "example" in capsys.readouterr().out
+
+
+def test_plugin_errors_are_one_line(tmp_path, capsys, no_example_law):
+    bad = tmp_path / "broken_law.py"
+    bad.write_text("raise RuntimeError('oops')\n")
+    for spec, needle in ((str(bad), "broken_law.py: cannot be loaded: RuntimeError: oops"),
+                         ("no_such_module_37", "no module named 'no_such_module_37'"),
+                         (str(tmp_path / "missing.py"), "missing.py: file not found")):
+        assert main(["controllers", "--plugin", spec]) == ExitCode.BAD_INPUT
+        assert f"--plugin {spec}" in (line := _err_line(capsys)) and needle in line, line
+
+
+def test_entry_point_plugins_are_loaded(monkeypatch, no_example_law):
+    """An installed distribution's entry point in the group vtoladapt.plugins (faked here)."""
+    import importlib.metadata
+    import sys
+
+    from vtoladapt import components, plugins
+
+    class EntryPoint:
+        name, value, group = "example", "example_law", plugins.PLUGIN_GROUP
+
+        def load(self):
+            import importlib
+
+            return importlib.import_module("example_law")
+
+    monkeypatch.syspath_prepend(str(REPO / "examples"))
+    monkeypatch.setattr(importlib.metadata, "entry_points",
+                        lambda group=None: [EntryPoint()] if group == plugins.PLUGIN_GROUP else [])
+    monkeypatch.setattr(plugins, "_LOADED_ENTRY_POINTS", [False])
+    assert plugins.load_entry_point_plugins() == ["example"]
+    assert "example" in components.registry("law")
+    assert "example_law" in sys.modules
