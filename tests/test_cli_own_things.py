@@ -305,3 +305,35 @@ def test_entry_point_plugins_are_loaded(monkeypatch, no_example_law):
     assert plugins.load_entry_point_plugins() == ["example"]
     assert "example" in components.registry("law")
     assert "example_law" in sys.modules
+
+
+# --- the how-to page ------------------------------------------------------------------------------------
+PAGE = REPO / "docs" / "howto" / "cli_own_things.md"
+
+
+def test_the_pages_commands_run_in_order(tmp_path, monkeypatch, capsys, no_example_law):
+    """docs/howto/cli_own_things.md: every command of its ``run by`` blocks, in page order, in an empty
+    folder (with the repository's examples/), each exiting 0 (``> FILE`` writes the command's output)."""
+    import re
+    import shlex
+
+    (tmp_path / "examples").symlink_to(REPO / "examples")
+    monkeypatch.chdir(tmp_path)
+    text = PAGE.read_text(encoding="utf-8")
+    commands = [line for block in re.findall(r"<!-- run by: tests/test_cli_own_things.py -->\n```sh\n(.*?)```",
+                                             text, re.S) for line in block.splitlines() if line.strip()]
+    assert len(commands) >= 10
+    for command in commands:
+        words = shlex.split(command)
+        target = None
+        if ">" in words:
+            words, target = words[:words.index(">")], words[words.index(">") + 1]
+        assert words[0] == "vtoladapt", command
+        capsys.readouterr()
+        code = main(words[1:] + (["--quiet"] if words[1] == "run" else []))
+        out, err = capsys.readouterr()
+        assert code == 0, f"{command}: {err}"
+        if target:
+            Path(target).write_text(out)
+    assert load_scenario("my_hold.toml").name == "gym_hold"
+    assert Path("out/thin/log.csv").is_file() and Path("out/thin.mat").is_file()
