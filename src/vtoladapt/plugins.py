@@ -15,7 +15,7 @@ imported under its file name (``my_law.py`` is the module ``my_law``; a name alr
 module is refused). Installed distributions can declare plug-ins in the entry-point group
 :data:`PLUGIN_GROUP`, ``vtoladapt.plugins``; an entry's value is a module (imported as above) or a
 callable (``"my_package.plugin:register"``, called with no arguments). The commands that fly or list
-components (``run``, ``controllers``, ``bases``) load them first. The per-kind groups
+components (``run``, ``tune``, ``controllers``, ``bases``) load them first. The per-kind groups
 ``vtoladapt.law``, ``vtoladapt.basis``, ... of :mod:`vtoladapt.components` (one info object per entry)
 work as before.
 
