@@ -55,6 +55,17 @@ def test_a_vehicle_path_written_in_a_scenario_file_is_relative_to_that_file(tmp_
     assert Path(scenario.vehicle) == Path("../scenarios/my_plane.toml")  # now relative to the working directory
 
 
+def test_a_vehicle_path_on_the_command_line_is_relative_to_the_working_directory(tmp_path, monkeypatch):
+    from vtoladapt.cli import load_run_scenario
+
+    _my_plane(tmp_path / "planes")
+    (tmp_path / "scenarios").mkdir()
+    (tmp_path / "scenarios" / "s.toml").write_text('name = "s"\nvehicle = "caltech_vtol"\nduration_s = 1.0\n')
+    monkeypatch.chdir(tmp_path)
+    sc = load_run_scenario("scenarios/s.toml", vehicle="planes/my_plane.toml")
+    assert sc.load_vehicle().name == "my_plane"
+
+
 # --- --version, --help -------------------------------------------------------------------------------
 def test_version_prints_the_package_version(capsys):
     from vtoladapt import __version__

@@ -8,6 +8,9 @@ report are computed from every tick whatever is kept: the run streams its full l
 folder as before, the analysis reads it there, and only then is it replaced by the kept rows
 (:func:`thin_log`) -- or removed, with ``log = false``. So the disk holds the full log while the
 run is analysed, and memory stays what it was (one row group at a time).
+
+The table is applied where logs are written to an output folder (:func:`vtoladapt.experiments.run_experiment`,
+``vtoladapt run``); :func:`vtoladapt.sim.simulate` returns every tick in memory whatever it says.
 """
 from __future__ import annotations
 
