@@ -45,14 +45,3 @@ def test_example_runs(name, tmp_path):
     assert printed in done.stdout + done.stderr, done.stdout[-2000:]
     for f in files:
         assert (tmp_path / "out" / f).is_file(), f
-
-
-def test_own_vehicle_with_a_relative_out_from_its_docstring(tmp_path):
-    """Issue #37: the docstring's command (a relative ``--out``) looked for the vehicle next to the
-    shipped scenario; a path given in Python is relative to the working directory."""
-    args = [sys.executable, str(EXAMPLES / "own_vehicle.py"), "--out", "out/own_vehicle"]
-    done = subprocess.run(args, cwd=tmp_path, env=dict(os.environ, MPLBACKEND="Agg"), capture_output=True,
-                          text=True, timeout=900)
-    assert done.returncode == 0, done.stderr[-3000:]
-    assert "worst position error" in done.stdout, done.stdout[-2000:]
-    assert (tmp_path / "out" / "own_vehicle" / "my_plane.toml").is_file()
