@@ -348,3 +348,17 @@ def test_the_pages_commands_run_in_order(tmp_path, monkeypatch, capsys, no_examp
             Path(target).write_text(out)
     assert load_scenario("my_hold.toml").name == "gym_hold"
     assert Path("out/thin/log.csv").is_file() and Path("out/thin.mat").is_file()
+
+
+@pytest.mark.parametrize("argv, kind", [
+    (["campaign", "{vehicle}", "--runs", "2", "--out", "{out}"], "this is a vehicle file"),
+    (["run", "gym_hold", "--vehicle", "{campaign}", "--out", "{out}"], "this is a campaign file"),
+    (["export", "{vehicle}", "--format", "csv"], "this is a vehicle file"),
+    (["run", "gym_hold", "--vehicle", "{tmp}/nosuch.toml", "--out", "{out}"], "--vehicle: "),
+])
+def test_wrong_kind_of_file_for_other_commands(tmp_path, capsys, argv, kind):
+    names = dict(vehicle=_my_plane(tmp_path), out=tmp_path / "o", tmp=tmp_path,
+                 campaign=REPO / "src" / "vtoladapt" / "scenarios" / "envelope.toml")
+    assert main([a.format(**names) for a in argv]) == ExitCode.BAD_INPUT
+    assert kind in _err_line(capsys)
+    assert not (tmp_path / "o").exists()

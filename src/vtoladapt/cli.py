@@ -214,15 +214,18 @@ def load_run_scenario(path, duration_s=None, seed=None, controller=None, tuned=N
     from .control.settings import ControllerConfig
     from .sim.limits import check_run_size
     from .sim.scenario import Scenario, load_scenario
+    from .vehicle import load_vehicle
 
     scenario = load_scenario(path)
     if vehicle is not None:
         value = check_value(Scenario, "vehicle", str(vehicle), "--vehicle")
-        scenario = replace(scenario, vehicle=value)
-        try:
-            scenario.load_vehicle()
+        try:  # checked alone: the mistake is the flag's, not the scenario file's
+            load_vehicle(value)
         except ConfigError as exc:
-            raise ConfigError(f"--vehicle {value}: {exc}" if value not in str(exc) else str(exc)) from None
+            text = str(exc)
+            raise ConfigError(text if "--vehicle" in text else f"--vehicle {value}: {text}" if value not in text
+                              else f"--vehicle: {text}") from None
+        scenario = replace(scenario, vehicle=value)
     if log_rate_hz is not None or no_log:
         from .sim.output import OutputConfig
 

@@ -91,6 +91,11 @@ def _read_log(path: Path):
     from .sim.results import log_file_metadata
 
     check_input_file(path, "run log (.parquet)", max_bytes=1 << 40)
+    if path.suffix == ".toml":  # a scenario or vehicle given by mistake: say which
+        from .config import read_toml
+        from .file_kinds import check_file_kind
+
+        check_file_kind(path, read_toml(path), "run log", "`vtoladapt export`")
     try:
         metadata = log_file_metadata(path)
         table = pq.read_table(path)

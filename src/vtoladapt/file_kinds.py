@@ -55,7 +55,7 @@ def file_kind(data: Mapping[str, Any], expected: Optional[str] = None) -> Option
         marks = _marks_present(data, kind)
         if marks:
             return None if kind == expected else (kind, marks)
-    if expected is not None and _marks_present(data, expected):
+    if expected in MARKS and _marks_present(data, expected):
         return None
     for kind in ("scenario", "vehicle"):
         marks = _marks_present(data, kind)

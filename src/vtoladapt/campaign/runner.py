@@ -149,6 +149,9 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
         seed = check_value(Scenario, "seed", seed, "--seed")
     path = Path(scenario_path)
     base = read_toml(path)
+    from ..file_kinds import check_file_kind
+
+    check_file_kind(path, base, "scenario", "`vtoladapt campaign`")  # or a campaign file, dispatched before
     refuse_internal_keys(base, str(path))
     base_scenario = scenario_from_mapping(base, str(path))
     if controller is not None:
