@@ -362,3 +362,12 @@ def test_wrong_kind_of_file_for_other_commands(tmp_path, capsys, argv, kind):
     assert main([a.format(**names) for a in argv]) == ExitCode.BAD_INPUT
     assert kind in _err_line(capsys)
     assert not (tmp_path / "o").exists()
+
+
+def test_tuned_with_its_own_law_as_controller_is_accepted(tmp_path, capsys):
+    from vtoladapt.cli import load_run_scenario
+
+    tuned = REPO / "src" / "vtoladapt" / "scenarios" / "tuned" / "paper_comparison_pd.toml"
+    assert load_run_scenario("paper_comparison", controller=["pd"], tuned=str(tuned)).controller.kind == "pd"
+    with pytest.raises(ConfigError, match="--controller composite with --tuned .*: the file tunes pd"):
+        load_run_scenario("paper_comparison", controller=["composite"], tuned=str(tuned))

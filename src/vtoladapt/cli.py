@@ -217,6 +217,7 @@ def load_run_scenario(path, duration_s=None, seed=None, controller=None, tuned=N
     from .vehicle import load_vehicle
 
     scenario = load_scenario(path)
+    ids = None if controller is None else [controller] if isinstance(controller, str) else list(controller)
     if vehicle is not None:
         value = check_value(Scenario, "vehicle", str(vehicle), "--vehicle")
         try:  # checked alone: the mistake is the flag's, not the scenario file's
@@ -245,12 +246,11 @@ def load_run_scenario(path, duration_s=None, seed=None, controller=None, tuned=N
         from .experiments.tuning import tuned_controller
 
         config = tuned_controller(scenario.controller, tuned)
-        if controller is not None and controller != config.kind:
-            raise ConfigError(f"--controller {controller} with --tuned {tuned}: the file tunes {config.kind}")
+        if controller is not None and list(ids) != [config.kind]:
+            raise ConfigError(f"--controller {','.join(ids)} with --tuned {tuned}: the file tunes {config.kind}")
         scenario = replace(scenario, controller=config)
-        controller = config.kind
+        controller, ids = config.kind, [config.kind]
     if controller is not None:
-        ids = [controller] if isinstance(controller, str) else list(controller)
         kinds = tuple(check_value(ControllerConfig, "kind", cid, "--controller") for cid in ids)
         if not kinds:
             raise ConfigError("--controller: no id given; allowed: " + ", ".join(controller_ids()))
