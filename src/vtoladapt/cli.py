@@ -1,7 +1,10 @@
 """The ``vtoladapt`` command line.
 
     vtoladapt reproduce --out DIR           the paper's experiments, figures and report
-    vtoladapt run SCENARIO.toml --out DIR   one scenario (a single run or an experiment)
+    vtoladapt run SCENARIO.toml --out DIR   one scenario (a single run or an experiment); --vehicle,
+                                            --controller, --plugin MY_LAW.py, --log-rate HZ, --no-log
+    vtoladapt scenario list | show NAME     shipped scenarios; show prints one to start a file of one's own
+    vtoladapt export RUN --format csv|mat|parquet   a run's log for MATLAB, a spreadsheet or pandas
     vtoladapt tune SCENARIO --controller ID tune a law's declared gains (one budget for every law)
     vtoladapt campaign SCENARIO --runs N    Monte-Carlo campaign on a Dask cluster
     vtoladapt vehicle list | show NAME      shipped vehicles and their parameters
@@ -59,14 +62,67 @@ def _add_run(sub) -> None:
     p.add_argument("--out", required=True, type=output_path, help="output directory")
     p.add_argument("--duration", type=float, default=None, help="override duration_s (s)")
     p.add_argument("--seed", type=int, default=None, help="override the seed")
-    p.add_argument("--controller", default=None,
-                   help="override [controller] kind: an id of vtoladapt.control.registry (that controller only)")
+    p.add_argument("--vehicle", default=None, metavar="FILE|NAME",
+                   help="fly this vehicle instead of the scenario's: a shipped name (vtoladapt vehicle list) or a "
+                        "vehicle TOML (a relative path is from the working directory)")
+    p.add_argument("--controller", action="append", default=None, metavar="ID",
+                   help="override [controller] kind: an id of `vtoladapt controllers` (a law of --plugin too). "
+                        "A comparison flies exactly the ids given, in order: repeat the flag or separate ids "
+                        "by commas (--controller composite,pd); a single run or a convergence study takes one")
+    p.add_argument("--plugin", action="append", default=None, metavar="MODULE|FILE.py",
+                   help="import a module of your own first, registering its laws, bases, wind parts or sensors "
+                        "(repeatable; installed plug-ins of the entry-point group vtoladapt.plugins load too)")
     p.add_argument("--tuned", default=None, metavar="FILE",
                    help="fly the law of a tuned settings file (from `vtoladapt tune`, e.g. scenarios/tuned/...) "
                         "with its gains (that controller only)")
+    p.add_argument("--log-rate", type=float, default=None, metavar="HZ",
+                   help="override [output] log_rate_hz: keep every k-th control tick in the log "
+                        "(k = control rate / HZ); the metrics still use every tick")
+    p.add_argument("--no-log", action="store_true",
+                   help="override [output] log = false: write no log file (metrics, figures and report only)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_force_argument(p)
     p.set_defaults(handler=_cmd_run)
+
+
+def _add_scenario(sub) -> None:
+    p = sub.add_parser("scenario", help="list shipped scenarios or show one")
+    ssub = p.add_subparsers(dest="scenario_cmd", required=True)
+    ssub.add_parser("list", help="names and descriptions of the shipped scenarios").set_defaults(
+        handler=_cmd_scenario_list)
+    show = ssub.add_parser("show", help="print a scenario file (e.g. > my.toml to start one of your own)")
+    show.add_argument("name", help="shipped name (vtoladapt scenario list) or path to a scenario TOML")
+    show.set_defaults(handler=_cmd_scenario_show)
+
+
+def _cmd_scenario_list(args) -> int:
+    """One line per shipped scenario: the name ``run`` and ``scenario show`` take, and its description."""
+    from .config import read_toml
+    from .sim.scenario import SCENARIO_DIR, shipped_scenario_names
+
+    names = shipped_scenario_names()
+    width = max(len(n) for n in names)
+    for name in names:
+        description = read_toml(SCENARIO_DIR / f"{name}.toml").get("description", "")
+        print(f"{name:<{width}}  {description}")
+    return ExitCode.OK
+
+
+def _cmd_scenario_show(args) -> int:
+    """The scenario's file as written (its comments say why each value was chosen), after a header
+    naming where it came from. Validated first: what is printed loads back."""
+    from .sim.scenario import load_scenario
+
+    scenario = load_scenario(args.name)
+    text = open(scenario.source_path, encoding="utf-8").read()
+    sys.stdout.write(f"# scenario {scenario.name} (from {scenario.source_path}); every key is in the "
+                     "configuration reference with its unit and range\n" + text.rstrip("\n") + "\n")
+    return ExitCode.OK
+
+
+def _controller_ids(values) -> list[str]:
+    """``--controller`` values, repeated and/or comma-separated, as one list of ids."""
+    return [part.strip() for v in values for part in str(v).split(",") if part.strip()]
 
 
 def _add_reproduce(sub) -> None:
@@ -99,17 +155,23 @@ def _add_vehicle(sub) -> None:
 
 def _add_listings(sub) -> None:
     p = sub.add_parser("controllers", help="the control laws a scenario can fly (registered ones included)")
+    p.add_argument("--plugin", action="append", default=None, metavar="MODULE|FILE.py",
+                   help="import a module of your own first (its laws are listed too)")
     p.set_defaults(handler=_cmd_controllers)
     p = sub.add_parser("bases", help="the force-model bases the controller can adapt (registered ones included)")
     p.add_argument("--vehicle", default="caltech_vtol",
                    help="shipped name or path of the vehicle whose parameter names to show (default caltech_vtol)")
+    p.add_argument("--plugin", action="append", default=None, metavar="MODULE|FILE.py",
+                   help="import a module of your own first (its bases are listed too)")
     p.set_defaults(handler=_cmd_bases)
 
 
 def _cmd_controllers(args) -> int:
     """One line per law of the registry (ids a scenario's ``kind`` and ``--controller`` take)."""
     from .control.registry import CONTROLLERS
+    from .plugins import load_plugins
 
+    load_plugins(args.plugin)
     for c in CONTROLLERS.values():
         print(f"{c.id:<18} {c.label:<22} {c.description}")
     return ExitCode.OK
@@ -118,8 +180,10 @@ def _cmd_controllers(args) -> int:
 def _cmd_bases(args) -> int:
     """One block per basis: id, label, description and its parameters for ``--vehicle``."""
     from .bases import BASES, describe_basis
+    from .plugins import load_plugins
     from .vehicle import load_vehicle
 
+    load_plugins(args.plugin)
     veh = load_vehicle(args.vehicle)
     for b in BASES.values():
         spec = describe_basis(veh, b.id)
@@ -129,8 +193,14 @@ def _cmd_bases(args) -> int:
     return ExitCode.OK
 
 
-def load_run_scenario(path, duration_s=None, seed=None, controller=None, tuned=None):
+def load_run_scenario(path, duration_s=None, seed=None, controller=None, tuned=None, vehicle=None,
+                      log_rate_hz=None, no_log=False):
     """The scenario of ``vtoladapt run`` with its command-line overrides, fully validated.
+
+    ``vehicle``: a shipped name or a vehicle file (relative to the working directory) flown instead
+    of the scenario's. ``controller``: one id, or a list of them (a comparison flies exactly those;
+    a single run or a convergence study takes one). ``log_rate_hz`` / ``no_log``: ``[output]``
+    ``log_rate_hz`` and ``log = false``.
 
     The overrides go through the same checks as the file's keys (``--duration`` has
     ``duration_s``'s range), and the logs must fit the memory budget (:mod:`vtoladapt.sim.limits`).
@@ -140,11 +210,33 @@ def load_run_scenario(path, duration_s=None, seed=None, controller=None, tuned=N
     from dataclasses import replace
 
     from .config import ConfigError
+    from .control.registry import controller_ids
     from .control.settings import ControllerConfig
     from .sim.limits import check_run_size
     from .sim.scenario import Scenario, load_scenario
+    from .vehicle import load_vehicle
 
     scenario = load_scenario(path)
+    ids = None if controller is None else [controller] if isinstance(controller, str) else list(controller)
+    if vehicle is not None:
+        value = check_value(Scenario, "vehicle", str(vehicle), "--vehicle")
+        try:  # checked alone: the mistake is the flag's, not the scenario file's
+            load_vehicle(value)
+        except ConfigError as exc:
+            text = str(exc)
+            raise ConfigError(text if "--vehicle" in text else f"--vehicle {value}: {text}" if value not in text
+                              else f"--vehicle: {text}") from None
+        scenario = replace(scenario, vehicle=value)
+    if log_rate_hz is not None or no_log:
+        from .sim.output import OutputConfig
+
+        out = scenario.output
+        if log_rate_hz is not None:
+            out = replace(out, log_rate_hz=check_value(OutputConfig, "log_rate_hz", log_rate_hz, "--log-rate"))
+        if no_log:
+            out = replace(out, log=False)
+        scenario = replace(scenario, output=out)
+        scenario._check(f"{scenario.source_path} with --log-rate")
     if duration_s is not None:
         scenario = replace(scenario, duration_s=check_value(Scenario, "duration_s", duration_s,
                                                             "--duration"))
@@ -154,15 +246,23 @@ def load_run_scenario(path, duration_s=None, seed=None, controller=None, tuned=N
         from .experiments.tuning import tuned_controller
 
         config = tuned_controller(scenario.controller, tuned)
-        if controller is not None and controller != config.kind:
-            raise ConfigError(f"--controller {controller} with --tuned {tuned}: the file tunes {config.kind}")
+        if controller is not None and list(ids) != [config.kind]:
+            raise ConfigError(f"--controller {','.join(ids)} with --tuned {tuned}: the file tunes {config.kind}")
         scenario = replace(scenario, controller=config)
-        controller = config.kind
+        controller, ids = config.kind, [config.kind]
     if controller is not None:
-        kind = check_value(ControllerConfig, "kind", controller, "--controller")
-        scenario = replace(scenario, controller=replace(scenario.controller, kind=kind))
-        if scenario.experiment.kind == "comparison":  # compare just this one
-            scenario = replace(scenario, experiment=replace(scenario.experiment, controllers=(kind,)))
+        kinds = tuple(check_value(ControllerConfig, "kind", cid, "--controller") for cid in ids)
+        if not kinds:
+            raise ConfigError("--controller: no id given; allowed: " + ", ".join(controller_ids()))
+        if len(set(kinds)) != len(kinds):
+            raise ConfigError(f"--controller {','.join(kinds)}: an id given twice; allowed: each id once")
+        if len(kinds) > 1 and scenario.experiment.kind != "comparison":
+            raise ConfigError(f"--controller {','.join(kinds)}: {scenario.source_path} is a "
+                              f"{scenario.experiment.kind!r} experiment, which flies one law; allowed: one id "
+                              "(several need [experiment] kind = 'comparison')")
+        scenario = replace(scenario, controller=replace(scenario.controller, kind=kinds[0]))
+        if scenario.experiment.kind == "comparison":  # compare exactly these, in the order given
+            scenario = replace(scenario, experiment=replace(scenario.experiment, controllers=kinds))
         scenario._check(f"{scenario.source_path} with --controller")
     where = f"{scenario.source_path}" + (" with --duration" if duration_s is not None else "")
     check_run_size(scenario, where)
@@ -175,9 +275,13 @@ def _cmd_run(args) -> int:
 
     from .config import ConfigError
     from .outputs import OutputError
+    from .plugins import load_plugins
     from .preflight import check_experiment
 
-    scenario = load_run_scenario(args.scenario, args.duration, args.seed, args.controller, args.tuned)
+    load_plugins(args.plugin)  # before the scenario is read: it may name a plug-in's law
+    controller = _controller_ids(args.controller) if args.controller is not None else None
+    scenario = load_run_scenario(args.scenario, args.duration, args.seed, controller, args.tuned, args.vehicle,
+                                 args.log_rate, args.no_log)
     target = OutputDir(args.out, "run", force=args.force, planned=planned_outputs(scenario))
     # what needs the built vehicle and plant (hover, the law's prior, the envelope at the start),
     # for every run the experiment flies: all before the folder is claimed
@@ -312,6 +416,20 @@ class _Parser(argparse.ArgumentParser):
         self.exit(int(ExitCode.BAD_INPUT), f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
 
 
+def help_description() -> str:
+    """``vtoladapt --help``'s text: this module's summary and command list, without the reST markup
+    (double back-quotes and roles) the API documentation needs and a terminal shows raw."""
+    import re
+    import textwrap
+
+    def plain(text: str) -> str:  # :class:`vtoladapt.errors.ExitCode` -> the name; ``x`` -> x
+        return re.sub(r":[a-z]+:`~?([^`]+)`", r"\1", text).replace("``", "")
+
+    paragraphs = __doc__.split("\n\n")
+    return ("vtoladapt: adaptive control of fixed-wing VTOL aircraft.\n\n" + plain(paragraphs[1]) + "\n\n"
+            + textwrap.fill(plain(" ".join(paragraphs[2].split())), width=100))
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``vtoladapt`` parser: every sub-command registers itself here."""
     from .campaign.runner import register_cli as register_campaign
@@ -321,11 +439,17 @@ def build_parser() -> argparse.ArgumentParser:
     from .probe.cli import register_cli as register_probe
     from .replay.cli import register_cli as register_replay
 
-    parser = _Parser(prog="vtoladapt", description=__doc__.split("\n\n")[0])
+    from ._version import __version__
+    from .export import register_cli as register_export
+
+    parser = _Parser(prog="vtoladapt", description=help_description(),
+                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"vtoladapt {__version__}")
     parser.add_argument("--debug", action="store_true",
                         help="show the traceback of an error (accepted anywhere on the line)")
     sub = parser.add_subparsers(dest="command", required=True)
-    for register in (_add_reproduce, _add_run, register_tune, _add_vehicle, _add_listings, register_campaign,
+    for register in (_add_reproduce, _add_run, register_tune, _add_vehicle, _add_scenario, _add_listings,
+                     register_export, register_campaign,
                      register_fitting, register_learn, register_probe, register_replay):
         register(sub)
     return parser
@@ -333,7 +457,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _command_name(args: argparse.Namespace) -> str:
     parts = [getattr(args, "command", None)]
-    for sub in ("vehicle_cmd", "probe_command"):
+    for sub in ("vehicle_cmd", "scenario_cmd", "probe_command"):
         if getattr(args, sub, None):
             parts.append(getattr(args, sub))
     return " ".join(p for p in parts if p)

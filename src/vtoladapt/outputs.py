@@ -669,6 +669,21 @@ def _register(path: Path) -> None:
         owner.record(path)
 
 
+def remove_output(path) -> None:
+    """Remove an output this run wrote and drop it from its folder's manifest (a log that was
+    needed only while the run was analysed: ``[output] log = false``)."""
+    path = Path(path)
+    owner = _owner_of(path)
+    if owner is not None and not owner.force and owner.is_foreign(path):
+        raise OutputError(f"{path}: exists and was not written by 'vtoladapt {owner.command}'; not removed")
+    path.unlink()
+    if owner is not None:
+        rel = Path(os.path.abspath(path)).relative_to(owner._root).as_posix()
+        with _LOCK:
+            owner._files.pop(rel, None)
+        owner._write_manifest("running")
+
+
 def _refuse_foreign(path: Path) -> None:
     owner = _owner_of(path)
     if owner is None:

@@ -461,5 +461,8 @@ def _load_vehicle_file(path: str, mtime_ns: int, size: int) -> Vehicle:
     parsing the TOML took as long as a second of simulated flight.
     """
     data = read_toml(Path(path))
+    from .file_kinds import check_file_kind
+
+    check_file_kind(path, data, "vehicle", "--vehicle (and `vehicle show`, a scenario's `vehicle =`)")
     refuse_internal_keys(data, path)
     return vehicle_from_mapping(data, path)

@@ -149,6 +149,9 @@ def plan_campaign(scenario_path: str | Path, runs: int, variations: list[Variati
         seed = check_value(Scenario, "seed", seed, "--seed")
     path = Path(scenario_path)
     base = read_toml(path)
+    from ..file_kinds import check_file_kind
+
+    check_file_kind(path, base, "scenario", "`vtoladapt campaign`")  # or a campaign file, dispatched before
     refuse_internal_keys(base, str(path))
     base_scenario = scenario_from_mapping(base, str(path))
     if controller is not None:
@@ -505,14 +508,16 @@ def _validate_written(cf: CampaignFile, mapping: dict, where: str):
     the campaign file), or a one-line ConfigError naming ``where``. The scenario so far has
     passed, so a vehicle that fails to load is the one written there: it is reported as
     ``where``'s ``vehicle = ...`` (the lookup itself names only the base scenario's file)."""
-    from ..sim.scenario import Scenario, scenario_from_mapping
+    from ..sim.scenario import Scenario, file_relative_vehicle, scenario_from_mapping
 
-    scenario = build(Scenario, {**mapping, "source_path": str(cf.base_path)}, source=where)
+    scenario = build(Scenario, file_relative_vehicle({**mapping, "source_path": str(cf.base_path)}, cf.base_path),
+                     source=where)
     try:
         scenario.load_vehicle()
     except ConfigError as exc:
         reason = str(exc).removeprefix(f"{cf.base_path}: ").removeprefix(f"vehicle {scenario.vehicle!r}: ")
-        raise ConfigError(f"{where}: vehicle = {scenario.vehicle!r}: {reason}") from None
+        # the value as written there, not as resolved against the base scenario's folder
+        raise ConfigError(f"{where}: vehicle = {mapping.get('vehicle', scenario.vehicle)!r}: {reason}") from None
     return scenario_from_mapping(mapping, where, source_path=cf.base_path)
 
 

@@ -229,6 +229,8 @@ def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, wa
             notes.append("The log of each run is in `runs/`.")
     finally:
         progress.close()
+    if scenario.output.thinned:
+        notes[-1] = _thin_logs(scenario, out)
     metrics["claims"] = check_claims(metrics.get("comparison"), metrics.get("convergence"))
     n_variants = scenario.experiment.variants if variants is None else variants
     if kind != "single" and n_variants > 1:
@@ -253,6 +255,21 @@ def run_experiment(scenario: Scenario, out: Path, show_progress: bool = True, wa
         count = f" (first of {len(diverged)} diverged runs)" if len(diverged) > 1 else ""
         raise DivergenceError(res, f"{scenario.name}{' ' + name if name else ''}{count}: ")
     return metrics
+
+
+def _thin_logs(scenario: Scenario, out: Path) -> str:
+    """Thin or remove the run's logs per its ``[output]`` table (:func:`vtoladapt.sim.output.thin_log`),
+    once the metrics and figures have read every tick from them; the report's note on the logs."""
+    from ..sim.output import thin_log
+
+    every = scenario.output.every_ticks(scenario.dt_control_s)
+    for name in log_names(scenario):
+        thin_log(out / name, every, keep=scenario.output.log)
+    if not scenario.output.log:
+        return "No log was kept (`[output] log = false`, `--no-log`); the metrics and figures used every tick."
+    where = "`log.parquet`" if scenario.experiment.kind == "single" else "`runs/`"
+    return (f"The log ({where}) keeps one row every {every} control ticks ({1.0 / (every * scenario.dt_control_s):g} "
+            "Hz, `[output] log_rate_hz`); the metrics and figures used every tick.")
 
 
 def run_distribution(scenario: Scenario, n: int, show_progress: bool = True) -> dict:

@@ -382,6 +382,9 @@ def read_tuned_file(path) -> tuple[str, dict, dict, dict]:
     from ..config import read_toml
     from ..control.settings import load_controller_config
 
+    from ..file_kinds import check_file_kind
+
+    check_file_kind(path, read_toml(path), "tuned settings", "--tuned")
     load_controller_config(path)                 # the file itself is a valid controller config
     data = read_toml(path)
     table = dict(data.get("controller", {}))
@@ -426,6 +429,8 @@ def register_cli(sub) -> None:
     p.add_argument("--evaluations", type=int, default=EVALUATIONS,
                    help=f"evaluations of the objective per law, the defaults' included (default {EVALUATIONS})")
     p.add_argument("--draws", type=int, default=DRAWS, help=f"tuning draws per evaluation (default {DRAWS})")
+    p.add_argument("--plugin", action="append", default=None, metavar="MODULE|FILE.py",
+                   help="import a module of your own first, registering its laws (repeatable; vtoladapt.plugins)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_force_argument(p)
     p.set_defaults(handler=_cmd_tune)
@@ -439,8 +444,10 @@ def _cmd_tune(args) -> int:
     from ..errors import ExitCode
     from ..sim.limits import check_run_size
     from ..outputs import OutputDir, write_json, write_text
+    from ..plugins import load_plugins
     from ..sim.scenario import load_scenario
 
+    load_plugins(args.plugin)  # before the ids are checked: a plug-in's law is one of them
     known = controller_ids()
     ids = list(known) if "all" in args.controller else list(dict.fromkeys(args.controller))
     for cid in ids:

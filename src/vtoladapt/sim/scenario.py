@@ -20,8 +20,10 @@ from ..config import (NAME_PATTERN, PATH_PATTERN, ApplicableKeys, ConfigError, V
 from ..control.settings import (SCENARIO_DT_DEFAULT_S, SCENARIO_DT_RANGE_S, ControllerConfig,
                                 check_rate_matches_dt, rate_from_dt)
 from ..control.registry import controller_ids, theta_adaptive_ids
+from ..file_kinds import check_file_kind
 from .faults import MAX_FAULTS, FaultConfig
 from .monitor import EnvelopeConfig
+from .output import OutputConfig
 from .plant import PlantConfig
 from ..sensors import SensorsConfig
 from ..vehicle import Vehicle, load_vehicle
@@ -195,6 +197,7 @@ class Scenario(Validated):
     allocation: AllocationConfig = setting("-", "the control allocator", default=AllocationConfig())
     faults: tuple[FaultConfig, ...] = setting("-", "injected faults ([[faults]] entries, each with start_s "
                                               "and end_s)", default=(), max_items=MAX_FAULTS)
+    output: OutputConfig = setting("-", "what `vtoladapt run` keeps of the log", default=OutputConfig())
     source_path: str = setting("-", "file the scenario was read from", default="")
 
     def _check(self, source: str) -> None:
@@ -203,6 +206,7 @@ class Scenario(Validated):
                               f"judges how theta-hat converges; allowed: {', '.join(theta_adaptive_ids())} "
                               f"(the others hold theta-hat = theta_0)")
         self.check_loop_rate(source)
+        self.output.check_rate(self.dt_control_s, source)
         if self.experiment.kind == "comparison":  # each compared law flies these shared settings
             for kind in self.experiment.controllers:
                 self.controller.check_law(kind, source)
@@ -239,11 +243,15 @@ class Scenario(Validated):
         return int(round(self.duration_s / self.dt_control_s))
 
     def load_vehicle(self) -> Vehicle:
-        """The vehicle named by the scenario (a shipped name, or a path relative to the scenario file)."""
-        path = Path(self.vehicle)
+        """The vehicle named by the scenario: a shipped name, or a path.
+
+        A relative path written in a scenario file was resolved against that file when it was read
+        (:func:`scenario_from_mapping`), so the one held here is relative to the working directory,
+        as a path given in Python (``replace(scenario, vehicle="my_plane.toml")``) or on the command
+        line (``--vehicle``) is: resolving such a path against the shipped scenario's folder made
+        ``examples/own_vehicle.py --out out/own_vehicle`` look for the vehicle inside the package
+        (issue #37)."""
         try:
-            if self.base_dir is not None and path.suffix == ".toml" and not path.is_absolute():
-                return load_vehicle(self.base_dir / path)
             return load_vehicle(self.vehicle)
         except ConfigError as exc:
             # an unknown name is the scenario file's mistake: say which file holds the key
@@ -281,6 +289,7 @@ def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | 
         data["source_path"] = str(source_path)
     else:
         data.setdefault("source_path", source)
+    data = file_relative_vehicle(data, data["source_path"])
     rate_from_dt(data, source, dt_default=SCENARIO_DT_DEFAULT_S)
     scenario = build(Scenario, data, source=source)
     scenario.load_vehicle()  # fail now, naming the file, if the vehicle is unknown
@@ -297,6 +306,18 @@ def scenario_from_mapping(data: dict, source: str, *, source_path: str | Path | 
             raise ConfigError(f"{source}: [sensors.probe] calibration_file = {calibration!r}: file not found "
                               f"({path}); allowed: a 'vtoladapt probe calibrate' calibration.json")
     return scenario
+
+
+def file_relative_vehicle(data: dict, source_path) -> dict:
+    """``data`` with a relative vehicle path (``vehicle = "my_plane.toml"``) made relative to the
+    folder of ``source_path``, the file it was written in; a shipped name or an absolute path is
+    left as it is. After this the scenario's ``vehicle`` is a path from the working directory."""
+    vehicle = data.get("vehicle")
+    if isinstance(vehicle, str) and source_path:
+        path = Path(vehicle)
+        if path.suffix == ".toml" and not path.is_absolute():
+            return {**data, "vehicle": str(Path(str(source_path)).parent / path)}
+    return data
 
 
 def shipped_scenario_names() -> list[str]:
@@ -324,5 +345,6 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     if "tuning" in data:
         raise ConfigError(f"{path}: a tuned settings file ([tuning] table), not a scenario; "
                           f"fly it with: vtoladapt run SCENARIO --tuned {path} --out DIR")
+    check_file_kind(path, data, "scenario", "`vtoladapt run` (and load_scenario)")
     refuse_internal_keys(data, str(path))
     return scenario_from_mapping(data, str(path), source_path=path)
