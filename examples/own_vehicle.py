@@ -32,7 +32,8 @@ def main(out: Path) -> float:
     print(f"{vehicle.name}: {vehicle.mass.mass_kg} kg, wing {vehicle.geometry.wing_area_m2} m^2")
 
     scenario = vtoladapt.load_scenario("gym_hold")        # hold in the fan array's wind, 250 Hz plant
-    # an absolute path: a relative one is read relative to the scenario file, not to where you are
+    # a path given in Python is read from the working directory (one written inside a scenario file, from
+    # that file's folder); absolute here so the scenario can be copied anywhere
     scenario = replace(scenario, vehicle=str(path.resolve()), duration_s=10.0, name="my_plane_hold")
     result = vtoladapt.simulate(scenario).raise_if_diverged()
     p_err_m = np.linalg.norm(result.position_error_W, axis=1)
