@@ -48,8 +48,8 @@ def test_ceiling_per_basis_is_nested_and_the_section_renders(tmp_path, monkeypat
 def test_the_measured_ceiling_filters_as_the_controller_does():
     import numpy as np
 
-    from vtoladapt.control.adaptation import lowpass as controller_lowpass
-    from vtoladapt.control.adaptation import lowpass_gain
+    from vtoladapt.control.filters import lowpass as controller_lowpass
+    from vtoladapt.control.filters import lowpass_gain
     from vtoladapt.experiments.ceiling import lowpass
 
     x = np.random.default_rng(0).normal(size=(200, 3))
