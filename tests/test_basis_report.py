@@ -7,7 +7,7 @@ import json
 
 from vtoladapt import simulate
 from vtoladapt.experiments.report import Report, bases_section, render_markdown
-from vtoladapt.learn import report as basis_report
+from vtoladapt.experiments import ceiling as basis_report
 from vtoladapt.sim.scenario import scenario_from_mapping
 
 
@@ -33,7 +33,7 @@ def test_ceiling_per_basis_is_nested_and_the_section_renders(tmp_path, monkeypat
     assert rms[1] < 0.9 * rms[0]        # side wind: the side force the paper's basis lacks
     # with what the controller has (its inputs and the accelerometer, both filtered as it filters them)
     from vtoladapt.bases import describe_basis
-    from vtoladapt.learn.ceiling import measured_ceiling_fit
+    from vtoladapt.experiments.ceiling import measured_ceiling_fit
     from vtoladapt.sim.results import SimulationResult
 
     res = SimulationResult.from_parquet(tmp_path / "runs" / "cmp_composite.parquet")
@@ -48,9 +48,9 @@ def test_ceiling_per_basis_is_nested_and_the_section_renders(tmp_path, monkeypat
 def test_the_measured_ceiling_filters_as_the_controller_does():
     import numpy as np
 
-    from vtoladapt.control.adaptation import lowpass as controller_lowpass
-    from vtoladapt.control.adaptation import lowpass_gain
-    from vtoladapt.learn.ceiling import lowpass
+    from vtoladapt.control.filters import lowpass as controller_lowpass
+    from vtoladapt.control.filters import lowpass_gain
+    from vtoladapt.experiments.ceiling import lowpass
 
     x = np.random.default_rng(0).normal(size=(200, 3))
     c = lowpass_gain(10.0, 0.004)

@@ -201,4 +201,47 @@ def register(kind: str, info, *, replace: bool = False) -> Any:
     return registry(kind).register(info, replace=replace)
 
 
-__all__ = ["ENTRY_POINT_PREFIX", "KIND_HOMES", "Registry", "kinds", "register", "registry"]
+def component_tables(data: Mapping[str, Any], members: Registry, settings_of: Callable[[str], Any], *,
+                     own: set[str], refused: str, refusal: Callable[[Any], str], source: str, section: str,
+                     skip=(), listed=(), no_table: str | None = None) -> tuple[dict, tuple]:
+    """Take the tables of registered members (``[<section>.<id>]``) out of a component table and build them:
+    the one implementation behind each holder's ``component_tables`` hook of
+    :func:`vtoladapt.config.build` (the wind's parts, the sensors' channels, the controller's laws).
+
+    ``data``: the holder's table; ``members``: the registry whose ids name sub-tables; ``settings_of(id)``:
+    the member's Settings class; ``own``: the holder's own keys (never a member's table, whatever a
+    member is called); ``skip``: ids left to the holder (its built-in parts, built as its own keys).
+    ``refused``: the key under which the built tables are stored (``parts``, ``laws``); a table that
+    writes it is refused with ``refusal(value)``, the holder's message. ``listed``: ids the table names
+    without a table of their own, built with their defaults. ``no_table``: what a member is called, where
+    its Settings may be None (``"wind part"``), to refuse a table for it.
+
+    Returns the rest of the table (every other key, in order) and ``((id, settings), ...)`` in the
+    registry's order, so that a configuration does not depend on the order its tables were written in.
+    A member's table is built as ``section.id`` (``id`` alone where the holder has no section).
+    """
+    from .config import ConfigError, build  # config is the lower module; it never imports this one
+
+    if refused in data:
+        raise ConfigError(refusal(data[refused]))
+    rest, built = {}, []
+    for key, value in data.items():
+        if key in own or not isinstance(key, str) or key not in members or key in skip:
+            rest[key] = value
+            continue
+        settings_cls = settings_of(key)
+        if settings_cls is None and no_table is not None:
+            raise ConfigError(f"{source}: [{section}.{key}]: this {no_table} takes no table")
+        built.append((key, build(settings_cls, value, source=source, section=f"{section}.{key}" if section else key)))
+    given = {key for key, _ in built}
+    for key in listed:
+        # a listed member of the user's without a table of its own runs with its defaults
+        if isinstance(key, str) and key in members and key not in given:
+            built.append((key, build(settings_of(key), {}, source=source,
+                                     section=f"{section}.{key}" if section else key)))
+    order = list(members)
+    built.sort(key=lambda p: order.index(p[0]))
+    return rest, tuple(built)
+
+
+__all__ = ["ENTRY_POINT_PREFIX", "KIND_HOMES", "Registry", "component_tables", "kinds", "register", "registry"]

@@ -132,7 +132,7 @@ class BasisSpec:
     ``theta_table``, ``std_table``: the prior mean and standard deviation (Table-I units);
     ``P0_diag``: the initial adaptation gain (adaptation scaling); ``bound_fraction``,
     ``bound_sigmas``: theta-hat stays within ``max(bound_fraction |theta_0|, bound_sigmas std)``
-    of theta_0 (:func:`vtoladapt.control.step.theta_bound_half_widths`); ``sign``: +1 (-1) where
+    of theta_0 (:func:`vtoladapt.scaling.theta_bound_half_widths`); ``sign``: +1 (-1) where
     the parameter is known to be positive (negative) by its physics, 0 where either sign is
     possible; ``wing``: the column is the wing's (zero with the wing off in a wind tunnel);
     ``block``: the constants the compiled regressor reads; ``work_size``: its scratch;

@@ -7,7 +7,8 @@ compiled step (:mod:`vtoladapt.control.step`) owns the state.
 Filters (eq:prediction_error)
 -----------------------------
 ``[.]_f`` is a first-order low-pass at ``f_c`` (10 Hz in the paper), discretised exactly for an
-input held over the tick: ``y <- y + (1 - exp(-2 pi f_c dt)) (x - y)``. The same filter acts on
+input held over the tick: ``y <- y + (1 - exp(-2 pi f_c dt)) (x - y)`` (:mod:`vtoladapt.control.filters`,
+which the laws and the front end share). The same filter acts on
 the accelerometer's specific force (body axes, what ``f_b`` predicts) and on the regressor, so
 ``e = W theta-hat - a_m`` compares like with like.
 
@@ -102,6 +103,8 @@ from numba import njit
 from ..frames import rows_transpose_times
 from ..layout import BlockLayout, Field
 from .exact_step import EXACT_WORK, constant_gain_inverse
+# lowpass and lowpass_gain were this module's before the filters had a module of their own: named here too
+from .filters import TINY, flush_tiny, lowpass, lowpass_gain  # noqa: F401
 from .linalg import (cholesky_inline, cholesky_lower, cholesky_solve, factor_apply, factor_diag, gram_of_factor,
                      inverse_factor, inverse_factor_inline, mirror_upper)
 from .sizes import N_SLOT_0, N_SLOT_1, N_SLOT_2, N_SPECIALISED_SLOTS, SPECIALISED_N
@@ -229,31 +232,7 @@ def offsets_table(n: int, memory_at: int, prior_at: int, work_at: int, covarianc
 # itself the same way.
 
 
-# --- filters and the prediction error -----------------------------------------------------------
-
-TINY = 1e-100
-"""States decaying toward zero are set to zero below this magnitude: no physical quantity here is
-that small, and subnormal floats (below 2.2e-308, reached after a few thousand ticks of exponential
-decay) make every operation on them about a hundred times slower."""
-
-
-@njit(cache=True)
-def flush_tiny(x: float) -> float:
-    """``x``, or 0 if ``|x| < TINY`` (keeps decaying states out of the subnormal range)."""
-    return x if abs(x) >= TINY else 0.0
-
-
-@njit(cache=True)
-def lowpass(y: float, x: float, c: float) -> float:
-    """One step of the low-pass, ``y + c (x - y)``, flushing tiny values to zero."""
-    return flush_tiny(y + c * (x - y))
-
-
-@njit(cache=True)
-def lowpass_gain(cutoff_hz: float, dt: float) -> float:
-    """Gain ``c = 1 - exp(-2 pi f_c dt)`` of the exactly discretised first-order low-pass."""
-    return 1.0 - np.exp(-2.0 * np.pi * cutoff_hz * dt)
-
+# --- the prediction error (its filters: vtoladapt.control.filters) -----------------------------
 
 @njit(cache=True, error_model="numpy", inline="always")
 def prediction_error(W, w, theta, t, a_m, m, n) -> tuple:
@@ -779,8 +758,8 @@ __all__ = ["ADAPT_COMPOSITE", "ADAPT_KALMAN", "ADAPT_NONE", "ADAPT_PCONST", "ADA
            "AT_COVARIANCE", "AT_Q", "AT_R_MEAS",
            "AT_D", "AT_D0", "AT_DWT", "AT_FACTOR", "AT_GAMMA", "AT_GAMMA0", "AT_K", "AT_L", "AT_LOWER", "AT_M",
            "AT_MU", "AT_N", "AT_P0", "AT_P_DIAG", "AT_RHS", "AT_S", "AT_SWD", "AT_SYSTEM", "AT_S_FACTOR", "AT_TAU",
-           "AT_THETA", "AT_THETA0", "AT_THETA_INIT", "AT_UPPER", "AT_W", "AT_WTW", "TINY", "adaptation_step",
+           "AT_THETA", "AT_THETA0", "AT_THETA_INIT", "AT_UPPER", "AT_W", "AT_WTW", "adaptation_step",
            "adaptation_step_with_error", "bound_sides", "cap_information", "directional_information_update",
-           "flush_tiny", "forgetting_weights", "gram", "information_update", "lowpass", "lowpass_gain",
+           "forgetting_weights", "gram", "information_update",
            "lyapunov_at", "lyapunov_function", "memory_layout", "offsets_table", "prediction_error",
            "prior_layout", "project_direction", "standalone_arrays", "weighted_adaptation_step", "work_layout"]

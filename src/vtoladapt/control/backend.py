@@ -37,7 +37,7 @@ from .. import layout as L
 from ..bases import IN_FLOW, IN_V_I_B, N_PHYSICS
 from ..forces import F_ALPHA, F_V, I_CL0, I_CL1, model_at
 from ..frames import GRAVITY_MPS2, quat_to_rotmat_rows, rows_times, rows_transpose_times
-from . import adaptation as ad
+from . import filters
 from .allocation import allocate_thrusters_at
 from .attitude import (
     ALPHA_EXCESS_MAX_RAD,
@@ -175,7 +175,7 @@ def heading(params, state, v_i, v_i_W, alpha_raw, probe_ok) -> tuple:
             target, ff = yaw_d, wrap_angle(yaw_d - state[S_YAW_REF_PREV])
         psi, turn = heading_step(state[S_HEADING], state[S_TURN_SIGN], target, ff, dt,
                                  params[P_HEADING_TAU], params[P_HEADING_RATE])
-        alpha_m = ad.lowpass(state[S_ALPHA_F], alpha_raw, dt / (params[P_AP_TAU] + dt))
+        alpha_m = filters.lowpass(state[S_ALPHA_F], alpha_raw, dt / (params[P_AP_TAU] + dt))
     else:
         psi, turn = yaw_d, 0.0
         alpha_m = alpha_raw
@@ -209,7 +209,7 @@ def flow_angle_protection(params, state, v_i_W, V_W, airspeed, psi, alpha_raw, a
             w_wing *= align
     d_a = min(max(alpha_raw - alpha_m, -ALPHA_EXCESS_MAX_RAD), ALPHA_EXCESS_MAX_RAD)
     alpha_var = state[S_ALPHA_VAR]
-    alpha_var = ad.flush_tiny(alpha_var + (w_wing * d_a * d_a - alpha_var) * dt / (params[P_AP_SPREAD_TAU] + dt))
+    alpha_var = filters.flush_tiny(alpha_var + (w_wing * d_a * d_a - alpha_var) * dt / (params[P_AP_SPREAD_TAU] + dt))
     state[S_ALPHA_VAR] = alpha_var
     spread = np.sqrt(alpha_var)
     if probe_ok:
@@ -241,8 +241,8 @@ def attitude(params, state, f_r, v_i_W, V_W, psi, align, alpha_min_flown, alpha_
         raw, _ = limit_norm(desired_frame_rate(q_d_prev, q_d, state[S_TICK + T_DT]), params[P_WD_MAX])
         c_w = state[S_GAINS + GAIN_OMEGA_D]
         for i in range(3):
-            state[S_WD_X1 + i] = ad.lowpass(state[S_WD_X1 + i], raw[i], c_w)
-            state[S_WD_X2 + i] = ad.lowpass(state[S_WD_X2 + i], state[S_WD_X1 + i], c_w)
+            state[S_WD_X1 + i] = filters.lowpass(state[S_WD_X1 + i], raw[i], c_w)
+            state[S_WD_X2 + i] = filters.lowpass(state[S_WD_X2 + i], state[S_WD_X1 + i], c_w)
     state[S_HAVE_QD] = 1.0
     for i in range(4):
         state[S_Q_D_PREV + i] = q_d[i]

@@ -57,6 +57,7 @@ from ..bases import IN_FLOW, IN_OMEGA_B, IN_Q_WB, IN_U, IN_V_I_B, IN_V_I_VALID, 
 from ..forces import FLOW_SIZE, incident_flow, model_at, theta_at
 from ..frames import quat_to_rotmat_rows, rows_times, rows_transpose_times, yaw_pitch_roll
 from . import adaptation as ad
+from . import filters
 from .airflow_estimate import SIN_SIDESLIP_MAX, estimate_horizontal_wind
 from .blocks import (
     A_A_M, A_BASIS, A_BASIS_SIZE, A_BASIS_WORK, A_BASIS_WORK_SIZE, A_N, A_PHI, A_THETA, A_W, FAULT_ACCEL,
@@ -123,12 +124,12 @@ def wrap_angle(a) -> float:
 def update_shared_gains(params, state, dt) -> None:
     """Store the shared filter and lag gains for a tick of ``dt`` (``GAINS`` layout) in ``state``."""
     g = S_GAINS
-    state[g + GAIN_LOWPASS] = ad.lowpass_gain(params[P_LOWPASS_HZ], dt)
+    state[g + GAIN_LOWPASS] = filters.lowpass_gain(params[P_LOWPASS_HZ], dt)
     state[g + GAIN_WIND] = 1.0 - np.exp(-dt / params[P_WIND_TAU])
     state[g + GAIN_FADE] = np.exp(-dt / params[P_WIND_FADE])
     state[g + GAIN_MOTOR_X] = np.exp(-dt / params[P_MOTOR_TAU])
     state[g + GAIN_MOTOR_Z] = np.exp(-dt / params[P_MOTOR_TAU + 1])
-    state[g + GAIN_OMEGA_D] = ad.lowpass_gain(params[P_WD_HZ], dt)
+    state[g + GAIN_OMEGA_D] = filters.lowpass_gain(params[P_WD_HZ], dt)
     state[g + GAIN_FLOW_EST] = 1.0 - np.exp(-dt / params[P_FLOW_EST_TAU])
     state[S_GAINS_DT] = dt
 
@@ -312,7 +313,7 @@ def follow_probe(state, R, v_W, v_i) -> None:
     for i in range(3):
         w_i = v_W[i] - v_i_probe_W[i]
         if state[S_HAVE_WIND] > 0.0:
-            state[S_WIND_EST + i] = ad.lowpass(state[S_WIND_EST + i], w_i, cw)
+            state[S_WIND_EST + i] = filters.lowpass(state[S_WIND_EST + i], w_i, cw)
         else:
             state[S_WIND_EST + i] = w_i
     state[S_HAVE_WIND] = 1.0
@@ -336,9 +337,9 @@ def fallback_flow(params, state, R, v_W, accel_ok) -> tuple:
         if est_ok:
             state[S_FLOW_EST_W], state[S_FLOW_EST_W + 1] = w_N, w_E
             c = state[S_GAINS + GAIN_FLOW_EST]
-            state[S_WIND_EST] = ad.lowpass(state[S_WIND_EST], w_N, c)
-            state[S_WIND_EST + 1] = ad.lowpass(state[S_WIND_EST + 1], w_E, c)
-            state[S_WIND_EST + 2] = ad.flush_tiny(state[S_WIND_EST + 2] * state[S_GAINS + GAIN_FADE])
+            state[S_WIND_EST] = filters.lowpass(state[S_WIND_EST], w_N, c)
+            state[S_WIND_EST + 1] = filters.lowpass(state[S_WIND_EST + 1], w_E, c)
+            state[S_WIND_EST + 2] = filters.flush_tiny(state[S_WIND_EST + 2] * state[S_GAINS + GAIN_FADE])
             state[S_HAVE_WIND] = 1.0
             # the flow the model places is slower than the probe's still-air story allows: the wind
             # is gone, the probe's "invalid, near zero" is still air again
@@ -351,7 +352,7 @@ def fallback_flow(params, state, R, v_W, accel_ok) -> tuple:
         # a stale estimate must not outlive the wind: fade toward still air while the probe is out
         fade = state[S_GAINS + GAIN_FADE]
         for i in range(3):
-            state[S_WIND_EST + i] = ad.flush_tiny(state[S_WIND_EST + i] * fade)
+            state[S_WIND_EST + i] = filters.flush_tiny(state[S_WIND_EST + i] * fade)
     d = (v_W[0] - state[S_WIND_EST], v_W[1] - state[S_WIND_EST + 1], v_W[2] - state[S_WIND_EST + 2])
     return rows_transpose_times(R, d)
 
@@ -429,7 +430,7 @@ def basis_input(params, state) -> None:
 def filter_regressor(state, wf, phi, c_f, n) -> None:
     """``W <- [Phi]_f``: one step of the low-pass on each of the 3 n entries."""
     for k in range(3 * n):
-        state[wf + k] = ad.lowpass(state[wf + k], state[phi + k], c_f)
+        state[wf + k] = filters.lowpass(state[wf + k], state[phi + k], c_f)
 
 
 @njit(cache=True, inline="always")
@@ -456,7 +457,7 @@ def regressor_and_filters(fns, params, state, meas, accel_ok) -> None:
             filter_regressor(state, wf, phi, c_f, n)
         if accel_ok:
             for r in range(3):
-                state[am + r] = ad.lowpass(state[am + r], meas[L.MEAS_ACCEL_B + r], c_f)
+                state[am + r] = filters.lowpass(state[am + r], meas[L.MEAS_ACCEL_B + r], c_f)
     elif accel_ok and state[S_STEPS] >= 1.0:
         # start the filters from a sample whose regressor uses a command this controller issued
         for r in range(3):

@@ -63,7 +63,8 @@ from numba import njit
 
 from ..frames import GRAVITY_MPS2, rows_transpose_times
 from .adaptation import (AT_DWT, AT_GAMMA, AT_LOWER, AT_N, AT_P_DIAG, AT_Q, AT_R_MEAS, AT_S, AT_S_FACTOR, AT_SWD,
-                         AT_TAU, AT_THETA, AT_THETA0, AT_UPPER, AT_W, AT_A_M, N_SLOT_0, N_SLOT_1, N_SLOT_2, flush_tiny)
+                         AT_TAU, AT_THETA, AT_THETA0, AT_UPPER, AT_W, AT_A_M, N_SLOT_0, N_SLOT_1, N_SLOT_2)
+from .filters import flush_tiny
 
 MICRO_G_MPS2 = 1e-6 * GRAVITY_MPS2
 """One micro-g in m/s^2 (the accelerometer density's data-sheet unit)."""

@@ -67,6 +67,7 @@ from dataclasses import dataclass
 from typing import Any, Mapping, Optional
 
 from ..bases import basis_ids
+from ..components import component_tables
 from ..config import ConfigError, Validated, build, check_flag, read_toml, setting
 from .registry import CONTROLLERS, ControllerInfo, controller_ids, controller_info
 
@@ -254,17 +255,14 @@ class ControllerConfig(Validated):
     @classmethod
     def component_tables(cls, data: Mapping[str, Any], *, source: str, section: str) -> tuple[dict, dict]:
         """The ``[controller.<id>]`` sub-tables of a registered law, built as that law's ``Settings``
-        (:func:`vtoladapt.config.build`); the rest of the table is returned for the shared keys."""
-        data = dict(data)
-        if "laws" in data:
-            raise ConfigError(f"{source}: [{section}] laws = {data['laws']!r:.40}: unknown key; a law's settings are "
-                              "its own table [controller.<id>]")
-        fields = {f.name for f in dataclasses.fields(cls)} - {"laws"}
-        extras = {}
-        for key in [k for k in data if k not in fields and isinstance(k, str) and k in CONTROLLERS]:
-            prefix = f"{section}.{key}" if section else key
-            extras[key] = build(_law_settings_class(key), data.pop(key), source=source, section=prefix)
-        return data, extras
+        (:func:`vtoladapt.config.build`; :func:`vtoladapt.components.component_tables`); the rest of the
+        table is returned for the shared keys."""
+        rest, laws = component_tables(
+            data, CONTROLLERS, _law_settings_class, own={f.name for f in dataclasses.fields(cls)},
+            source=source, section=section, refused="laws",
+            refusal=lambda laws: (f"{source}: [{section}] laws = {laws!r:.40}: unknown key; a law's settings are "
+                                  "its own table [controller.<id>]"))
+        return rest, dict(laws)
 
     def _check(self, source: str) -> None:
         wv = self.weathervane_airspeed_mps

@@ -30,6 +30,8 @@ import numpy as np
 from numba import njit, types
 
 from .. import _numba_abi
+# the bounds rule is the models layer's (a posterior file's prior uses it below the controller); named here too
+from ..scaling import theta_bound_half_widths, theta_bounds  # noqa: F401
 from ..parts import PART_ROW, T_C, function_loader
 from ..bases import REGRESSOR_SIGNATURE, BasisSpec, basis_key, basis_module, basis_of_key, describe_basis
 from . import adaptation as ad
@@ -167,42 +169,10 @@ def _vector(name: str, value, n: int) -> np.ndarray:
     return a
 
 
-def theta_bound_half_widths(theta_0, theta_std, bound_fraction, bound_sigmas: float) -> np.ndarray:
-    """Half-widths of the theta-hat box: ``max(bound_fraction |theta_0|, bound_sigmas |std|)``.
-
-    :func:`theta_bounds` applies them (and the signs physics gives). Never narrower than
-    ``1e-13 |theta_0|`` (1e-13 where theta_0 = 0): well above rounding, far below any real bound,
-    so a degenerate setting cannot give a zero-width box that freezes theta-hat.
-    """
-    th0 = np.asarray(theta_0, dtype=float)
-    half = np.maximum(np.asarray(bound_fraction, dtype=float) * np.abs(th0),
-                      bound_sigmas * np.abs(np.asarray(theta_std, dtype=float)))
-    return np.maximum(half, 1e-13 * np.where(th0 != 0.0, np.abs(th0), 1.0))
-
-
-def theta_bounds(theta_0, theta_std, bound_fraction, bound_sigmas: float, signs) -> tuple[np.ndarray, np.ndarray]:
-    """Box bounds of theta-hat: ``theta_0 +- max(bound_fraction |theta_0|, bound_sigmas |std|)``
-    (:func:`theta_bound_half_widths`), cut at zero where a coefficient's sign is known from physics
-    (``signs``, the basis's :attr:`~vtoladapt.bases.BasisSpec.sign`; for the paper's columns
-    :func:`vtoladapt.vehicle.parameter_signs`): a non-negative one's lower bound is at least 0, a
-    non-positive one's upper bound at most 0.
-
-    The one rule for the bounds, whether theta_0 comes from the vehicle file or a fitted posterior.
-    (Without the cut the caltech_vtol's ``bound_fraction`` 1.5 on C_S let theta-hat reach
-    ``-0.5 theta_0``: a rotor side force along the flow.)
-    """
-    th0 = np.asarray(theta_0, dtype=float)
-    half = theta_bound_half_widths(th0, theta_std, bound_fraction, bound_sigmas)
-    signs = np.asarray(signs)
-    lower = np.where(signs > 0, np.maximum(th0 - half, 0.0), th0 - half)
-    upper = np.where(signs < 0, np.minimum(th0 + half, 0.0), th0 + half)
-    return lower, upper
-
-
 def default_theta_bounds(vehicle, theta_0=None, theta_std=None, basis: BasisSpec | None = None
                          ) -> tuple[np.ndarray, np.ndarray]:
-    """Box bounds of theta-hat (:func:`theta_bounds`) with the basis's ``bound_fraction``, ``bound_sigmas``
-    and signs (default: the vehicle's basis, :func:`vtoladapt.bases.describe_basis`).
+    """Box bounds of theta-hat (:func:`vtoladapt.scaling.theta_bounds`) with the basis's ``bound_fraction``,
+    ``bound_sigmas`` and signs (default: the vehicle's basis, :func:`vtoladapt.bases.describe_basis`).
 
     ``theta_0`` and ``std`` default to the basis's prior (Table I for the paper's), all in the adaptation scaling.
     """

@@ -34,7 +34,7 @@ The targets (issue #11, "Must show"):
 Beside the targets, every run's log is scored by the prediction yardstick (:mod:`.yardstick`, issue
 #34): the prediction error on probe-valid samples one tick and ``horizon_s`` ahead, the no-model hold
 at both, the blind time, and the constant-weights ceiling of the basis fitted on this run's own log
-(:mod:`vtoladapt.learn.ceiling`, true and measured inputs); per controller the summary reports the
+(:mod:`vtoladapt.experiments.ceiling`, true and measured inputs); per controller the summary reports the
 fraction of draws where each passes in every airspeed bin (:data:`YARDSTICK_KEYS`).
 
 Per airspeed bin the prediction-error target is judged on that bin, the tracking target on the
@@ -200,7 +200,7 @@ def _worst_key(key: str) -> str:
 def yardstick_columns(result, scenario, vehicle) -> dict:
     """The run's :data:`YARDSTICK_KEYS`, their worst-bin p95 and ``blind_fraction`` (NaN where not judged)."""
     from ..bases import describe_basis
-    from ..learn.ceiling import ceiling_fit, measured_ceiling_fit
+    from .ceiling import ceiling_fit, measured_ceiling_fit
     from .yardstick import prediction_yardstick, worst_bin
 
     nan = float("nan")

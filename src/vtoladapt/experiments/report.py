@@ -569,7 +569,7 @@ def build_report(title: str, metrics: dict, figures: Iterable[FigureRef], notes:
     return Report(title, tuple(paragraph(n) for n in notes), tuple(sections), tuple(figures))
 
 
-# --- the force-model bases (issue #23; the metrics: vtoladapt.learn.report.bases_metrics) ---------------
+# --- the force-model bases (issue #23; the metrics: vtoladapt.experiments.ceiling.bases_metrics) ---------------
 def _fraction_cell(d) -> str:
     if not d or not d.get("n"):
         return "n/a"

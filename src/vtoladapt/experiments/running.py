@@ -347,7 +347,7 @@ def reproduce(out: Path, duration_scale: float = 1.0, show_progress: bool = True
             len(WIND_CONDITIONS) * wind_variants * len(comp.experiment.controllers) * WIND_HOLD_S
             * duration_scale, show_progress, "method x wind")
     metrics["faults"] = _fault_rows(show_progress)
-    from ..learn.report import bases_metrics
+    from .ceiling import bases_metrics
 
     metrics["bases"] = bases_metrics(out / "comparison", comp)
     figures = []

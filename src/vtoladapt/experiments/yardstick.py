@@ -84,11 +84,11 @@ def frozen_theta_error(e: np.ndarray, W: np.ndarray, theta: np.ndarray, lag_rows
 
 def filtered_regressor(result, vehicle, spec, cutoff_hz: float) -> np.ndarray | None:
     """``W = [Phi]_f`` (N, 3, n) rebuilt from the log's controller inputs
-    (:func:`vtoladapt.learn.data.flight_from_result`), through the controller's first-order filter at
+    (:func:`vtoladapt.bases.log_samples.flight_from_result`), through the controller's first-order filter at
     ``cutoff_hz``; None if a row is not finite (the filter would smear it)."""
     from ..bases import evaluate
-    from ..learn.ceiling import lowpass
-    from ..learn.data import flight_from_result
+    from .ceiling import lowpass
+    from ..bases.log_samples import flight_from_result
 
     flight = flight_from_result(result, vehicle, skip_s=0.0, stride=1)
     if len(flight.x) != len(result.time_s):

@@ -15,8 +15,8 @@ shipped bases never saw), and the constant-weights ceiling.
 ``--learned-files LABEL=DIR`` adds a row flying the networks ``DIR/<vehicle>.npz`` (e.g. trained with
 ``learn-basis --adversarial``).
 
-**The ceiling** (:func:`.ceiling.ceiling_fit`): for each draw, the best *constant* weights of a basis for the
-whole run, by least squares on the aircraft's true specific force with the true incident flow,
+**The ceiling** (:func:`vtoladapt.experiments.ceiling.ceiling_fit`): for each draw, the best *constant*
+weights of a basis for the whole run, by least squares on the aircraft's true specific force with the true incident flow,
 the throttles the rotors actually had (the lift collective as the RMS of the four rotors: the
 same total thrust) and the true attitude and rates, judged by the same target (p95 < 0.05 g in
 every true-airspeed bin, after the first 2 s). It is what any estimator of that basis could do at
@@ -25,7 +25,8 @@ best, with no sensor and no adaptation lag. It is fitted on each law's *own* fli
 that flies differently meets different conditions, so a ceiling from another law's flight (until
 issue #34 every basis's was fitted on the composite law's flights with the paper's basis) is not
 its ceiling. Beside it, the ceiling with the controller's own inputs and accelerometer, filtered as
-it filters them (:func:`.ceiling.measured_ceiling_fit`): the gap between the two is what sensing costs.
+it filters them (:func:`vtoladapt.experiments.ceiling.measured_ceiling_fit`): the gap between the two is
+what sensing costs.
 
 **The yardstick** (:mod:`vtoladapt.experiments.yardstick`): per law and row, the fraction of draws
 whose prediction error on probe-valid samples passes one tick and ``horizon_s`` ahead, the no-model
@@ -44,7 +45,8 @@ from pathlib import Path
 import numpy as np
 
 from ..stats import fraction_holding
-from .ceiling import ceiling_fit, measured_ceiling_fit, true_inputs  # noqa: F401  (part of this module's interface)
+# part of this module's interface (the ceiling is the experiments', which the envelope campaign judges with)
+from ..experiments.ceiling import ceiling_fit, measured_ceiling_fit, true_inputs  # noqa: F401
 
 CAMPAIGN = Path(__file__).resolve().parents[3] / "scenarios" / "envelope.toml"
 BASES = ("paper", "extended", "learned")

@@ -32,6 +32,7 @@ from numba import njit
 from ..bases import IN_U, IN_V_I_B, BasisSpec, describe_basis, input_rows
 from ..config import setting
 from ..control import adaptation as ad
+from ..control import filters
 from ..control.step import default_theta_bounds
 from ..models import THROTTLE_FULL_PCT
 from ..vehicle import PARAMETER_NAMES, Vehicle
@@ -171,9 +172,9 @@ def replay_kernel(regressor, block, x_in, u_x, u_z, f_meas, use, dt, at, x, prio
             continue
         if filt_init:
             for k in range(3 * n):
-                x[wf + k] = ad.lowpass(x[wf + k], Phi[k], c_f)
+                x[wf + k] = filters.lowpass(x[wf + k], Phi[k], c_f)
             for r in range(3):
-                x[am + r] = ad.lowpass(x[am + r], f_meas[t, r], c_f)
+                x[am + r] = filters.lowpass(x[am + r], f_meas[t, r], c_f)
         else:
             for k in range(3 * n):
                 x[wf + k] = Phi[k]
@@ -275,7 +276,8 @@ def run_replay(log: FlightLog, vehicle: Vehicle, settings: ReplaySettings = Repl
                       omega_B=np.full((n, 3), np.nan), v_W=log.v_W_mps)
     replay_kernel(spec.regressor, np.array(spec.block), x_in, u_x, u_z,
                   np.ascontiguousarray(log.f_meas_B_mps2), use.astype(np.uint8), dt, at, np.zeros(size), prior,
-                  ad.lowpass_gain(settings.lowpass_cutoff_hz, dt), a, b, settings.sigma, settings.information_trace_max,
+                  filters.lowpass_gain(settings.lowpass_cutoff_hz, dt), a, b, settings.sigma,
+                  settings.information_trace_max,
                   lag_x, lag_z, int(np.ceil(settings.holdoff_s * log.rate_hz - 1e-9)),
                   ad.ADAPT_COMPOSITE if settings.adapt else ad.ADAPT_NONE,
                   out["theta"], out["p"], out["e"], out["e0"], out["am"], out["fp"], out["fp0"], adapting)

@@ -17,6 +17,7 @@ import numpy as np
 from numba import njit
 
 from .. import layout
+from ..components import component_tables
 from ..config import ConfigError, Validated, build, setting
 from ..parts import T_D0, T_D1, T_P0, T_P1, T_S0, T_S1, Assembly, draw
 from .airflow_probe import ProbeConfig
@@ -102,29 +103,15 @@ class SensorsConfig(Validated):
     @classmethod
     def component_tables(cls, data: Mapping[str, Any], *, source: str, section: str) -> tuple[dict, dict]:
         """Take the tables of channels registered from outside (``[sensors.<id>]``) out of ``data`` and
-        build them (:func:`vtoladapt.config.build`'s hook)."""
-        own = {f.name for f in dataclasses.fields(cls)}
-        if "parts" in data:
-            raise ConfigError(f"{source}: [{section}] parts: not a key; a registered channel's settings go in its "
-                              f"own table, [{section}.<id>]")
-        rest, parts = {}, []
-        for key, value in data.items():
-            if key in own or not isinstance(key, str) or key not in SENSOR_CHANNELS:
-                rest[key] = value
-                continue
-            settings_cls = SENSOR_CHANNELS.module(key).Settings
-            parts.append((key, build(settings_cls, value, source=source, section=f"{section}.{key}")))
+        build them (:func:`vtoladapt.config.build`'s hook; :func:`vtoladapt.components.component_tables`)."""
         listed = data.get("channels", BUILTIN_SENSOR_CHANNELS)
-        given = {p[0] for p in parts}
-        for key in listed if isinstance(listed, (list, tuple)) else ():
-            # a listed channel of the user's without a table of its own runs with its defaults
-            if isinstance(key, str) and key not in BUILTIN_SENSOR_CHANNELS and key in SENSOR_CHANNELS \
-                    and key not in given:
-                settings_cls = SENSOR_CHANNELS.module(key).Settings
-                parts.append((key, build(settings_cls, {}, source=source, section=f"{section}.{key}")))
-        order = list(SENSOR_CHANNELS)
-        parts.sort(key=lambda p: order.index(p[0]))
-        return rest, {"parts": tuple(parts)}
+        rest, parts = component_tables(
+            data, SENSOR_CHANNELS, lambda key: SENSOR_CHANNELS.module(key).Settings,
+            own={f.name for f in dataclasses.fields(cls)}, source=source, section=section, refused="parts",
+            refusal=lambda _: (f"{source}: [{section}] parts: not a key; a registered channel's settings go in its "
+                               f"own table, [{section}.<id>]"),
+            listed=[k for k in listed if k not in BUILTIN_SENSOR_CHANNELS] if isinstance(listed, (list, tuple)) else ())
+        return rest, {"parts": parts}
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], *, source: str = "<config>",

@@ -209,7 +209,7 @@ def controller_prior(scenario: Scenario, vehicle: Vehicle):
     Without a posterior it is the basis's prior for the vehicle (the paper's: Table I, Table III).
     With one, the vehicle's force model becomes the posterior's (its k1, k2 too, so the regressor
     and theta_0 agree) and P0 and the theta-hat bounds follow
-    :func:`vtoladapt.fitting.controller_prior`; the posterior must be of the controller's basis. The
+    :func:`vtoladapt.bases.posterior.controller_prior`; the posterior must be of the controller's basis. The
     plant keeps its own truth either way.
     """
     from ..control.step import default_theta_bounds
@@ -221,7 +221,7 @@ def controller_prior(scenario: Scenario, vehicle: Vehicle):
         lower, upper = default_theta_bounds(vehicle, theta0, basis=basis)
         return vehicle, theta0, np.array(basis.P0_diag), lower, upper, \
             f"{basis.source} (published means)"
-    from ..fitting.posterior import apply_posterior
+    from ..bases.posterior import apply_posterior
 
     ctrl_vehicle, (theta0, P0, lower, upper) = apply_posterior(vehicle, path, basis=scenario.controller.basis)
     return ctrl_vehicle, theta0, P0, lower, upper, f"posterior {path}"

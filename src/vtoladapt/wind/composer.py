@@ -16,6 +16,7 @@ from typing import Any, Mapping
 import numpy as np
 from numba import njit
 
+from ..components import component_tables
 from ..config import ConfigError, Validated, build, setting
 from ..layout import W_V_W, WIND_SIZE, BlockLayout, Field
 from ..parts import T_D0, T_D1, T_P0, T_P1, T_S0, T_S1, Assembly, draw
@@ -84,23 +85,15 @@ class WindConfig(Validated):
     @classmethod
     def component_tables(cls, data: Mapping[str, Any], *, source: str, section: str) -> tuple[dict, dict]:
         """Take the tables of parts registered from outside (``[wind.<id>]``) out of ``data`` and build
-        them (:func:`vtoladapt.config.build`'s hook): ``(the rest, {"parts": ((id, settings), ...)})``."""
-        own = {f.name for f in dataclasses.fields(cls)}
-        if "parts" in data:
-            raise ConfigError(f"{source}: [{section}] parts: not a key; a registered wind part's settings go in its "
-                              f"own table, [{section}.<id>]")
-        rest, parts = {}, []
-        for key, value in data.items():
-            if key in own or not isinstance(key, str) or key not in WIND_PARTS or key in BUILTIN_WIND_PARTS:
-                rest[key] = value
-                continue
-            settings_cls = WIND_PARTS.module(key).Settings
-            if settings_cls is None:
-                raise ConfigError(f"{source}: [{section}.{key}]: this wind part takes no table")
-            parts.append((key, build(settings_cls, value, source=source, section=f"{section}.{key}")))
-        order = list(WIND_PARTS)
-        parts.sort(key=lambda p: order.index(p[0]))
-        return rest, {"parts": tuple(parts)}
+        them (:func:`vtoladapt.config.build`'s hook): ``(the rest, {"parts": ((id, settings), ...)})``
+        (:func:`vtoladapt.components.component_tables`; the built-in parts are this table's own keys)."""
+        rest, parts = component_tables(
+            data, WIND_PARTS, lambda key: WIND_PARTS.module(key).Settings,
+            own={f.name for f in dataclasses.fields(cls)}, skip=BUILTIN_WIND_PARTS, no_table="wind part",
+            source=source, section=section, refused="parts",
+            refusal=lambda _: (f"{source}: [{section}] parts: not a key; a registered wind part's settings go in "
+                               f"its own table, [{section}.<id>]"))
+        return rest, {"parts": parts}
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], *, source: str = "<config>",

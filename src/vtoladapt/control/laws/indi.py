@@ -100,7 +100,7 @@ from numba import njit
 
 from ...config import ConfigError, Validated, setting
 from ...layout import BlockLayout, Field
-from .. import adaptation as ad
+from .. import filters
 from ...frames import rows_times
 from ..blocks import D_LAW, P_K_V, P_LAW, S_LAW, T_ACCEL_OK, T_DT, T_E, T_NEW_DT, T_V_R_DOT, T_V_TILDE, law_offsets
 from ..tracking import force_command, limit_norm
@@ -199,7 +199,7 @@ def increment_at(params, state, valid, R, e, p_limit, s_increment, s_weight, s_f
         state[s_weight] = 0.0
         fade = state[s_fade]
         for i in range(3):
-            state[s_increment + i] = ad.flush_tiny(state[s_increment + i] * fade)
+            state[s_increment + i] = filters.flush_tiny(state[s_increment + i] * fade)
     return (state[s_increment], state[s_increment + 1], state[s_increment + 2])
 
 

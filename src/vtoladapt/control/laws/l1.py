@@ -101,7 +101,7 @@ from numba import njit
 from ...config import ConfigError, Validated, setting
 from ...frames import GRAVITY_MPS2
 from ...layout import BlockLayout, Field
-from .. import adaptation as ad
+from .. import filters
 from ...frames import rows_times
 from ..blocks import (
     A_N, A_PHI, A_THETA, D_LAW, FAULT_ADAPTATION, FAULT_VELOCITY, P_ACC_MAX, P_K_V, P_LAW, S_LAW, T_DT, T_FAULTS,
@@ -269,7 +269,7 @@ def l1_estimate(params, state, v_W, f_now, held) -> int:
         # the front end is holding a faulty velocity: freeze the estimate, bleed it, re-seat later
         bleed = state[S_GAINS_L1 + G_BLEED]
         for i in range(3):
-            state[S_SIGMA_HAT + i] = ad.flush_tiny(state[S_SIGMA_HAT + i] * bleed)
+            state[S_SIGMA_HAT + i] = filters.flush_tiny(state[S_SIGMA_HAT + i] * bleed)
         state[S_RUNNING] = 0.0
     else:
         # start-up, or the first fresh sample after a fault: seat the predictor on the measurement
@@ -280,7 +280,7 @@ def l1_estimate(params, state, v_W, f_now, held) -> int:
     for i in range(3):
         state[S_V_HOLD + i] = v_W[i]
         state[S_F_PREV + i] = f_now[i]
-        state[S_SIGMA_LPF + i] = ad.lowpass(state[S_SIGMA_LPF + i], state[S_SIGMA_HAT + i], c_f)
+        state[S_SIGMA_LPF + i] = filters.lowpass(state[S_SIGMA_LPF + i], state[S_SIGMA_HAT + i], c_f)
     s, _ = limit_norm((state[S_SIGMA_LPF], state[S_SIGMA_LPF + 1], state[S_SIGMA_LPF + 2]), params[P_TERM_MAX])
     state[S_SIGMA_LPF], state[S_SIGMA_LPF + 1], state[S_SIGMA_LPF + 2] = s
     ok = True

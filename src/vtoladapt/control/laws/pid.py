@@ -47,7 +47,7 @@ from numba import njit
 from ...config import Validated, setting
 from ...frames import GRAVITY_MPS2
 from ...layout import BlockLayout, Field
-from .. import adaptation as ad
+from .. import filters
 from ..blocks import (D_LAW, P_K_V, P_LAW, S_LAW, S_RES_PREV_W, S_SAT_PREV, S_V_PREV, T_A_D, T_DT, T_NEW_DT,
                       T_V_R_DOT, T_V_TILDE, T_V_W, law_offsets)
 from . import LawContext, finish, law_update, tick3
@@ -130,7 +130,7 @@ def pid_force(params, state, integrate, v_W, v_tilde, ff, dt) -> tuple:
     if state[S_VDOT_INIT] > 0.0:
         c_d = state[S_DERIV_GAIN]
         for i in range(3):
-            state[S_VDOT_F + i] = ad.lowpass(state[S_VDOT_F + i], (v_W[i] - state[S_V_PREV + i]) / dt, c_d)
+            state[S_VDOT_F + i] = filters.lowpass(state[S_VDOT_F + i], (v_W[i] - state[S_V_PREV + i]) / dt, c_d)
     state[S_VDOT_INIT] = 1.0
     saturated = state[S_SAT_PREV] != 0.0 or state[S_SAT_PREV + 1] != 0.0
     v_err = (-v_tilde[0], -v_tilde[1], -v_tilde[2])
@@ -151,7 +151,7 @@ def pid_update(params, state, tick, diag, integrate) -> None:
     """The PID's (``integrate``) or PD's tick: the force command into the tick, the integral's diagnostics."""
     dt = tick[T_DT]
     if tick[T_NEW_DT] > 0.0:
-        state[S_DERIV_GAIN] = ad.lowpass_gain(params[P_DERIV_HZ], dt)
+        state[S_DERIV_GAIN] = filters.lowpass_gain(params[P_DERIV_HZ], dt)
     if params[P_FF_V_R_DOT] != 0.0:
         ff = tick3(tick, T_V_R_DOT)
     else:

@@ -12,13 +12,27 @@ measured attitude, rates and velocity) and the accelerometer, both through the c
 so that the residual is the prediction error the controller's constant-weights best would log. The gap
 between the two ceilings is what sensing costs; the gap between this one and the closed loop is what
 the estimator (adaptation, its lag and its tracking term) costs.
+
+:func:`bases_metrics`: the ``bases`` entry of ``vtoladapt reproduce``'s metrics.json, a live ceiling per
+basis on the comparison experiment's composite log beside the committed envelope comparison per basis
+(``docs/basis_comparison.json``, which :mod:`vtoladapt.learn.evaluate` regenerates: far longer than
+``make reproduce``'s budget); the report's section is :func:`vtoladapt.experiments.report.bases_section`.
+
+The envelope campaign, the reproduction and the learning of a basis all judge a basis this way; it
+lives with the experiments, below the learning (which runs campaigns of them).
 """
 from __future__ import annotations
+
+import json
+from pathlib import Path
 
 import numpy as np
 
 from ..frames import GRAVITY_MPS2
 from ..sim.run_metrics import PRED_ERR_BOUND_G, PRED_ERR_SKIP_S, pred_err_p95_by_airspeed
+
+COMPARISON_FILE = Path(__file__).resolve().parents[3] / "docs" / "basis_comparison.json"
+BASES = ("paper", "extended", "learned")
 
 
 def true_inputs(result, vehicle) -> tuple[np.ndarray, np.ndarray]:
@@ -49,7 +63,7 @@ def measured_ceiling_fit(result, vehicle, spec, cutoff_hz: float = 10.0) -> dict
     """:func:`ceiling_fit` with the controller's inputs and accelerometer, both low-passed at ``cutoff_hz`` as the
     controller filters them (the paper's 10 Hz)."""
     from ..bases import evaluate
-    from .data import flight_from_result
+    from ..bases.log_samples import flight_from_result
 
     flight = flight_from_result(result, vehicle, skip_s=0.0, stride=1)
     if len(flight.f) != len(result.time_s):    # a non-finite sample: the filter would smear it; judge nothing
@@ -65,7 +79,7 @@ def measured_ceiling_fit(result, vehicle, spec, cutoff_hz: float = 10.0) -> dict
 
 def lowpass(a: np.ndarray, c: float) -> np.ndarray:
     """The controller's first-order filter along axis 0, ``y_k = y_k-1 + c (x_k - y_k-1)``, started at the first
-    sample (:func:`vtoladapt.control.adaptation.lowpass`, vectorised)."""
+    sample (:func:`vtoladapt.control.filters.lowpass`, vectorised)."""
     from scipy.signal import lfilter
 
     return lfilter([c], [1.0, c - 1.0], a - a[0], axis=0) + a[0]
@@ -80,3 +94,22 @@ def _judge(Phi: np.ndarray, f: np.ndarray, airspeed: np.ndarray, n: int) -> dict
     bins = pred_err_p95_by_airspeed(e, airspeed)
     ok = all(v < PRED_ERR_BOUND_G for v in bins.values() if v is not None)
     return {"p95_g": bins, "pass": ok, "rms_g": float(np.sqrt(np.mean(e * e)))}
+
+
+def bases_metrics(comparison_dir: Path, scenario) -> dict:
+    """The ``bases`` entry of metrics.json: the ceiling per basis on the comparison's composite log and
+    the committed envelope comparison (if the file is there)."""
+    from ..bases import describe_basis
+    from ..sim.results import SimulationResult
+
+    out: dict = {"ceiling": {}}
+    log = Path(comparison_dir) / "runs" / f"{scenario.name}_composite.parquet"
+    if log.is_file():
+        res = SimulationResult.from_parquet(log)
+        veh = scenario.load_vehicle()
+        for b in BASES:
+            fit = ceiling_fit(res, veh, describe_basis(veh, b))
+            out["ceiling"][b] = fit
+    if COMPARISON_FILE.is_file():
+        out["envelope"] = json.loads(COMPARISON_FILE.read_text())
+    return out
