@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from cli_helpers import one_error_line
 from vtoladapt.cli import main
 from vtoladapt.errors import ExitCode
 from vtoladapt.outputs import MANIFEST_NAME, OutputDir, write_text
@@ -21,14 +22,6 @@ duration_s = 2.0
 """
 
 
-def _err_line(capsys) -> str:
-    err = capsys.readouterr().err
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert "Traceback" not in err, err
-    assert len(lines) == 1, err
-    return lines[0]
-
-
 def _scenario(tmp_path: Path, extra: str = "", text: str = SINGLE, name: str = "s.toml") -> Path:
     path = tmp_path / name
     path.write_text(text + extra)
@@ -37,7 +30,7 @@ def _scenario(tmp_path: Path, extra: str = "", text: str = SINGLE, name: str = "
 
 def _check(argv, capsys, code: ExitCode, *needles: str) -> str:
     rc = main([str(a) for a in argv])
-    line = _err_line(capsys)
+    line = one_error_line(capsys)
     assert rc == code, (rc, line)
     for n in needles:
         assert n in line, (n, line)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from cli_helpers import one_error_line
 from vtoladapt.cli import main
 from vtoladapt.config import ConfigError
 from vtoladapt.errors import ExitCode
@@ -27,14 +28,6 @@ def _my_plane(folder: Path) -> Path:
     path.write_text((VEHICLE_DIR / "caltech_vtol.toml").read_text().replace('name = "caltech_vtol"',
                                                                            'name = "my_plane"'))
     return path
-
-
-def _err_line(capsys) -> str:
-    err = capsys.readouterr().err
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert "Traceback" not in err, err
-    assert len(lines) == 1, err
-    return lines[0]
 
 
 # --- a relative path ---------------------------------------------------------------------------------
@@ -85,7 +78,7 @@ def test_help_shows_no_rest_markup(capsys):
 def test_a_vehicle_file_given_to_run_is_named_as_one(tmp_path, capsys):
     vehicle = _my_plane(tmp_path)
     assert main(["run", str(vehicle), "--out", str(tmp_path / "o")]) == ExitCode.BAD_INPUT
-    line = _err_line(capsys)
+    line = one_error_line(capsys)
     assert f"{vehicle}: this is a vehicle file (it has basis" in line
     assert "`vtoladapt run` (and load_scenario) takes a scenario file" in line and "--vehicle" in line
     assert not (tmp_path / "o").exists()
@@ -94,20 +87,20 @@ def test_a_vehicle_file_given_to_run_is_named_as_one(tmp_path, capsys):
 def test_a_scenario_given_to_vehicle_is_named_as_one(tmp_path, capsys):
     scenario = REPO / "src" / "vtoladapt" / "scenarios" / "gym_hold.toml"
     assert main(["run", "gym_hold", "--vehicle", str(scenario), "--out", str(tmp_path / "o")]) == ExitCode.BAD_INPUT
-    line = _err_line(capsys)
+    line = one_error_line(capsys)
     assert f"{scenario}: this is a scenario file (it has duration_s" in line and "takes a vehicle file" in line
     assert main(["vehicle", "show", str(scenario)]) == ExitCode.BAD_INPUT
-    assert "this is a scenario file" in _err_line(capsys)
+    assert "this is a scenario file" in one_error_line(capsys)
 
 
 def test_a_scenario_given_to_tuned_and_a_misspelt_scenario_stay_what_they_are(tmp_path, capsys):
     scenario = REPO / "src" / "vtoladapt" / "scenarios" / "gym_hold.toml"
     assert main(["run", "gym_hold", "--tuned", str(scenario), "--out", str(tmp_path / "o")]) == ExitCode.BAD_INPUT
-    assert "this is a scenario file" in _err_line(capsys)
+    assert "this is a scenario file" in one_error_line(capsys)
     typo = tmp_path / "typo.toml"
     typo.write_text('name = "t"\nvehicle = "caltech_vtol"\nduration_s = 1.0\nbasis = "paper"\n')
     assert main(["run", str(typo), "--out", str(tmp_path / "o")]) == ExitCode.BAD_INPUT
-    assert "basis = 'paper': unknown key" in _err_line(capsys)  # a scenario with a vehicle's key
+    assert "basis = 'paper': unknown key" in one_error_line(capsys)  # a scenario with a vehicle's key
 
 
 # --- --controller, --vehicle ----------------------------------------------------------------------------
@@ -121,7 +114,7 @@ def test_a_scenario_given_to_tuned_and_a_misspelt_scenario_stay_what_they_are(tm
 ])
 def test_overrides_are_checked_in_one_line(tmp_path, capsys, argv, needle):
     assert main(["run", "gym_hold", "--out", str(tmp_path / "o"), *argv]) == ExitCode.BAD_INPUT
-    assert needle in _err_line(capsys)
+    assert needle in one_error_line(capsys)
     assert not (tmp_path / "o").exists()
 
 
@@ -244,10 +237,10 @@ def test_export_csv_reads_back_exactly_and_never_replaces_a_foreign_file(runs, t
     foreign.write_text("my data\n")
     capsys.readouterr()
     assert main(["export", str(runs["full"]), "--format", "csv", "--out", str(foreign)]) == ExitCode.BAD_INPUT
-    assert "not an output of 'vtoladapt export'" in _err_line(capsys)
+    assert "not an output of 'vtoladapt export'" in one_error_line(capsys)
     assert foreign.read_text() == "my data\n"
     assert main(["export", str(runs["none"]), "--format", "csv", "--out", str(tmp_path / "x.csv")]) == 2
-    assert "no log in this folder" in _err_line(capsys)
+    assert "no log in this folder" in one_error_line(capsys)
 
 
 def test_export_parquet_of_a_folder_is_its_log(runs, tmp_path):
@@ -291,7 +284,7 @@ def test_plugin_errors_are_one_line(tmp_path, capsys, no_example_law):
                          ("no_such_module_37", "no module named 'no_such_module_37'"),
                          (str(tmp_path / "missing.py"), "missing.py: file not found")):
         assert main(["controllers", "--plugin", spec]) == ExitCode.BAD_INPUT
-        assert f"--plugin {spec}" in (line := _err_line(capsys)) and needle in line, line
+        assert f"--plugin {spec}" in (line := one_error_line(capsys)) and needle in line, line
 
 
 def test_entry_point_plugins_are_loaded(monkeypatch, no_example_law):
@@ -360,7 +353,7 @@ def test_wrong_kind_of_file_for_other_commands(tmp_path, capsys, argv, kind):
     names = dict(vehicle=_my_plane(tmp_path), out=tmp_path / "o", tmp=tmp_path,
                  campaign=REPO / "src" / "vtoladapt" / "scenarios" / "envelope.toml")
     assert main([a.format(**names) for a in argv]) == ExitCode.BAD_INPUT
-    assert kind in _err_line(capsys)
+    assert kind in one_error_line(capsys)
     assert not (tmp_path / "o").exists()
 
 
