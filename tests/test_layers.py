@@ -19,7 +19,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("foundation", ("vtoladapt.config", "vtoladapt.layout", "vtoladapt.frames", "vtoladapt.errors",
                     "vtoladapt.outputs", "vtoladapt.components", "vtoladapt.parts", "vtoladapt.progress",
                     "vtoladapt.stats", "vtoladapt._kernel_cache", "vtoladapt._numba_abi", "vtoladapt._version",
-                    "vtoladapt.ceilings", "vtoladapt.folder_lock")),
+                    "vtoladapt.ceilings", "vtoladapt.folder_lock", "vtoladapt.file_kinds", "vtoladapt.plugins")),
     ("models", ("vtoladapt.scaling", "vtoladapt.vehicle", "vtoladapt.vehicles", "vtoladapt.forces", "vtoladapt.bases",
                 "vtoladapt.models", "vtoladapt.probe.tip", "vtoladapt.probe.sensor", "vtoladapt.probe.estimation",
                 "vtoladapt.probe.calibration", "vtoladapt.probe.flow", "vtoladapt.probe.points",
