@@ -49,6 +49,7 @@ NOT_OFFSETS: dict[str, str] = {
     "NORMALS_PER_STEP": "a part's draws per step (the interface of vtoladapt.parts)",
     "UNIFORMS_PER_STEP": "a part's draws per step (the interface of vtoladapt.parts)",
     "PARQUET_FORMAT_VERSION": "the log file format's version",
+    "POSTERIOR_VERSION": "the posterior file format's version (bases/posterior.py, moved from fitting/)",
     "ANALYSIS_COLUMNS_PER_RUN": "memory model: values per tick a run's analysis reads back",
     "ANALYSIS_TRANSIENT_COLUMNS": "memory model: values per tick the analysis creates and drops",
     "STREAM_ROW_GROUP_ROWS": "memory model: rows of a streamed log's row group",

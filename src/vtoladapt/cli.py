@@ -1,4 +1,4 @@
-"""The ``vtoladapt`` command line.
+"""The ``vtoladapt`` command line::
 
     vtoladapt reproduce --out DIR           the paper's experiments, figures and report
     vtoladapt run SCENARIO.toml --out DIR   one scenario (a single run or an experiment); --vehicle,
