@@ -251,14 +251,27 @@ def _run_examples(app) -> None:
 def _drop_stale_api_pages(app, config) -> None:
     """Delete the API pages autosummary wrote for modules that no longer exist (it never does): a
     renamed or removed module would otherwise keep a page outside every table of contents."""
+    import importlib
     import importlib.util
+    import re
+
+    def exists(name: str) -> bool:
+        try:
+            if importlib.util.find_spec(name) is not None:
+                return True
+        except (ImportError, ValueError):
+            pass
+        parent, _, attr = name.rpartition(".")
+        try:
+            return bool(parent) and hasattr(importlib.import_module(parent), attr)
+        except Exception:  # a parent that does not import: the name is gone with it
+            return False
 
     for stub in (DOCS / "reference" / "generated").glob("*.rst"):
-        try:
-            found = importlib.util.find_spec(stub.stem) is not None
-        except (ImportError, ValueError):
-            found = False
-        if not found:
+        # a page whose own module is gone, or a package's page that still lists a submodule or member
+        # since moved (autosummary reads the old listing and warns before it writes the page anew)
+        listed = re.findall(r"^\s+(\w+)\s*$", stub.read_text(), flags=re.M)  # autosummary's entries
+        if not exists(stub.stem) or not all(exists(f"{stub.stem}.{name}") for name in listed):
             stub.unlink()
 
 
