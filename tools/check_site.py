@@ -75,7 +75,7 @@ function check(frame, page) {
     const walker = doc.createTreeWalker(cell, NodeFilter.SHOW_TEXT);
     let node;
     while ((node = walker.nextNode())) {
-      const re = /[^\s\-\u2010-\u2014\/]+/g;
+      const re = /[^\\s\\-\u2010-\u2014\\/]+/g;
       let m;
       while ((m = re.exec(node.data))) {
         if (m[0].length < 2) continue;
